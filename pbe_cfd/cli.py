@@ -1,0 +1,209 @@
+"""The ``pbe-cfd`` command line: run | plan | scenes | compare | couple | case | render | bench.
+
+Exit codes: 0 success, 2 bad input (scene, arguments, files), 1 a run that failed.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+DEFAULT_WELL_MIXED = "seed-wurster"
+DEFAULT_COUPLED = "fluid-bed"
+
+
+class _Progress:
+    """tqdm progress bar on a terminal; silent otherwise."""
+
+    def __init__(self, label):
+        from tqdm import tqdm
+        self.bar = tqdm(total=1000, desc=label, unit="‰", disable=None, file=sys.stderr,
+                        bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining} {postfix}")
+        self.last = 0
+
+    def __call__(self, fraction, text=""):
+        if self.bar.disable:
+            return
+        pos = int(round(1000 * min(max(fraction, 0.0), 1.0)))
+        if pos > self.last:
+            self.bar.update(pos - self.last)
+            self.last = pos
+        if text:
+            self.bar.set_postfix_str(text)
+
+    def close(self):
+        self.bar.close()
+
+
+def _fail(message, code=2):
+    print(f"pbe-cfd: error: {message}", file=sys.stderr)
+    return code
+
+
+def cmd_run(args):
+    from . import output, plotting
+    from .scene import describe, load_scene
+    from .simulate import run_well_mixed
+
+    scene = load_scene(args.scene or DEFAULT_WELL_MIXED)
+    if scene.domain.type != "well-mixed":
+        return _fail(f"{scene.source}: [domain] type is \"openfoam\"; use `pbe-cfd couple`")
+    out = Path(args.out)
+    progress = _Progress(f"{scene.name} ({scene.method.name})")
+    try:
+        result = run_well_mixed(scene, progress=progress)
+    finally:
+        progress.close()
+    for w in result.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    with output.atomic_directory(out) as tmp:
+        output.write_columns_csv(tmp / "moments.csv", result.columns)
+        output.write_json(tmp / "summary.json", {
+            "scene": describe(scene), "method": scene.method.name,
+            "wall_time_s": result.wall_time_s, "stats": result.stats,
+            "warnings": result.warnings})
+        plotting.plot_trajectories(tmp / "moments.png", [(scene.method.name, result.columns)],
+                                   title=f"{scene.name}: {scene.method.name}")
+    print(f"{scene.name}: {scene.method.name} to t = {scene.end_time:g} s in "
+          f"{result.wall_time_s:.2f} s; wrote {out}/moments.csv, summary.json, moments.png")
+    return 0
+
+
+def cmd_plan(args):
+    from .plan import describe_plan
+    from .scene import load_scene
+
+    scene = load_scene(args.scene)
+    print(describe_plan(scene))
+    return 0
+
+
+def cmd_scenes(args):
+    from .scene import bundled_scenes, load_scene
+
+    for name, path in sorted(bundled_scenes().items()):
+        scene = load_scene(path)
+        effects = [t for t in ("aggregation", "binder_injection", "transport")
+                   if getattr(scene, t) is not None]
+        print(f"{name:24s} {scene.domain.type:10s} {scene.method.name:9s} "
+              f"end {scene.end_time:g} s  effects: {', '.join(effects) or 'none'}")
+    return 0
+
+
+def cmd_compare(args):
+    from . import plotting
+    from .output import read_columns_csv
+
+    runs = []
+    for d in args.results:
+        path = Path(d)
+        csv_path = path / "moments.csv" if path.is_dir() else path
+        if not csv_path.exists():
+            return _fail(f"{csv_path}: no such results file (expected a run directory with "
+                         "moments.csv)")
+        label = path.name if path.is_dir() else path.stem
+        runs.append((label, read_columns_csv(csv_path)))
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    plotting.plot_trajectories(out, runs, title=" vs ".join(label for label, _ in runs))
+    print(f"wrote {out}")
+    return 0
+
+
+def cmd_couple(args):
+    from .couple import couple_command
+    return couple_command(args)
+
+
+def cmd_case(args):
+    from .couple import case_command
+    return case_command(args)
+
+
+def cmd_render(args):
+    from .couple import render_command
+    return render_command(args)
+
+
+def cmd_bench(args):
+    from .bench import bench_command
+    return bench_command(args)
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(
+        prog="pbe-cfd",
+        description="Population balance of fluid-bed granulation: moment methods (QMOM, "
+                    "Laguerre ROM), a constant-number Monte Carlo reference, and per-cell "
+                    "coupling to OpenFOAM Euler-Euler fields.")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("run", help="run a well-mixed scene (default: the bundled seed-wurster)")
+    p.add_argument("scene", nargs="?", help="scene TOML file or bundled scene name")
+    p.add_argument("--out", default="out", help="output directory (default: out)")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("plan", help="print what a scene computes, without running it")
+    p.add_argument("scene", help="scene TOML file or bundled scene name")
+    p.set_defaults(func=cmd_plan)
+
+    p = sub.add_parser("scenes", help="list the bundled scenes")
+    p.set_defaults(func=cmd_scenes)
+
+    p = sub.add_parser("compare", help="overlay the moment trajectories of results")
+    p.add_argument("results", nargs="+", help="run directories (or moments.csv files)")
+    p.add_argument("--out", default="compare.png", help="figure path (default: compare.png)")
+    p.set_defaults(func=cmd_compare)
+
+    p = sub.add_parser("couple", help="solve the population balance in every cell of an "
+                                      "OpenFOAM fluid bed (default: bundled fluid-bed scene)")
+    p.add_argument("scene", nargs="?", help="scene TOML file or bundled scene name")
+    p.add_argument("--out", default="out-couple", help="output directory")
+    p.add_argument("--run-case", action="store_true",
+                   help="run the OpenFOAM case first to make a fresh snapshot")
+    p.add_argument("--mesh", default="small", choices=("small", "full"))
+    p.add_argument("--threads", type=int, default=None, help="numba threads (default: all)")
+    p.add_argument("--foam-fields", action="store_true",
+                   help="also write the fields as OpenFOAM volScalarFields into the case")
+    p.set_defaults(func=cmd_couple)
+
+    p = sub.add_parser("case", help="run the bundled OpenFOAM fluid-bed case")
+    p.add_argument("action", choices=("run",))
+    p.add_argument("--mesh", default="small", choices=("small", "full"))
+    p.add_argument("--dir", default="fluid-bed-case", help="where to copy and run the case")
+    p.set_defaults(func=cmd_case)
+
+    p = sub.add_parser("render", help="render PNGs of a coupled run's VTK series")
+    p.add_argument("dir", help="output directory of `pbe-cfd couple`")
+    p.add_argument("--fields", nargs="*", default=None)
+    p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")
+    p.add_argument("study", choices=("accuracy", "throughput", "cnmc", "laguerre", "couple"))
+    p.add_argument("scene", nargs="?", help="scene for the accuracy study")
+    p.add_argument("--out", default="bench-out")
+    p.add_argument("--quick", action="store_true", help="a tiny configuration (plumbing check)")
+    p.set_defaults(func=cmd_bench)
+    return parser
+
+
+def main(argv=None):
+    from .scene import SceneError
+    from .simulate import SimulationError
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except SceneError as exc:
+        return _fail(str(exc), 2)
+    except SimulationError as exc:
+        return _fail(str(exc), 1)
+    except FileNotFoundError as exc:
+        return _fail(str(exc), 2)
+    except KeyboardInterrupt:
+        return _fail("interrupted; no output written", 130)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
