@@ -1,0 +1,41 @@
+"""Shared helpers: scenes built from dicts, so each test states the physics it runs."""
+import copy
+
+import pytest
+
+from pbe_cfd.scene import scene_from_dict
+
+BASE = {
+    "scene": {"name": "test", "end_time": 10.0, "output_interval": 1.0},
+    "domain": {"type": "well-mixed"},
+    "material": {"density": 1000.0, "binder_density": 1000.0},
+    "initial": {"distribution": "monodisperse", "number_density": 1.0e10,
+                "mean_mass": 1.0e-9},
+    "method": {"name": "qmom", "nodes": 3},
+}
+
+AVICEL = {
+    "density": 1021.0, "binder_density": 1000.0, "binder_viscosity": 0.762,
+    "accessible_binder_slope": 35.1, "accessible_binder_centre": 0.129,
+    "binder_layer_slope": 25.9, "binder_layer_centre": 0.327,
+    "asperity": 6.3e-6, "gyration_radius": 60e-6,
+    "porosity": 0.4, "saturation_max": 1.0,
+}
+
+
+def make_scene(**tables):
+    """A scene from BASE with tables replaced or extended (key=None removes a table)."""
+    data = copy.deepcopy(BASE)
+    for name, value in tables.items():
+        if value is None:
+            data.pop(name, None)
+        elif name in data and isinstance(value, dict) and not value.get("_replace"):
+            data[name] = {**data[name], **value}
+        else:
+            data[name] = {k: v for k, v in value.items() if k != "_replace"}
+    return scene_from_dict(data, "test-scene.toml")
+
+
+@pytest.fixture
+def scene_factory():
+    return make_scene
