@@ -305,7 +305,7 @@ def scene_from_dict(data: dict, path="<scene>") -> Scene:
     injection = (_injection(path, data["binder_injection"], domain)
                  if "binder_injection" in data else None)
     material = _material(path, data["material"], aggregation, injection)
-    initial = _initial(path, data["initial"], material)
+    initial = _initial(path, data["initial"], material, domain)
     method = _method(path, data["method"])
     transport = None
     if "transport" in data:
@@ -427,10 +427,17 @@ def _material(path, data, aggregation, injection):
     return Material(**values)
 
 
-def _initial(path, data, material):
+def _initial(path, data, material, domain):
     t = _Table(path, "initial", data)
     dist = t.choice("distribution", ("monodisperse", "exponential"))
-    n0 = t.number("number_density", non_negative=True, unit="1/m3")
+    if domain.type == "openfoam":
+        if t.has("number_density"):
+            raise SceneError(path, "initial.number_density",
+                             "not used in an openfoam domain: granules fill each cell's solids "
+                             "fraction, n = alpha rho_s / p0; remove the key")
+        n0 = 0.0
+    else:
+        n0 = t.number("number_density", non_negative=True, unit="1/m3")
     has_mass = t.has("mean_mass")
     has_d = t.has("diameter")
     if has_mass == has_d:
@@ -492,7 +499,8 @@ def _cross_checks(path, scene: Scene):
         raise SceneError(path, "domain.collision_velocity",
                          "the physical efficiency needs collision_velocity (m/s) or "
                          "granular_temperature (m2/s2)")
-    if scene.initial.number_density == 0.0 and scene.binder_injection is None:
+    if (scene.domain.type == "well-mixed" and scene.initial.number_density == 0.0
+            and scene.binder_injection is None):
         raise SceneError(path, "initial.number_density",
                          "expected a positive number density (or a binder injection)")
     if scene.binder_injection is not None and scene.binder_injection.zone is not None:
