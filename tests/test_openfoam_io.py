@@ -41,6 +41,7 @@ def test_snapshot_fields(snap):
     cells, _ = snap
     assert 800 <= cells.n_cells <= 1000
     assert cells.averaged
+    assert cells.time == pytest.approx(1.5)
     assert np.all(np.isfinite(cells.alpha)) and np.all(np.isfinite(cells.theta))
     assert np.all(cells.alpha >= 0) and np.all(cells.alpha < ALPHA_MAX)
     assert cells.alpha.max() > 0.4            # a dense bed is there

@@ -783,7 +783,6 @@ def write_snapshot(case_dir: str | os.PathLike, time: str | float,
             "cell_centre": [cells.cell_centre],
             "cellID": [np.arange(cells.n_cells, dtype=np.int32)],
         },
-        field_data={"time_s": np.array([cells.time])},
     )
     path.parent.mkdir(parents=True, exist_ok=True)
     meshio.write(path, mesh, file_format="vtu", compression="zlib")
@@ -854,6 +853,8 @@ def load_snapshot(path: str | os.PathLike | None = None,
         with np.load(fpath) as z:
             source.update(json.loads(str(z["source"])))
             source["file"] = str(path)
+            if not math.isfinite(t):  # meshio's vtu writer drops field data
+                t = float(z["time_s"])
             if with_flux:
                 flux = FaceFlux(
                     owner=z["owner"].astype(np.int64), neighbour=z["neighbour"].astype(np.int64),

@@ -93,8 +93,7 @@ class VtkSeries:
         offsets = np.cumsum([0] + [len(c) for _, c in self.cells])
         cell_data = {k: [v[offsets[i]:offsets[i + 1]] for i in range(len(self.cells))]
                      for k, v in data.items()}
-        mesh = meshio.Mesh(self.points, self.cells, cell_data=cell_data,
-                           field_data={"TimeValue": np.array([time_s])})
+        mesh = meshio.Mesh(self.points, self.cells, cell_data=cell_data)
         fname = f"{self.name}_{len(self.entries):05d}.vtu"
         path = self.out_dir / fname
         tmp = path.with_name(path.name + ".tmp")
