@@ -363,17 +363,34 @@ def test_realizable(cache):
     m = 3
     params, config = setup(m, separate=True)
     aux = L.build_aux(params, config, m, weights=W3, support=COARSE, cache_dir=cache)
+    aux1 = L.build_aux(params, config, m, weights=W3, support=COARSE, cache_dir=cache,
+                       check_level=1)
+    assert aux[LT.AUX_CHECK_LEVEL] == 0 and aux1[LT.AUX_CHECK_LEVEL] == 1
     p0 = 1021 * math.pi / 6 * 100.4e-6 ** 3
     delta = L.initial_state(lambda i, j: 3.3e10 * p0 ** i * 0.0 ** j, params, config,
                             n_droplets=0.045 * 3.3e10)
-    assert L.laguerre_realizable(delta, aux, params, config)
     ok = L.initial_state(product_gamma_moments(2e10, 3.0, 2e-9, 0.7, 0.3e-9), params, config)
-    assert L.laguerre_realizable(ok, aux, params, config)
-    for idx, val in ((0, -1.0), (2 * m, ok[m] ** 2 / ok[0] * 0.99), (1, ok[m] * 1.01),
-                     (4, np.nan), (m * m, -1.0)):
+    for a in (aux, aux1):
+        assert L.laguerre_realizable(delta, a, params, config)
+        assert L.laguerre_realizable(ok, a, params, config)
+    assert L.strictly_realizable(delta, config) and L.strictly_realizable(ok, config)
+    # level 0 and up: signs, finiteness, M01 <= M10
+    for idx, val in ((0, -1.0), (1, ok[m] * 1.01), (4, np.nan), (2 * m, -1e-3),
+                     (m * m, -1.0)):
         bad = ok.copy()
         bad[idx] = val
         assert not L.laguerre_realizable(bad, aux, params, config), idx
+    # level 1: Cauchy-Schwarz and b <= p on second moments
+    for idx, val in ((2 * m, ok[m] ** 2 / ok[0] * 0.99), (2, ok[m + 1] * 1.01)):
+        bad = ok.copy()
+        bad[idx] = val
+        assert L.laguerre_realizable(bad, aux, params, config), idx
+        assert not L.laguerre_realizable(bad, aux1, params, config), idx
+    # level 2: higher mixed moments
+    bad = ok.copy()
+    bad[2 * m + 1] = -1e-3 * abs(ok).max()           # M21 < 0
+    assert L.laguerre_realizable(bad, aux1, params, config)
+    assert not L.strictly_realizable(bad, config)
     bad = ok.copy()
     bad[m * m] = -1e-3
     L.laguerre_project(bad, aux, params, config)

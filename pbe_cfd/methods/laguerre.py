@@ -15,9 +15,10 @@ F_cell = g0(alpha) sqrt(Theta) d43^(3/2) for the ktgf kernel (1 otherwise); d43 
 reconstruction: d43 = (6 / (pi rho_s))^(1/3) int p^(4/3) n / int p n, free droplets included
 (they are particles of the cell, as in the cNMC), falling back to the log-convex moment estimate
 M_(4/3) = M_1^(2/3) M_2^(1/3) (or M_1 (M_1/M_0)^(1/3) for m = 2) if the reconstruction gives a
-non-positive value. Q, Cd, Cd0 are tabulated in ln(u0) (u0 = 4 sqrt(Theta / pi) [m/s], Theta
-= cell[THETA]) when the physical efficiency is on and the tensor was built on a Theta grid
-(linear interpolation in ln u0, clamped at the grid ends); otherwise one slice.
+non-positive value. Q, Cd, Cd0 are tabulated in ln(u0) when the physical efficiency is on and
+the tensor was built on a Theta grid (grid u0 = 4 sqrt(Theta / pi)); at RHS time u0 =
+cell[COLLISION_VELOCITY] [m/s], or 4 sqrt(cell[THETA] / pi) if that is not positive; linear
+interpolation in ln u0, clamped at the grid ends. Otherwise one slice (fixed u0).
 Formulas and the aux layout: ``laguerre_tensor``.
 """
 import math
@@ -29,14 +30,14 @@ from scipy.special import gammaincc
 from ..physics import parameters as P
 from ..physics.kernels import radial_distribution
 from . import laguerre_tensor as LT
-from .laguerre_tensor import (AUX_B_MAX, AUX_CONSISTENT, AUX_DROPLET_MASS, AUX_N_B, AUX_N_P,
+from .laguerre_tensor import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_CONSISTENT, AUX_DROPLET_MASS, AUX_N_B, AUX_N_P,
                               AUX_NMOM, AUX_NPAIR, AUX_NSLICE, AUX_OFF_CD, AUX_OFF_CD0,
                               AUX_OFF_F43, AUX_OFF_LOGU, AUX_OFF_Q, AUX_ORDER, AUX_P_MAX,
                               AUX_SEPARATE, build_aux, log_theta_grid, theta_to_u0)
 
 __all__ = ["laguerre_rhs", "laguerre_realizable", "laguerre_project", "build_aux",
            "moments_from_state", "escaped_mass_share", "reconstruct", "reconstructed_moment",
-           "initial_state", "state_size", "log_theta_grid", "theta_to_u0"]
+           "initial_state", "state_size", "strictly_realizable", "log_theta_grid", "theta_to_u0"]
 
 KTGF = 4   # kernel code of ktgf in physics.kernels.KERNELS
 
@@ -53,10 +54,13 @@ def _slice_position(cell, aux):
     ns = int(aux[AUX_NSLICE])
     if ns <= 1:
         return 0, 0.0
-    theta = cell[P.THETA]
-    if not (theta > 0.0):
-        return 0, 0.0
-    lu = math.log(4.0 * math.sqrt(theta / math.pi))
+    u0 = cell[P.COLLISION_VELOCITY]
+    if not (u0 > 0.0):
+        theta = cell[P.THETA]
+        if not (theta > 0.0):
+            return 0, 0.0
+        u0 = 4.0 * math.sqrt(theta / math.pi)
+    lu = math.log(u0)
     o = int(aux[AUX_OFF_LOGU])
     if lu <= aux[o]:
         return 0, 0.0
@@ -173,18 +177,9 @@ def laguerre_rhs(state, out, cell, aux, params, config):
 
 
 @nb.njit(cache=True)
-def laguerre_realizable(state, aux, params, config):
-    """True if the scaled state is an admissible moment set for the ROM.
-
-    Checks: every entry finite; every M_ij >= -tol (moments of a non-negative density on
-    p, b >= 0), M00 >= 0; b <= p: M_(i,j+1) <= M_(i+1,j) (so M01 <= M10) wherever both are
-    carried; Cauchy-Schwarz M_(e+f)^2 <= M_(2e) M_(2f) for all carried e, f, e + f (e.g.
-    M10^2 <= M00 M20, M11^2 <= M20 M02, M11^2 <= M00 M22); free droplets n_d >= -tol.
-    tol = 1e-12 max|state| (round-off of exact zeros, e.g. M0j of a dry population).
-    The reconstruction itself may be negative somewhere: not checked.
-    """
+def _moment_checks(state, config, level):
+    """Admissibility of a scaled moment set at a check level (see laguerre_realizable)."""
     m = config[P.ORDER]
-    K = m * m
     n = config[P.N_STATE]
     big = 0.0
     for i in range(n):
@@ -194,16 +189,29 @@ def laguerre_realizable(state, aux, params, config):
         if abs(v) > big:
             big = abs(v)
     tol = 1e-12 * big
+    rel = 1e-10
     if state[0] < 0.0:
         return False
-    for a in range(n):
-        if state[a] < -tol:
+    for k in range(m * m, n):                   # free droplets
+        if state[k] < -tol:
             return False
-    rel = 1e-10
+    top = 2 * (m - 1) if level >= 2 else 2      # highest total order i + j checked
+    for i in range(m):
+        for j in range(m):
+            if i + j <= top and state[i * m + j] < -tol:
+                return False
+    if m > 1 and state[1] > state[m] * (1.0 + rel) + tol:     # M01 <= M10
+        return False
+    if level < 1:
+        return True
+    # b <= p: M_(i,j+1) <= M_(i+1,j)
     for i in range(m - 1):
         for j in range(m - 1):
+            if i + j + 1 > top:
+                continue
             if state[i * m + j + 1] > state[(i + 1) * m + j] * (1.0 + rel) + tol:
                 return False
+    # Cauchy-Schwarz M_(e+f)^2 <= M_(2e) M_(2f)
     h = (m - 1) // 2
     for e1 in range(h + 1):
         for e2 in range(h + 1):
@@ -215,12 +223,38 @@ def laguerre_realizable(state, aux, params, config):
                     s2 = e2 + f2
                     if s1 >= m or s2 >= m:
                         continue
+                    if max(2 * (e1 + e2), 2 * (f1 + f2)) > top:
+                        continue
                     mid = state[s1 * m + s2]
-                    lhs = mid * mid
-                    rhs = state[2 * e1 * m + 2 * e2] * state[2 * f1 * m + 2 * f2]
-                    if lhs > rhs * (1.0 + rel) + tol * tol:
+                    if mid * mid > (state[2 * e1 * m + 2 * e2] * state[2 * f1 * m + 2 * f2]
+                                    * (1.0 + rel) + tol * tol):
                         return False
     return True
+
+
+@nb.njit(cache=True)
+def laguerre_realizable(state, aux, params, config):
+    """True if the scaled state is admissible for the ROM (used to accept RK stages).
+
+    Level aux[AUX_CHECK_LEVEL] (build_aux(check_level=...)), tol = 1e-12 max|state|,
+    relative slack 1e-10 (an exact monodisperse start with equalities passes):
+    0 (default): every entry finite; M00 >= 0; M10, M01, M11, M20, M02 >= -tol (the moments
+      of total order <= 2); M01 <= M10 (b <= p); free droplets n_d >= -tol.
+    1: also M02 <= M11 <= M20 and Cauchy-Schwarz M10^2 <= M00 M20, M01^2 <= M00 M02,
+      M11^2 <= M20 M02.
+    2: all of these for every carried order (M_(i,j+1) <= M_(i+1,j), M_(e+f)^2 <= M_2e M_2f,
+      every M_ij >= -tol).
+    The reconstruction is a signed expansion and is not checked. Why level 0 is the default:
+    from the seed scenario's dry delta start (on the Cauchy-Schwarz boundary, variance 0) the
+    m = 4 consistent ROM's vector field points outward (its p-variance shrinks at t = 0), so
+    level 1 stalls the integrator at t ~ 3e-7 s; M21, M22 go transiently negative for m = 3.
+    """
+    return _moment_checks(state, config, int(aux[AUX_CHECK_LEVEL]))
+
+
+def strictly_realizable(state, config, level=2):
+    """True if the moment conditions of ``level`` (default: all orders) hold."""
+    return bool(_moment_checks(np.asarray(state, float), np.asarray(config, np.int64), level))
 
 
 @nb.njit(cache=True)

@@ -89,6 +89,7 @@ AUX_SEPARATE = 19        # 1 if droplet capture matrices were built
 AUX_COND_G = 20          # condition number of the equilibrated G, 1 for the plain variant
 AUX_U0_FIXED = 21        # u0 [m/s] of a single slice (0 if none was needed or a grid is used)
 AUX_OFF_SUPPORT = 22     # offset of the mass-on-support functionals (2 * K): int_S u phi~_k
+AUX_CHECK_LEVEL = 23     # realizability check level of laguerre_realizable (0, 1, 2)
 AUX_HEADER = 32
 AUX_LAYOUT_VERSION = 1.0
 
@@ -294,7 +295,8 @@ BUILD_LOG = []   # (cache key, seconds, nodes, slices) of tensors built in this 
 
 
 def build_aux(params, config, order, weights=None, support=None, consistent=True,
-              theta_grid=None, cache_dir=None, collision_velocity=None, use_cache=True):
+              theta_grid=None, cache_dir=None, collision_velocity=None, use_cache=True,
+              check_level=0):
     """Build (or load from the disk cache) the flat float64 ``aux`` array of the Laguerre ROM.
 
     params, config: the arrays of ``physics.parameters`` (SI). order: m (2, 3 or 4).
@@ -307,7 +309,8 @@ def build_aux(params, config, order, weights=None, support=None, consistent=True
     is on). The kernel rate k0, N_ref and the ktgf factor g0 sqrt(Theta) d43^(3/2) are applied
     at RHS time, so they do not enter the tensor or the cache key. Cached as .npy under
     cache_dir (default ``default_cache_dir()``) keyed by a hash of everything else that
-    determines the tensor, including the physics source code.
+    determines the tensor, including the physics source code. check_level (0, 1, 2): which
+    moment conditions laguerre_realizable enforces (stored in aux, not part of the key).
     """
     weights = dict(TABLE_III["weights"], **(weights or {}))
     support = dict(TABLE_III["support"], **(support or {}))
@@ -341,12 +344,14 @@ def build_aux(params, config, order, weights=None, support=None, consistent=True
         try:
             aux = np.load(path)
             if aux.dtype == np.float64 and aux[AUX_VERSION] == AUX_LAYOUT_VERSION:
+                aux[AUX_CHECK_LEVEL] = check_level
                 return aux
         except (OSError, ValueError):
             pass
     t0 = time.perf_counter()
     aux = _build(params, config, m, c, d, lam, gam, p_max, b_max, n_p, n_b, consistent,
                  u0_grid, p_ref)
+    aux[AUX_CHECK_LEVEL] = check_level
     BUILD_LOG.append((key, time.perf_counter() - t0, int(aux[AUX_N_NODES]),
                       int(aux[AUX_NSLICE])))
     if use_cache:
@@ -463,3 +468,70 @@ def unpack_basis(aux):
     o += K * K
     r = aux[o:o + K]
     return dict(c=c, d=d, lam=lam, gam=gam, Cp=Cp, Cb=Cb, Ginv=Ginv, r=r, m=m)
+
+
+# ---- scene-level helpers (called by simulate.py) ---------------------------------------------
+ESCAPE_WARN_SHARE = 1e-3     # warn when more than 0.1 % of the granule mass is beyond the support
+
+
+def scene_weights_support(scene):
+    """(weights, support) dicts of build_aux from the scene's [method] table (SI)."""
+    m = scene.method
+    weights = dict(c=m.weight_mean_mass, d=m.weight_mean_binder, lam=m.weight_shape_mass,
+                   gam=m.weight_shape_binder)
+    support = dict(p_max=m.support_mass, b_max=m.support_binder, n_p=m.grid_mass,
+                   n_b=m.grid_binder)
+    return weights, support
+
+
+def aux_for_scene(scene, arrays, theta_grid=None, cache_dir=None):
+    """aux of the Laguerre ROM for a scene and its packed arrays (``model.pack``).
+
+    The collision velocity is fixed (one tensor slice) when the scene's domain gives
+    ``collision_velocity`` or when no theta_grid [m2/s2] is passed (well-mixed: the cell's u0);
+    otherwise the tensor is tabulated on theta_grid (u0 = 4 sqrt(Theta / pi)).
+    """
+    from .. import model
+    weights, support = scene_weights_support(scene)
+    u0 = getattr(scene.domain, "collision_velocity", None)
+    if u0 is not None:
+        theta_grid = None
+    elif theta_grid is None:
+        u0 = float(model.well_mixed_cell(scene)[0, P.COLLISION_VELOCITY])
+    if not (u0 is None or u0 > 0):
+        u0 = None
+    return build_aux(arrays.params, arrays.config, scene.method.order, weights=weights,
+                     support=support, consistent=scene.method.consistent,
+                     theta_grid=theta_grid, cache_dir=cache_dir, collision_velocity=u0)
+
+
+def population_for_output(state, aux, arrays):
+    """The reconstruction on the quadrature nodes as weighted particles (w [1/m3], p [kg],
+    b [kg]) of one cell's granules. Weights are signed (the expansion may dip below zero); for
+    the consistent variant sum w p^i b^j returns every carried M_ij exactly."""
+    B = unpack_basis(aux)
+    K = B["m"] ** 2
+    u, v, W = quadrature(B["c"], B["d"], B["lam"], B["gam"], aux[AUX_P_MAX], aux[AUX_B_MAX],
+                         int(aux[AUX_N_P]), int(aux[AUX_N_B]))
+    phi = basis_values(u, v, B["Cp"], B["Cb"], B["lam"], B["gam"])
+    coef = B["Ginv"] @ (np.asarray(state[:K], float) * B["r"])
+    w = (phi @ coef) * W * arrays.number_scale
+    return w, u * B["c"], v * B["d"]
+
+
+def escaped_share_report(states, aux, arrays):
+    """(largest escaped granule-mass share over the rows [-], warning text or "").
+
+    states: scaled states, one row per output time (or cell)."""
+    from .laguerre import escaped_mass_share
+    states = np.atleast_2d(states)
+    shares = np.array([escaped_mass_share(s, aux, arrays.params, arrays.config)
+                       for s in states])
+    k = int(np.argmax(shares)) if shares.size else 0
+    share = float(shares[k]) if shares.size else 0.0
+    text = ""
+    if share > ESCAPE_WARN_SHARE:
+        text = (f"Laguerre ROM: {share:.2%} of the granule mass lies beyond the integration "
+                f"support (p_max = {aux[AUX_P_MAX]:.3g} kg, b_max = {aux[AUX_B_MAX]:.3g} kg) "
+                f"at output row {k}; the tensor does not see it -- widen the support")
+    return share, text
