@@ -119,7 +119,8 @@ LINEAR_FIELDS = frozenset({"alpha", "alpha.particles", "alpha.particlesMean",
 
 def _colour_limits(values: list[np.ndarray], field: str = "") -> tuple[float, float, bool]:
     """(lo, hi, log) over all arrays: log when the positive values span > 2 decades
-    (never for the fractions in LINEAR_FIELDS, which start at 0)."""
+    (never for the fractions in LINEAR_FIELDS, which start at 0; sizes ``*_m`` range over
+    their positive values, zeros being empty cells)."""
     v = np.concatenate([np.ravel(a) for a in values])
     v = v[np.isfinite(v)]
     if v.size == 0:
@@ -129,6 +130,14 @@ def _colour_limits(values: list[np.ndarray], field: str = "") -> tuple[float, fl
     lo = float(v.min())
     if field in LINEAR_FIELDS:
         lo = min(lo, 0.0)
+    elif field.endswith("_m") and lo >= 0 and pos.size:
+        # sizes: a zero marks an empty cell (drawn grey), not a size
+        lo = float(pos.min())
+        if hi / lo > 100.0:
+            return max(lo, hi * 1e-6), hi, True
+        if hi == lo:
+            hi = lo * (1 + 1e-6)
+        return lo, hi, False
     elif lo >= 0 and pos.size and hi > 0:
         plo = float(pos.min())
         if hi / plo > 100.0:
@@ -261,9 +270,10 @@ def _read_csv(csv_path: Path) -> tuple[list[str], np.ndarray]:
 def plot_bed_moments(csv_path: str | os.PathLike, png_path: str | os.PathLike) -> Path:
     """Plot ``bed_moments.csv`` (time_s, then M.. and derived columns) to a PNG.
 
-    Left: each moment M_ij relative to its first non-zero value (log axis when it spans
-    decades). Right: the derived columns present (d32_m, d43_m in um; binder_fraction;
-    droplet_number_density relative to its first value). Time axis in s.
+    Panel 1: each moment M_ij relative to its initial value (or to its final value when it
+    starts at zero, e.g. binder moments), log axis when they span decades. Panel 2: the
+    diameters (``*_m`` columns) in um. Panel 3: binder_fraction [-] and any other column
+    relative to its first non-zero value. Time axis in s.
     """
     import matplotlib
 
@@ -274,59 +284,71 @@ def plot_bed_moments(csv_path: str | os.PathLike, png_path: str | os.PathLike) -
     header, data = _read_csv(csv_path)
     t = data[:, 0]
     mcols = [i for i, h in enumerate(header) if re.fullmatch(r"M\d\d", h)]
-    other = [i for i, h in enumerate(header) if i > 0 and i not in mcols]
-    fig, axes = plt.subplots(1, 2 if other else 1, figsize=(11 if other else 6, 4.2),
-                             squeeze=False)
-    ax = axes[0, 0]
-    span = []
-    for i in mcols:
-        y = data[:, i]
-        nz = np.flatnonzero(y != 0)
-        if nz.size == 0:
-            ax.plot(t, y, label=f"{header[i]} (all zero)")
-            continue
-        rel = y / y[nz[0]]
-        span.append(rel)
-        ax.plot(t, rel, label=f"{header[i]} / {y[nz[0]]:.3g}")
-    if span:
-        s = np.concatenate(span)
-        s = s[np.isfinite(s) & (s > 0)]
-        if s.size and s.max() / s.min() > 100:
-            ax.set_yscale("log")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("bed moment / initial value [-]")
-    ax.set_title("bed-integrated moments")
-    ax.grid(True, alpha=0.3)
+    sizes = [i for i, h in enumerate(header) if i > 0 and h.endswith("_m")]
+    rest = [i for i, h in enumerate(header) if i > 0 and i not in mcols and i not in sizes]
+    panels = [p for p in (mcols, sizes, rest) if p]
+    if not panels:
+        raise ValueError(f"{csv_path}: no columns to plot besides time_s")
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 4.2), squeeze=False)
+    axes = list(axes[0])
+    ax_i = 0
     if mcols:
-        ax.legend(fontsize=8)
-    if other:
-        ax2 = axes[0, 1]
-        twin = None
-        for i in other:
-            h = header[i]
+        ax = axes[ax_i]
+        ax_i += 1
+        span = []
+        for i in mcols:
             y = data[:, i]
-            if h.endswith("_m"):
-                ax2.plot(t, y * 1e6, label=f"{h[:-2]} [um]")
+            if y[0] != 0:
+                ref, how = y[0], "initial"
+            elif y[-1] != 0:
+                ref, how = y[-1], "final"
             else:
-                twin = twin or ax2.twinx()
-                if h == "binder_fraction":
-                    twin.plot(t, y, "k--", label=f"{h} [-]")
-                else:
-                    nz = np.flatnonzero(y != 0)
-                    ref = y[nz[0]] if nz.size else 1.0
-                    twin.plot(t, y / ref, ":", label=f"{h} / {ref:.3g}")
-        ax2.set_xlabel("time [s]")
-        ax2.set_ylabel("diameter [um]")
-        ax2.set_title("mean sizes and binder")
-        ax2.grid(True, alpha=0.3)
-        lines, labels = ax2.get_legend_handles_labels()
+                ax.plot(t, y, label=f"{header[i]} (all zero)")
+                continue
+            rel = y / ref
+            span.append(rel)
+            ax.plot(t, rel, label=f"{header[i]} / {how} {ref:.3g}")
+        if span:
+            s = np.concatenate(span)
+            s = s[np.isfinite(s) & (s > 0)]
+            if s.size and s.max() / s.min() > 100:
+                ax.set_yscale("log", nonpositive="mask")
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("bed moment, relative [-]")
+        ax.set_title("bed-integrated moments")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    if sizes:
+        ax = axes[ax_i]
+        ax_i += 1
+        for i in sizes:
+            ax.plot(t, data[:, i] * 1e6, label=header[i][:-2])
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("diameter [um]")
+        ax.set_title("mean diameters")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    if rest:
+        ax = axes[ax_i]
+        twin = None
+        lines = []
+        for i in rest:
+            h, y = header[i], data[:, i]
+            if h == "binder_fraction":
+                lines += ax.plot(t, y, "k-", label="binder fraction [-]")
+            else:
+                twin = twin or ax.twinx()
+                nz = np.flatnonzero(y != 0)
+                ref = y[nz[0]] if nz.size else 1.0
+                lines += twin.plot(t, y / ref, ":", label=f"{h} / {ref:.3g}")
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("binder fraction [-]")
         if twin is not None:
-            twin.set_ylabel("binder fraction [-] / relative number")
-            l2, lb2 = twin.get_legend_handles_labels()
-            lines, labels = lines + l2, labels + lb2
-        if lines:
-            ax2.legend(lines, labels, fontsize=8, loc="best")
-    fig.suptitle(csv_path.name, fontsize=9)
+            twin.set_ylabel("relative to first non-zero value [-]")
+        ax.set_title("binder and droplets")
+        ax.grid(True, alpha=0.3)
+        ax.legend(lines, [ln.get_label() for ln in lines], fontsize=8, loc="best")
+    fig.suptitle(str(csv_path.name), fontsize=9)
     fig.tight_layout()
     png_path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(png_path, dpi=110)
