@@ -16,6 +16,7 @@ from pbe_cfd.cfd import openfoam as of
 
 BED_WIDTH, BED_HEIGHT, BED_DEPTH = 0.15, 0.6, 0.02  # m
 ALPHA_MAX = 0.62  # packing limit of the case (constant/phaseProperties)
+CASE = Path(__file__).resolve().parents[1] / "openfoam_case"   # the repository's template
 
 needs_openfoam = pytest.mark.skipif(shutil.which("blockMesh") is None,
                                     reason="OpenFOAM (blockMesh) not installed")
@@ -223,13 +224,22 @@ def test_missing_openfoam_is_one_clear_error(tmp_path, monkeypatch):
     with pytest.raises(of.OpenFOAMError, match="'blockMesh' not found.*apt-get install"):
         of.find_openfoam()
     assert not of.have_openfoam()
-    case = of.copy_case(of.default_case_dir(), tmp_path / "case")
+    case = of.copy_case(CASE, tmp_path / "case")
     with pytest.raises(of.OpenFOAMError, match="blockMesh"):
         of.run_case(case)
 
 
+def test_default_case_dir(monkeypatch, tmp_path):
+    assert (of.default_case_dir() / "Allrun").is_file()
+    monkeypatch.setenv("PBE_CFD_CASE", str(CASE))
+    assert of.default_case_dir() == CASE
+    monkeypatch.setenv("PBE_CFD_CASE", str(tmp_path))
+    with pytest.raises(of.OpenFOAMError, match="PBE_CFD_CASE.*no Allrun"):
+        of.default_case_dir()
+
+
 def test_copy_case_copies_template_only(tmp_path):
-    case = of.copy_case(of.default_case_dir(), tmp_path / "case")
+    case = of.copy_case(CASE, tmp_path / "case")
     for p in ("Allrun", "Allclean", "0.orig/alpha.particles", "system/controlDict",
               "system/blockMeshDict.small", "system/blockMeshDict.full",
               "constant/phaseProperties"):
@@ -237,7 +247,7 @@ def test_copy_case_copies_template_only(tmp_path):
     assert not (case / "constant" / "polyMesh").exists()
     assert os.access(case / "Allrun", os.X_OK)
     with pytest.raises(of.OpenFOAMError, match="not empty"):
-        of.copy_case(of.default_case_dir(), case)
+        of.copy_case(CASE, case)
 
 
 # --------------------------------------------------------------------------- real OpenFOAM
@@ -245,7 +255,7 @@ def test_copy_case_copies_template_only(tmp_path):
 @pytest.mark.openfoam
 @needs_openfoam
 def test_failing_tool_names_tool_and_log_tail(tmp_path):
-    case = of.copy_case(of.default_case_dir(), tmp_path / "case")
+    case = of.copy_case(CASE, tmp_path / "case")
     bmd = case / "system" / "blockMeshDict.small"
     bmd.write_text(bmd.read_text().replace("blocks", "blockz"))
     with pytest.raises(of.OpenFOAMError) as err:
@@ -260,7 +270,7 @@ def test_failing_tool_names_tool_and_log_tail(tmp_path):
 def real_case(tmp_path_factory):
     if shutil.which("blockMesh") is None:
         pytest.skip("OpenFOAM (blockMesh) not installed")
-    case = of.copy_case(of.default_case_dir(), tmp_path_factory.mktemp("of") / "case")
+    case = of.copy_case(CASE, tmp_path_factory.mktemp("of") / "case")
     lines = []
     res = of.run_case(case, "small", log=lines.append, end_time=0.3, avg_start=0.1)
     return case, res, lines

@@ -142,15 +142,26 @@ def have_openfoam() -> bool:
 
 
 def default_case_dir() -> Path:
-    """The repository's ``openfoam_case/`` template (source checkouts only)."""
+    """The fluid-bed case template ``openfoam_case/`` of the source repository.
+
+    Looked up in $PBE_CFD_CASE, then above this module (source checkouts, editable installs),
+    then in the current directory and its parents.
+    """
+    env = os.environ.get("PBE_CFD_CASE")
+    if env:
+        if (Path(env) / "Allrun").is_file():
+            return Path(env).resolve()
+        raise OpenFOAMError(f"PBE_CFD_CASE={env} is not a case template (no Allrun)")
     here = Path(__file__).resolve()
-    for parent in here.parents:
+    cwd = Path.cwd().resolve()
+    for parent in [*here.parents, cwd, *cwd.parents]:
         cand = parent / "openfoam_case"
         if (cand / "Allrun").is_file():
             return cand
     raise OpenFOAMError(
-        f"openfoam_case/ not found above {here}; pass the case directory explicitly "
-        "(it ships with the source repository, not with the installed package)")
+        f"openfoam_case/ not found above {here.parent} or {cwd}; it ships with the source "
+        "repository, not the installed package: run from a checkout, set PBE_CFD_CASE, or "
+        "pass the case directory explicitly")
 
 
 def copy_case(src: str | os.PathLike, dest: str | os.PathLike) -> Path:
