@@ -1,0 +1,643 @@
+"""Constant-number Monte Carlo (cNMC) reference for the two-component population (p, b).
+
+Smith & Matsoukas (1998), Lin, Lee & Matsoukas (2002), seed 000 section IV. The physics is the
+registry's: ``physics.rates.aggregation_rate`` for granule-granule pairs and
+``physics.rates.droplet_capture_rate`` for droplet-granule pairs (DESIGN section 3). All
+quantities are SI: masses p, b in kg, volumes in m3, times in s, rates in m3/s (pair rates) or
+1/s (event rates of the box), number densities in 1/m3.
+
+Algorithm (one replica, ``run_box``)
+------------------------------------
+N particles (arrays p, b and a droplet flag) sit in a box of volume V [m3]. Pairs are split
+in two classes with their own majorant (upper bound of the pair rate):
+
+* granule-granule pairs, rate_ij = aggregation_rate(i, j) <= B_gg,
+  proposed at the rate  R_gg = Ng (Ng - 1) / (2 V) * B_gg  [1/s];
+* droplet-granule pairs (only if config[SEPARATE_DROPLETS] == 1), rate = droplet_capture_rate
+  <= B_dg, proposed at  R_dg = Ng Nd / V * B_dg  [1/s]; droplet-droplet pairs never aggregate;
+* injection of one binder droplet (p_d = params[DROPLET_MASS], b = p_d, or b = 0 in a
+  univariate scene) at  R_inj = cell[INJECTION] * V  [1/s].
+
+The box's true aggregation rate is (1/(2V)) sum_{i != j} rate_ij; proposing pairs uniformly at
+the majorant rate and accepting a proposal with probability rate_ij / B (thinning) realises
+exactly that rate. Every trial advances time by the mean waiting time dt = 1/R,
+R = R_gg + R_dg + R_inj (as seed 000 eq. 20 does; ``run_box(..., exponential_dt=1)`` draws
+dt ~ Exp(R) instead). An event is chosen with probability proportional to its class rate.
+
+* Accepted aggregation: particle i becomes (p_i + p_j, b_i + b_j) (for a droplet-granule pair i
+  is the granule), slot j is refilled with a copy of a particle k != j chosen uniformly among
+  the other N - 1 slots (a copy of a droplet is a droplet).
+* Injection: a uniformly chosen slot is overwritten by a droplet (its particle is removed).
+* Volume: aggregation conserves mass and injection adds p_d * cell[INJECTION] kg per m3 per s,
+  so the exact mass concentration is C(t) = M10(0) + cell[INJECTION] p_d t. The box volume is
+  V(t) = P_box / C(t), P_box the total mass in the box. After a refill this is the seed's
+  eq. 18, V -> V (P + p_k) / P; for injection it is eq. 19 with the injected mass entering as its
+  expectation instead of in Poisson jumps (the number of droplets put into the box stays
+  random). Hence M10 is exact to round-off with and without injection.
+  M01 is conserved to round-off only where every particle has the same binder fraction (no
+  droplets, uniform initial binder fraction): copying particle k changes the box's binder/mass
+  ratio by (b_k - y_box p_k) / P, which averages to zero over the choice of k but is not zero
+  per event. Otherwise M01 is unbiased with O(1/sqrt(N)) scatter (the ensemble band covers it).
+
+Why the majorants are upper bounds
+----------------------------------
+Every efficiency factor of ``physics.efficiency`` lies in [0, 1] (geometric: 1 - (1-eta)(1-eta')
+with eta in (0, 1); physical: a step or 0.5 (1 - tanh) in [0, 1]; saturation: min(1, S/S_max)),
+so rate <= beta (collision frequency) and capture rate <= droplet_factor * beta(p, p_d).
+Every kernel beta(p, p') of the registry is, for fixed p', quasi-convex in p (non-increasing
+then non-decreasing), so on an interval its maximum lies at an end point, and the maximum over a
+rectangle [pmin, pmax]^2 lies at a corner:
+
+* constant: beta = k0, constant;
+* sum: k0 (p + p'), increasing; product: k0 p p', increasing (p, p' >= 0);
+* eke: with u = x^(1/3), x = p / (rho_s v_ref), beta = k0 f(u, u'),
+  f = (u + u')^2 sqrt(u^-3 + u'^-3); d ln f / du has the sign of 2 r^4 + r/2 - 3/2, r = u/u',
+  which is increasing in r with a single zero: f decreases, then increases in u;
+* ktgf: beta = k0 g0(alpha) sqrt(Theta) d43^(3/2) f(d, d') with the same f of the diameters;
+  g0, Theta and the box's current d43 are common to all pairs at a given instant.
+
+So with [gmin, gmax] an interval containing every granule mass,
+B_gg = max(beta(gmin, gmin), beta(gmin, gmax), beta(gmax, gmax)) and
+B_dg = droplet_factor * max(beta(gmin, p_d), beta(gmax, p_d)) (times 1 + 1e-12 against
+round-off). The bound costs five kernel calls. The interval is kept cheaply: a merged granule
+raises gmax, an injected ordinary droplet widens it, a copy or a removal cannot leave it (a
+stale, wider interval is still a valid bound); every N accepted events or injections an O(N)
+pass resets it to the exact range (and re-sums P, B and sum d^4 against round-off drift), so the
+cost per event is O(1) amortised. Tight at the start of the seed scenario (all granules equal),
+it loosens as gmin/gmax spread; a pair with rate above the bound is counted in
+``violations`` and makes ``simulate_ensemble`` raise.
+
+ktgf needs d43 = sum d^4 / sum d^3 [m] of the box (all particles, droplets included, with
+d = (6 p / (pi rho_s))^(1/3)); sum d^3 follows from P and sum d^4 is updated per event.
+
+Finite-N bias (why the band can be trusted, and when it cannot)
+---------------------------------------------------------------
+Pairs are proposed at N (N - 1) / (2V) and the refill copies one of the N - 1 others, whose
+mean mass is P / (N - 1); so per event M0 = N / V drops on average by the factor
+E[P / (P + p_k)] = 1 - 1/(N-1) + E[p_k^2] / P^2 + ..., i.e. the M0 decay rate carries a relative
+bias of about S2 / P^2 = M20 M00 / (M10^2 N) (S2 = sum p^2, a Jensen term of the copy); the
+same copy term biases dM20/dt by about - k0 M20 / V for the constant kernel and by
+- 2 k0 M30 / V for the sum kernel, relative size S3 / (P S2) = M30 M00 / (M10 M20 N). For the
+constant kernel these are O((1 + cv^2)/N) (cv the coefficient of variation of p), far below the
+statistical band for N ~ 10^3. For the sum kernel M20 M00 / M10^2 and M30 M00 / (M10 M20) grow
+like exp(k0 M1 t): at k0 M1 t = 5 the relative bias of M20 is of order e^5 / N, so a band from a
+few replicas of N = 2000 misses the analytic M20 and the tests use more particles there.
+"""
+import math
+import time
+
+import numba as nb
+import numpy as np
+from scipy import stats
+
+from ..physics import parameters as P
+from ..physics.kernels import collision_frequency
+from ..physics.rates import aggregation_rate, droplet_capture_rate
+
+MOMENT_NAMES = ("M00", "M10", "M01", "M20", "M11", "M02")
+QUANTITY_NAMES = MOMENT_NAMES + ("droplet_number_density", "d32_m", "d43_m", "binder_fraction")
+N_QUANTITIES = len(QUANTITY_NAMES)
+
+# run_box status codes
+STATUS_OK = 0
+STATUS_MAX_TRIALS = 1      # trial budget exhausted before the last output time
+STATUS_NONFINITE = 2       # event rate not finite (e.g. alpha >= alpha_max in ktgf)
+STATUS_STALLED = 3         # dt below the resolution of t (event rate ~1e16 times 1/t)
+
+MAX_TRIALS = 10 ** 10      # per replica; ~ minutes of work, then simulate_ensemble raises
+
+_BOUND_SAFETY = 1.0 + 1e-12
+_C_D = 6.0 / math.pi
+
+
+# ---------------------------------------------------------------------------------------------
+# numba core
+# ---------------------------------------------------------------------------------------------
+@nb.njit(cache=True)
+def _d4(p, rho):
+    """Fourth power of the volume-equivalent diameter d = (6 p / (pi rho))^(1/3) [m^4]."""
+    d = (_C_D * p / rho) ** (1.0 / 3.0)
+    return d * d * d * d
+
+
+@nb.njit(cache=True)
+def pair_rate_bounds(gmin, gmax, n_granules, alpha, theta, d43, params, config):
+    """Majorants (B_gg, B_dg) [m3/s] of the granule-granule and droplet-granule pair rates.
+
+    gmin, gmax [kg]: an interval containing the masses of all granules (droplets excluded where
+    config[SEPARATE_DROPLETS] == 1); n_granules: their number (0 gives zero bounds);
+    alpha [-], theta [m2/s2], d43 [m]: the cell's local values used by the kernel.
+    B_gg bounds aggregation_rate of any two granules, B_dg bounds droplet_capture_rate of any
+    granule (0 unless droplets are separate). See the module docstring for why.
+    """
+    if n_granules <= 0:
+        return 0.0, 0.0
+    code = config[P.KERNEL]
+    b11 = collision_frequency(code, gmin, gmin, alpha, theta, d43, params)
+    b12 = collision_frequency(code, gmin, gmax, alpha, theta, d43, params)
+    b22 = collision_frequency(code, gmax, gmax, alpha, theta, d43, params)
+    bgg = max(b11, max(b12, b22)) * _BOUND_SAFETY
+    bdg = 0.0
+    if config[P.SEPARATE_DROPLETS] == 1:
+        pd = params[P.DROPLET_MASS]
+        c1 = collision_frequency(code, gmin, pd, alpha, theta, d43, params)
+        c2 = collision_frequency(code, gmax, pd, alpha, theta, d43, params)
+        bdg = params[P.DROPLET_FACTOR] * max(c1, c2) * _BOUND_SAFETY
+    return bgg, bdg
+
+
+@nb.njit(cache=True)
+def _set_kind(k, kind, isdrop, glist, dlist, pos, cnt):
+    """Move slot k to the granule list (kind 0) or the droplet list (kind 1); O(1)."""
+    old = isdrop[k]
+    if old == kind:
+        return
+    if old == 0:
+        last = glist[cnt[0] - 1]
+        glist[pos[k]] = last
+        pos[last] = pos[k]
+        cnt[0] -= 1
+    else:
+        last = dlist[cnt[1] - 1]
+        dlist[pos[k]] = last
+        pos[last] = pos[k]
+        cnt[1] -= 1
+    if kind == 0:
+        glist[cnt[0]] = k
+        pos[k] = cnt[0]
+        cnt[0] += 1
+    else:
+        dlist[cnt[1]] = k
+        pos[k] = cnt[1]
+        cnt[1] += 1
+    isdrop[k] = kind
+
+
+@nb.njit(cache=True)
+def box_quantities(p, b, isdrop, conc, rho, row):
+    """Fill ``row`` (length N_QUANTITIES, order QUANTITY_NAMES) from the box.
+
+    p, b [kg]; isdrop 1 for a free droplet; conc the box's mass concentration M10 [kg/m3],
+    which sets the volume V = sum p / conc [m3]; rho the particle density [kg/m3].
+    Moments are SI per m3 of the whole population (free droplets included).
+    """
+    n = p.size
+    sp = 0.0
+    sb = 0.0
+    spp = 0.0
+    spb = 0.0
+    sbb = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    s4 = 0.0
+    nd = 0
+    for k in range(n):
+        pk = p[k]
+        bk = b[k]
+        sp += pk
+        sb += bk
+        spp += pk * pk
+        spb += pk * bk
+        sbb += bk * bk
+        d = (_C_D * pk / rho) ** (1.0 / 3.0)
+        d2 = d * d
+        s2 += d2
+        s3 += d2 * d
+        s4 += d2 * d2
+        if isdrop[k] != 0:
+            nd += 1
+    vol = sp / conc
+    row[0] = n / vol
+    row[1] = sp / vol
+    row[2] = sb / vol
+    row[3] = spp / vol
+    row[4] = spb / vol
+    row[5] = sbb / vol
+    row[6] = nd / vol
+    row[7] = s3 / s2
+    row[8] = s4 / s3
+    row[9] = sb / sp
+
+
+@nb.njit(cache=True)
+def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
+            exponential_dt, max_trials, out):
+    """One cNMC replica. Mutates p, b, isdrop (the final box) and fills ``out``.
+
+    p, b: float64 [kg], length N (N >= 2 for aggregation); isdrop: int64 flags, 1 = free
+    droplet (ignored, set to 0, unless config[SEPARATE_DROPLETS] == 1); volume0: initial box
+    volume [m3]; output_times [s], non-decreasing, from 0; cell: float64 row (ALPHA [-],
+    THETA [m2/s2], COLLISION_VELOCITY [m/s], INJECTION [droplets/(m3 s)]); params, config:
+    the arrays of physics.parameters; rng_seed: seed of numba's generator; exponential_dt: 0 =
+    mean waiting time 1/R per trial (seed 000), 1 = exponential; max_trials: trial budget.
+    out: float64 (len(output_times), N_QUANTITIES), rows in the order of QUANTITY_NAMES.
+
+    Returns (trials, accepted, injections, violations, status, t_reached [s]); trials counts
+    aggregation proposals, accepted the aggregations done, violations the proposals whose rate
+    exceeded the majorant (must be 0), status one of the STATUS_* codes (rows not reached are
+    NaN when status != 0).
+    """
+    np.random.seed(rng_seed)
+    n = p.size
+    n_out = output_times.size
+    sep = config[P.SEPARATE_DROPLETS] == 1
+    biv = config[P.BIVARIATE] == 1
+    rho = params[P.DENSITY]
+    pd = params[P.DROPLET_MASS]
+    bd = pd if biv else 0.0
+    alpha = cell[P.ALPHA]
+    theta = cell[P.THETA]
+    u0 = cell[P.COLLISION_VELOCITY]
+    inj = cell[P.INJECTION]
+
+    glist = np.empty(n, np.int64)
+    dlist = np.empty(n, np.int64)
+    pos = np.empty(n, np.int64)
+    cnt = np.zeros(2, np.int64)
+    for k in range(n):
+        if not sep:
+            isdrop[k] = 0
+        if isdrop[k] != 0:
+            isdrop[k] = 1
+            dlist[cnt[1]] = k
+            pos[k] = cnt[1]
+            cnt[1] += 1
+        else:
+            glist[cnt[0]] = k
+            pos[k] = cnt[0]
+            cnt[0] += 1
+
+    # running sums and the granule mass interval
+    ptot = 0.0
+    s4 = 0.0
+    gmin = np.inf
+    gmax = 0.0
+    for k in range(n):
+        ptot += p[k]
+        s4 += _d4(p[k], rho)
+        if isdrop[k] == 0:
+            gmin = min(gmin, p[k])
+            gmax = max(gmax, p[k])
+    conc0 = ptot / volume0
+    mass_rate = inj * pd                     # kg/(m3 s) added by injection
+    s3_factor = _C_D / rho                   # sum d^3 = s3_factor * ptot
+
+    d43 = s4 / (s3_factor * ptot)
+    bgg, bdg = pair_rate_bounds(gmin, gmax, cnt[0], alpha, theta, d43, params, config)
+
+    trials = 0
+    accepted = 0
+    injections = 0
+    violations = 0
+    status = STATUS_OK
+    since_sync = 0
+    t = 0.0
+    k_out = 0
+    while k_out < n_out:
+        conc = conc0 + mass_rate * t
+        vol = ptot / conc
+        ng = cnt[0]
+        nd = cnt[1]
+        r_gg = 0.5 * ng * (ng - 1) * bgg / vol
+        r_dg = ng * nd * bdg / vol
+        r_inj = inj * vol
+        r = r_gg + r_dg + r_inj
+        if not (r < np.inf):
+            status = STATUS_NONFINITE
+            break
+        if r <= 0.0:
+            t_next = np.inf
+        elif exponential_dt == 1:
+            t_next = t - math.log(1.0 - np.random.random()) / r
+        else:
+            t_next = t + 1.0 / r
+        while k_out < n_out and output_times[k_out] < t_next:
+            box_quantities(p, b, isdrop, conc0 + mass_rate * output_times[k_out], rho,
+                           out[k_out])
+            k_out += 1
+        if k_out >= n_out:
+            break
+        if t_next <= t:
+            status = STATUS_STALLED
+            break
+        t = t_next
+
+        u = np.random.random() * r
+        changed = False
+        if u < r_inj or (r_gg <= 0.0 and r_dg <= 0.0):
+            # injection: overwrite a random slot with a droplet
+            injections += 1
+            k = np.random.randint(n)
+            ptot -= p[k]
+            s4 -= _d4(p[k], rho)
+            p[k] = pd
+            b[k] = bd
+            if sep:
+                _set_kind(k, 1, isdrop, glist, dlist, pos, cnt)
+            else:
+                gmin = min(gmin, pd)
+                gmax = max(gmax, pd)
+            ptot += pd
+            s4 += _d4(pd, rho)
+            changed = True
+        else:
+            trials += 1
+            d43 = s4 / (s3_factor * ptot)
+            if (u < r_inj + r_gg and r_gg > 0.0) or r_dg <= 0.0:
+                ia = np.random.randint(ng)
+                ja = np.random.randint(ng - 1)
+                if ja >= ia:
+                    ja += 1
+                i = glist[ia]
+                j = glist[ja]
+                rate = aggregation_rate(p[i], b[i], p[j], b[j], alpha, theta, u0, d43,
+                                        params, config)
+                bound = bgg
+            else:
+                i = glist[np.random.randint(ng)]
+                j = dlist[np.random.randint(nd)]
+                rate = droplet_capture_rate(p[i], b[i], alpha, theta, u0, d43, params, config)
+                bound = bdg
+            if rate > bound:
+                violations += 1
+            if np.random.random() * bound < rate:
+                accepted += 1
+                # merge j into i (i is a granule)
+                s4 -= _d4(p[i], rho) + _d4(p[j], rho)
+                p[i] += p[j]
+                b[i] += b[j]
+                s4 += _d4(p[i], rho)
+                if p[i] > gmax:
+                    gmax = p[i]
+                # refill j with a copy of a particle k != j
+                k = np.random.randint(n - 1)
+                if k >= j:
+                    k += 1
+                p[j] = p[k]
+                b[j] = b[k]
+                _set_kind(j, isdrop[k], isdrop, glist, dlist, pos, cnt)
+                ptot += p[j]
+                s4 += _d4(p[j], rho)
+                changed = True
+            if trials >= max_trials:
+                status = STATUS_MAX_TRIALS
+                break
+        if changed:
+            since_sync += 1
+            if since_sync >= n:
+                # O(N) pass every N changes: exact sums and the tight granule interval
+                since_sync = 0
+                ptot = 0.0
+                s4 = 0.0
+                gmin = np.inf
+                gmax = 0.0
+                for k in range(n):
+                    ptot += p[k]
+                    s4 += _d4(p[k], rho)
+                    if isdrop[k] == 0:
+                        gmin = min(gmin, p[k])
+                        gmax = max(gmax, p[k])
+            d43 = s4 / (s3_factor * ptot)
+            bgg, bdg = pair_rate_bounds(gmin, gmax, cnt[0], alpha, theta, d43, params, config)
+
+    for k in range(k_out, n_out):
+        for q in range(out.shape[1]):
+            out[k, q] = np.nan
+    return trials, accepted, injections, violations, status, t
+
+
+# ---------------------------------------------------------------------------------------------
+# Python wrapper
+# ---------------------------------------------------------------------------------------------
+def initial_box(params, config, initial, particles, rng):
+    """Sample one replica's initial box.
+
+    params, config: arrays of physics.parameters; initial: dict of simulate_ensemble;
+    particles: N; rng: numpy Generator. Returns (p [kg], b [kg], isdrop (int64 flags),
+    volume [m3]). The box holds N_d droplets (p_d, b = p_d) and N - N_d granules with
+    N_d = N nd0 / (n0 + nd0) rounded stochastically (unbiased over replicas), and
+    V = N / (n0 + nd0).
+    """
+    n0 = float(initial["number_density"])
+    nd0 = float(initial.get("droplet_number_density", 0.0))
+    p0 = float(initial["mean_mass"])
+    y0 = float(initial.get("binder_fraction", 0.0))
+    dist = initial.get("distribution", "monodisperse")
+    biv = int(config[P.BIVARIATE]) == 1
+    sep = int(config[P.SEPARATE_DROPLETS]) == 1
+    pd = float(params[P.DROPLET_MASS])
+
+    expected_drops = particles * nd0 / (n0 + nd0)
+    n_drop = int(math.floor(expected_drops))
+    if rng.random() < expected_drops - n_drop:
+        n_drop += 1
+    n_gran = particles - n_drop
+    if dist == "monodisperse":
+        pg = np.full(n_gran, p0)
+    elif dist == "exponential":
+        pg = rng.exponential(p0, n_gran)
+    else:
+        raise ValueError(f"initial distribution {dist!r}: expected 'monodisperse' or "
+                         "'exponential'")
+    p = np.empty(particles)
+    b = np.zeros(particles)
+    isdrop = np.zeros(particles, np.int64)
+    p[:n_gran] = pg
+    p[n_gran:] = pd
+    if biv:
+        b[:n_gran] = y0 * pg
+        b[n_gran:] = pd
+    if sep:
+        isdrop[n_gran:] = 1
+    return p, b, isdrop, particles / (n0 + nd0)
+
+
+def _validate(params, config, cell, initial, output_times, particles, replicas):
+    if params.shape != (P.N_PARAMS,):
+        raise ValueError(f"params: expected a float array of length {P.N_PARAMS}")
+    if config.shape != (P.N_CONFIG,):
+        raise ValueError(f"config: expected an int array of length {P.N_CONFIG}")
+    if cell.shape != (P.N_CELL,):
+        raise ValueError(f"cell: expected one row of length {P.N_CELL}")
+    if particles < 2:
+        raise ValueError(f"particles = {particles}: expected at least 2")
+    if replicas < 1:
+        raise ValueError(f"replicas = {replicas}: expected at least 1")
+    if output_times.ndim != 1 or output_times.size == 0 or output_times[0] != 0.0:
+        raise ValueError("output_times: expected a 1-D array starting at 0 s")
+    if not np.all(np.isfinite(output_times)) or np.any(np.diff(output_times) < 0):
+        raise ValueError("output_times: expected finite, non-decreasing times [s]")
+    n0 = float(initial["number_density"])
+    nd0 = float(initial.get("droplet_number_density", 0.0))
+    if n0 < 0 or nd0 < 0 or n0 + nd0 <= 0:
+        raise ValueError("initial number_density + droplet_number_density: expected > 0 1/m3")
+    if not float(initial["mean_mass"]) > 0:
+        raise ValueError("initial mean_mass: expected > 0 kg")
+    y0 = float(initial.get("binder_fraction", 0.0))
+    if not 0.0 <= y0 <= 1.0:
+        raise ValueError(f"initial binder_fraction = {y0}: expected in [0, 1]")
+    if cell[P.INJECTION] < 0:
+        raise ValueError("cell INJECTION: expected >= 0 droplets/(m3 s)")
+    if (cell[P.INJECTION] > 0 or nd0 > 0) and not params[P.DROPLET_MASS] > 0:
+        raise ValueError("params DROPLET_MASS: expected > 0 kg with droplets present")
+    if not params[P.DENSITY] > 0:
+        raise ValueError("params DENSITY: expected > 0 kg/m3")
+
+
+def simulate_ensemble(params, config, cell, initial, output_times, particles, replicas, seed,
+                      progress=None):
+    """cNMC ensemble: mean and 95% confidence band of the moments at ``output_times``.
+
+    params (float64, N_PARAMS), config (int64, N_CONFIG): arrays of physics.parameters;
+    cell: float64 row (ALPHA [-], THETA [m2/s2], COLLISION_VELOCITY [m/s],
+    INJECTION [droplets/(m3 s)]); initial: {"distribution": "monodisperse" | "exponential",
+    "number_density": n0 [1/m3], "mean_mass": p0 [kg], "binder_fraction": y0 [-],
+    "droplet_number_density": nd0 [1/m3]}; output_times [s]: 1-D, from 0, non-decreasing;
+    particles: N per box; replicas: R independent boxes; seed: int (same seed, same numbers);
+    progress: optional callable(fraction_done) called after each replica.
+
+    Returns a dict of numpy arrays: "time_s" [s]; for each name in QUANTITY_NAMES (M00 [1/m3],
+    M10 [kg/m3], M01 [kg/m3], M20 [kg2/m3], M11 [kg2/m3], M02 [kg2/m3] of the whole population
+    incl. free droplets, droplet_number_density [1/m3], d32_m [m], d43_m [m],
+    binder_fraction [-] = M01/M10 of each replica) the ensemble mean under the name and the
+    95% band mean -+ t_{0.975, R-1} std / sqrt(R) under name + "_lo" / "_hi" (zero width when
+    R = 1); "trials", "accepted", "events_injection": totals over the ensemble (int64).
+    Raises RuntimeError if a replica exhausts MAX_TRIALS trials (e.g. a product kernel past
+    gelation), FloatingPointError for an infinite event rate (alpha >= alpha_max).
+    """
+    params = np.ascontiguousarray(params, dtype=np.float64)
+    config = np.ascontiguousarray(config, dtype=np.int64)
+    cell = np.ascontiguousarray(cell, dtype=np.float64).reshape(-1)
+    output_times = np.ascontiguousarray(output_times, dtype=np.float64)
+    particles = int(particles)
+    replicas = int(replicas)
+    _validate(params, config, cell, initial, output_times, particles, replicas)
+
+    n_out = output_times.size
+    data = np.empty((replicas, n_out, N_QUANTITIES))
+    totals = np.zeros(3, np.int64)
+    children = np.random.SeedSequence(int(seed)).spawn(replicas)
+    for r, child in enumerate(children):
+        rng = np.random.default_rng(child)
+        p, b, isdrop, volume0 = initial_box(params, config, initial, particles, rng)
+        box_seed = int(rng.integers(0, 2 ** 31 - 1))
+        trials, accepted, injections, violations, status, t_reached = run_box(
+            p, b, isdrop, volume0, output_times, cell, params, config, box_seed, 0,
+            MAX_TRIALS, data[r])
+        if violations:
+            raise RuntimeError(f"cNMC replica {r}: {violations} pair rates exceeded the "
+                               "majorant (bound bug)")
+        if status == STATUS_MAX_TRIALS:
+            raise RuntimeError(f"cNMC replica {r}: {trials} trials reached at t = "
+                               f"{t_reached:.6g} s before the end time "
+                               f"{output_times[-1]:.6g} s; the event rate is running away "
+                               "(gelation?)")
+        if status == STATUS_NONFINITE:
+            raise FloatingPointError(f"cNMC replica {r}: event rate not finite at t = "
+                                     f"{t_reached:.6g} s (overflow, or alpha >= alpha_max in ktgf)")
+        if status == STATUS_STALLED:
+            raise RuntimeError(f"cNMC replica {r}: time step below the resolution of t at "
+                               f"t = {t_reached:.6g} s (event rate too high)")
+        totals += (trials, accepted, injections)
+        if progress is not None:
+            progress((r + 1) / replicas)
+
+    mean = data.mean(axis=0)
+    if replicas > 1:
+        half = (stats.t.ppf(0.975, replicas - 1) * data.std(axis=0, ddof=1)
+                / math.sqrt(replicas))
+    else:
+        half = np.zeros_like(mean)
+    result = {"time_s": output_times.copy()}
+    for q, name in enumerate(QUANTITY_NAMES):
+        result[name] = mean[:, q]
+        result[name + "_lo"] = mean[:, q] - half[:, q]
+        result[name + "_hi"] = mean[:, q] + half[:, q]
+    result["trials"] = np.int64(totals[0])
+    result["accepted"] = np.int64(totals[1])
+    result["events_injection"] = np.int64(totals[2])
+    return result
+
+
+# ---------------------------------------------------------------------------------------------
+# seed 000 scenario (benchmark, not a test)
+# ---------------------------------------------------------------------------------------------
+def seed_scenario_setup():
+    """params, config, cell, initial of the seed 000 Wurster scenario (tables I-II), SI.
+
+    eke kernel k0 = 2.5e-14 m3/s, geometric and physical efficiency (sharp Stokes step),
+    droplet_factor 100, 60 um binder droplets (1000 kg/m3) kept as a separate population,
+    v_ref the volume of the 100.4 um primary particle, n0 = 3.30e10 1/m3 dry primaries,
+    nd0 = 0.045 n0, injection 1.485e6 droplets/s into 0.01 m3.
+    """
+    params = np.zeros(P.N_PARAMS)
+    config = np.zeros(P.N_CONFIG, np.int64)
+    rho = 1021.0
+    d0 = 100.4e-6
+    params[P.RATE] = 2.5e-14
+    params[P.DENSITY] = rho
+    params[P.BINDER_DENSITY] = 1000.0
+    params[P.BINDER_VISCOSITY] = 0.762
+    params[P.REFERENCE_VOLUME] = math.pi / 6.0 * d0 ** 3
+    params[P.ALPHA_MAX] = 0.63
+    params[P.GEO_SLOPE] = 35.1
+    params[P.GEO_CENTRE] = 0.129
+    params[P.PHI_SLOPE] = 25.9
+    params[P.PHI_CENTRE] = 0.327
+    params[P.ASPERITY] = 6.3e-6
+    params[P.GYRATION_RADIUS] = 60e-6
+    params[P.STOKES_WIDTH] = 0.0
+    params[P.DROPLET_FACTOR] = 100.0
+    params[P.DROPLET_MASS] = 1000.0 * math.pi / 6.0 * (60e-6) ** 3
+    config[P.KERNEL] = 3
+    config[P.USE_GEOMETRIC] = 1
+    config[P.USE_PHYSICAL] = 1
+    config[P.SEPARATE_DROPLETS] = 1
+    config[P.BIVARIATE] = 1
+    cell = np.zeros(P.N_CELL)
+    cell[P.ALPHA] = 0.1
+    cell[P.COLLISION_VELOCITY] = 5.5
+    cell[P.INJECTION] = 1.485e6 / 0.01
+    n0 = 3.30e10
+    initial = {"distribution": "monodisperse", "number_density": n0,
+               "mean_mass": rho * math.pi / 6.0 * d0 ** 3, "binder_fraction": 0.0,
+               "droplet_number_density": 0.045 * n0}
+    return params, config, cell, initial
+
+
+def seed_scenario_benchmark(particles=10_000, replicas=1, seed=0, end_time=600.0,
+                            output_interval=1.0, verbose=True):
+    """Run the seed 000 scenario (see seed_scenario_setup) on one core and time it.
+
+    particles: N per box; replicas: R; seed: int; end_time, output_interval [s].
+    Returns {"result": simulate_ensemble's dict, "wall_s_per_replica" [s],
+    "trials_per_s", "accepted_per_s" [1/s of wall time], "report": printable summary}.
+    The first call includes numba compilation unless the cache is warm (it warms it with a
+    tiny run first).
+    """
+    params, config, cell, initial = seed_scenario_setup()
+    times = np.arange(0.0, end_time + 0.5 * output_interval, output_interval)
+    simulate_ensemble(params, config, cell, initial, times[:3], 50, 1, seed)   # compile/warm
+    t0 = time.perf_counter()
+    res = simulate_ensemble(params, config, cell, initial, times, particles, replicas, seed)
+    wall = time.perf_counter() - t0
+    lines = [f"seed scenario: N = {particles}, R = {replicas}, {end_time:g} s, "
+             f"wall {wall / replicas:.2f} s per replica",
+             f"trials {int(res['trials'])} ({res['trials'] / wall:.3g}/s), accepted "
+             f"{int(res['accepted'])} ({res['accepted'] / wall:.3g}/s), injections "
+             f"{int(res['events_injection'])}"]
+    for tq in (0.0, 1.0, 2.0, 5.0, 10.0, 30.0, 60.0, 120.0, 300.0, 600.0):
+        if tq > end_time:
+            continue
+        k = int(np.argmin(np.abs(times - tq)))
+        lines.append(f"t = {times[k]:6.1f} s  M00 = {res['M00'][k]:.4e} "
+                     f"[{res['M00_lo'][k]:.4e}, {res['M00_hi'][k]:.4e}] 1/m3  "
+                     f"n_d = {res['droplet_number_density'][k]:.3e}  "
+                     f"M10 = {res['M10'][k]:.5e}  M01 = {res['M01'][k]:.5e}  "
+                     f"M20 = {res['M20'][k]:.4e}  d43 = {res['d43_m'][k] * 1e6:.1f} um")
+    report = "\n".join(lines)
+    if verbose:
+        print(report)
+    return {"result": res, "wall_s_per_replica": wall / replicas,
+            "trials_per_s": res["trials"] / wall, "accepted_per_s": res["accepted"] / wall,
+            "report": report}
