@@ -32,6 +32,7 @@ from pbe_cfd.methods import laguerre_tensor as LT
 EPS = np.finfo(float).eps
 COARSE = dict(p_max=1e-8, b_max=4e-9, n_p=10, n_b=10)
 TABLE3 = dict(p_max=1e-8, b_max=4e-9, n_p=20, n_b=20)      # dp = 5e-10, db = 2e-10
+FRACTION = dict(p_max=1e-8, b_max=4e-9, n_p=12, n_b=12, spacing="fraction")
 W3 = dict(c=1e-9, d=1e-9, lam=1.0, gam=0.2)
 
 
@@ -136,11 +137,12 @@ def test_gamma_population_round_trip(m, cache):
     assert np.allclose(got, exact, rtol=1e-9, atol=1e-12 * exact.max())
 
 
+@pytest.mark.parametrize("grid", [TABLE3, FRACTION], ids=["table3_20", "fraction12"])
 @pytest.mark.parametrize("m", [2, 3, 4])
-def test_consistent_reconstruction_reproduces_moments(m, cache):
+def test_consistent_reconstruction_reproduces_moments(m, grid, cache):
     """Consistent variant: int_S p^i b^j n_rec = M_ij for all carried (i, j), any population."""
     params, config = setup(m)
-    aux = L.build_aux(params, config, m, weights=W3, support=TABLE3, cache_dir=cache)
+    aux = L.build_aux(params, config, m, weights=W3, support=grid, cache_dir=cache)
     M = product_gamma_moments(2e10, 3.0, 2e-9, 0.7, 0.3e-9)
     state = L.initial_state(M, params, config)
     tol = 100 * EPS * aux[LT.AUX_COND_G]
@@ -151,13 +153,31 @@ def test_consistent_reconstruction_reproduces_moments(m, cache):
     assert L.support_share(state, aux, params, config) == pytest.approx((1, 1), rel=tol)
 
 
+def test_quadrature_spacings_converge_to_the_same_integrals():
+    """Both spacings integrate the singular weight (v^-0.8 at b = 0) over the support b <= p,
+    p <= p_max, b <= b_max to the same values; the O(1/n) edge error of the diagonal is why
+    a fine reference (320 a side) is used."""
+    ref = None
+    for spacing in (0, 1):
+        u, v, W = LT.quadrature(1e-9, 1e-9, 1.0, 0.2, 1e-8, 4e-9, 320, 320, spacing)
+        g = W * LT.gamma_weight(u, 1.0) * LT.gamma_weight(v, 0.2)
+        vals = np.array([g.sum(), (g * u).sum(), (g * v).sum(), (g * u * v * v).sum()])
+        if ref is None:
+            ref = vals
+        else:
+            assert np.allclose(vals, ref, rtol=2e-2)
+    u, v, W = LT.quadrature(1e-9, 1e-9, 1.0, 0.2, 1e-8, 4e-9, 20, 20, 1)
+    assert np.all(v * 1e-9 <= u * 1e-9 * (1 + 1e-12)) and np.all(v <= 4.0 * (1 + 1e-12))
+
+
 # ---- closed moment equations -------------------------------------------------------------
 def closed_constant(M, k0):
     return {(0, 0): -0.5 * k0 * M(0, 0) ** 2, (1, 0): 0.0, (0, 1): 0.0,
             (2, 0): k0 * M(1, 0) ** 2, (1, 1): k0 * M(1, 0) * M(0, 1), (0, 2): k0 * M(0, 1) ** 2}
 
 
-@pytest.mark.parametrize("grid", [COARSE, TABLE3], ids=["coarse10", "table3_20"])
+@pytest.mark.parametrize("grid", [COARSE, TABLE3, FRACTION],
+                         ids=["coarse10", "table3_20", "fraction12"])
 @pytest.mark.parametrize("m", [2, 3, 4])
 def test_constant_kernel_consistent(m, grid, cache):
     params, config = setup(m)

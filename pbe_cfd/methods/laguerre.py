@@ -362,7 +362,7 @@ def reconstructed_moment(state, aux, params, config, i, j):
     quadrature as the tensor (so it returns the carried moments exactly when consistent)."""
     B, coef = _coefficients(state, aux, params)
     u, v, W = LT.quadrature(B["c"], B["d"], B["lam"], B["gam"], aux[AUX_P_MAX], aux[AUX_B_MAX],
-                            int(aux[AUX_N_P]), int(aux[AUX_N_B]))
+                            int(aux[AUX_N_P]), int(aux[AUX_N_B]), int(aux[LT.AUX_SPACING]))
     phi = LT.basis_values(u, v, B["Cp"], B["Cb"], B["lam"], B["gam"])
     val = ((u * B["c"]) ** i * (v * B["d"]) ** j * W) @ (phi @ coef)
     return float(val * params[P.NUMBER_SCALE])
