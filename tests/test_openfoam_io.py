@@ -175,6 +175,9 @@ def test_times(tmp_path):
     assert of.written_times(case) == [0.0, 0.5, 1.0, 1.5]
     assert of.pick_time(case) == 1.5
     assert of.pick_time(case, "latest") == 1.5
+    (case / "0.5" / "alpha.particlesMean").touch()   # only 0.5 holds CFD fields
+    assert of.pick_time(case, "latest") == 0.5
+    (case / "0.5" / "alpha.particlesMean").unlink()
     assert of.pick_time(case, 0.5) == 0.5
     assert of.pick_time(case, "1") == 1.0
     assert of.time_name(case, 1.0) == "1"
@@ -313,13 +316,27 @@ def test_real_case_end_to_end(real_case):
 
 @pytest.mark.openfoam
 def test_real_case_write_back_and_snapshot(real_case, tmp_path):
+    import pyvista as pv
     from foamlib import FoamFieldFile
 
     case, _, _ = real_case
     cells = of.read_cell_fields(case)
-    of.write_foam_fields(case, "pbe_600", {"M00": cells.alpha * 1e12})
-    f = FoamFieldFile(case / "pbe_600" / "M00")
-    np.testing.assert_allclose(np.asarray(f.internal_field), cells.alpha * 1e12, rtol=1e-9)
+    m00 = cells.alpha * 1e12
+    of.write_foam_fields(case, "600", {"M00": m00}, dimensions={"M00": "[0 -3 0 0 0 0 0]"})
+    f = FoamFieldFile(case / "600" / "M00")
+    np.testing.assert_allclose(np.asarray(f.internal_field), m00, rtol=1e-9)
+    # ParaView's reader (VTK's vtkOpenFOAMReader) sees the new time and field
+    (case / "case.foam").touch()
+    reader = pv.OpenFOAMReader(str(case / "case.foam"))
+    assert 600.0 in list(reader.time_values)
+    reader.set_active_time_value(600.0)
+    grid = reader.read()["internalMesh"]
+    assert grid.n_cells == cells.n_cells
+    np.testing.assert_allclose(grid.cell_data["M00"], m00, rtol=1e-6)  # VTK reads float32
+    with pytest.warns(UserWarning, match="not a number"):
+        of.write_foam_fields(case, "pbe_final", {"M00": m00})
+    # "latest" still means the CFD time, not the written-back 600
+    assert of.pick_time(case, "latest") == pytest.approx(0.3)
     vtu, npz = of.write_snapshot(case, "latest", tmp_path / "snap.vtu")
     assert npz == tmp_path / "snap_flux.npz"
     back, flux = of.load_snapshot(vtu, with_flux=True)

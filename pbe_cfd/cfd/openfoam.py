@@ -368,8 +368,10 @@ def time_name(case_dir: str | os.PathLike, time: float) -> str:
 def pick_time(case_dir: str | os.PathLike, which: str | float = "latest") -> float:
     """Resolve ``which`` ("latest", or a time in s) to a written time of the case (s).
 
-    "latest" ignores time 0 unless it is the only one. A number must match a written time
-    (to 1e-6 relative); otherwise the error lists the written times.
+    "latest" is the latest directory holding alpha.particles(Mean), so fields written back
+    by write_foam_fields into a later time do not hide the CFD time (the latest directory of
+    any kind when none holds alpha). A number must match a written time (to 1e-6 relative);
+    otherwise the error lists the written times.
     """
     case_dir = Path(case_dir)
     times = written_times(case_dir)
@@ -378,7 +380,10 @@ def pick_time(case_dir: str | os.PathLike, which: str | float = "latest") -> flo
                             "(openfoam_case/Allrun or pbe_cfd.cfd.openfoam.run_case)")
     if isinstance(which, str):
         if which.strip().lower() == "latest":
-            return times[-1]
+            # the latest CFD time: skip directories holding only written-back fields
+            cfd = [t for t, name in _time_dirs(case_dir)
+                   if any((case_dir / name / f).is_file() for f in ALPHA_FIELDS)]
+            return cfd[-1] if cfd else times[-1]
         try:
             which = float(which)
         except ValueError:
@@ -902,7 +907,9 @@ def write_foam_fields(case_dir: str | os.PathLike, time_name: str,
     ``fields``: name -> (n_cells,) values in OpenFOAM cell order, SI units. Boundaries are
     zeroGradient (constraint patches such as empty keep their type). ``dimensions``: name ->
     SI exponents "[kg m s K mol A cd]" (e.g. "[0 -3 0 0 0 0 0]" for 1/m3), default
-    dimensionless. Plain ASCII, readable by ParaView's OpenFOAM reader. Returns the files.
+    dimensionless. Plain ASCII. ParaView's OpenFOAM reader lists only numeric time
+    directories: use the CFD time (e.g. "1.5", next to alpha and Theta) or the PBE time in s
+    (e.g. "600"); other names work but warn. Returns the files.
     """
     from foamlib import FoamFile
 
@@ -910,6 +917,12 @@ def write_foam_fields(case_dir: str | os.PathLike, time_name: str,
     time_name = str(time_name)
     if not time_name or "/" in time_name or time_name in (".", ".."):
         raise ValueError(f"write_foam_fields: bad time directory name {time_name!r}")
+    try:
+        float(time_name)
+    except ValueError:
+        warnings.warn(f"write_foam_fields: '{time_name}' is not a number; OpenFOAM tools and "
+                      "ParaView's OpenFOAM reader only list numeric time directories "
+                      "(e.g. '600' or the CFD time '1.5')", stacklevel=2)
     mesh_dir = case_dir / "constant" / "polyMesh"
     try:
         boundary = FoamFile(mesh_dir / "boundary")[None]
