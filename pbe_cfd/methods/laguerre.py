@@ -110,11 +110,12 @@ def laguerre_d43(state, aux, params, config):
 
 
 @nb.njit(cache=True)
-def laguerre_rhs(state, out, cell, aux, params, config):
+def laguerre_rhs(state, out, cell, aux, params, config, work=None):
     """d(state)/dt [scaled state units per s] of one cell; writes ``out`` (length N_STATE).
 
     state: scaled moments (module doc); cell: (ALPHA [-], THETA [m2/s2], COLLISION_VELOCITY
-    [m/s], INJECTION [droplets/(m3 s)]); aux: from build_aux; params, config: physics arrays.
+    [m/s], INJECTION [droplets/(m3 s)]); aux: from build_aux; params, config: physics arrays;
+    work: the integrator's scratch array (optional, unused: the RHS allocates nothing).
     """
     m = int(aux[AUX_ORDER])
     K = m * m
@@ -233,7 +234,7 @@ def _moment_checks(state, config, level):
 
 
 @nb.njit(cache=True)
-def laguerre_realizable(state, aux, params, config):
+def laguerre_realizable(state, aux, params, config, work=None):
     """True if the scaled state is admissible for the ROM (used to accept RK stages).
 
     Level aux[AUX_CHECK_LEVEL] (build_aux(check_level=...)), tol = 1e-12 max|state|,
@@ -258,7 +259,7 @@ def strictly_realizable(state, config, level=2):
 
 
 @nb.njit(cache=True)
-def laguerre_project(state, aux, params, config):
+def laguerre_project(state, aux, params, config, work=None):
     """In-place fix after an accepted step: clips a negative free-droplet density to 0.
 
     The moments themselves are left untouched (the ROM has no cheaper admissible neighbour).
