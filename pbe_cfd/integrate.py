@@ -11,7 +11,7 @@ import math
 import numba as nb
 import numpy as np
 
-from .methods.dispatch import method_project, method_realizable, method_rhs
+from .methods.dispatch import WORK_SIZE, method_project, method_realizable, method_rhs
 from .physics import parameters as P
 
 # status codes per cell
@@ -51,7 +51,8 @@ def integrate_cell(state, cell, aux, params, config, t_start, t_end, step, rtol,
     ``stats`` accumulates accepted/rejected steps and RHS calls. Returns (status, time reached).
     """
     n = config[P.N_STATE]
-    if not method_realizable(state, aux, params, config):
+    work = np.empty(WORK_SIZE)
+    if not method_realizable(state, aux, params, config, work):
         return UNREALIZABLE_START, t_start
     k1 = np.empty(n)
     k2 = np.empty(n)
@@ -64,7 +65,7 @@ def integrate_cell(state, cell, aux, params, config, t_start, t_end, step, rtol,
     h = step[0]
     if not (h > 0.0):
         h = (t_end - t_start) * 1e-3
-    method_rhs(state, k1, cell, aux, params, config)
+    method_rhs(state, k1, cell, aux, params, config, work)
     stats[RHS_CALLS] += 1
     for i in range(n):
         if not math.isfinite(k1[i]):
@@ -86,26 +87,26 @@ def integrate_cell(state, cell, aux, params, config, t_start, t_end, step, rtol,
         taken += 1
         # stage 2
         _combine(state, h_try, k1, 0.5, k1, 0.0, k1, 0.0, stage, n)
-        if not method_realizable(stage, aux, params, config):
+        if not method_realizable(stage, aux, params, config, work):
             stats[REJECTED_REALIZABILITY] += 1
             h = 0.5 * h_try
             continue
-        method_rhs(stage, k2, cell, aux, params, config)
+        method_rhs(stage, k2, cell, aux, params, config, work)
         # stage 3
         _combine(state, h_try, k1, 0.0, k2, 0.75, k2, 0.0, stage, n)
         stats[RHS_CALLS] += 1
-        if not method_realizable(stage, aux, params, config):
+        if not method_realizable(stage, aux, params, config, work):
             stats[REJECTED_REALIZABILITY] += 1
             h = 0.5 * h_try
             continue
-        method_rhs(stage, k3, cell, aux, params, config)
+        method_rhs(stage, k3, cell, aux, params, config, work)
         stats[RHS_CALLS] += 1
         _combine(state, h_try, k1, 2.0 / 9.0, k2, 1.0 / 3.0, k3, 4.0 / 9.0, y3, n)
-        if not method_realizable(y3, aux, params, config):
+        if not method_realizable(y3, aux, params, config, work):
             stats[REJECTED_REALIZABILITY] += 1
             h = 0.5 * h_try
             continue
-        method_rhs(y3, k4, cell, aux, params, config)
+        method_rhs(y3, k4, cell, aux, params, config, work)
         stats[RHS_CALLS] += 1
         err = 0.0
         finite = True
@@ -126,8 +127,8 @@ def integrate_cell(state, cell, aux, params, config, t_start, t_end, step, rtol,
             t = t_end if last else t + h_try
             for i in range(n):
                 state[i] = y3[i]
-            method_project(state, aux, params, config)
-            method_rhs(state, k1, cell, aux, params, config)
+            method_project(state, aux, params, config, work)
+            method_rhs(state, k1, cell, aux, params, config, work)
             stats[RHS_CALLS] += 1
             stats[ACCEPTED] += 1
             factor = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** (-1.0 / 3.0)))

@@ -11,6 +11,7 @@ import math
 import numpy as np
 import pytest
 
+from pbe_cfd.methods.dispatch import WORK_SIZE
 from pbe_cfd.methods.qmom import qmom_realizable
 from pbe_cfd.model import pack
 from pbe_cfd.simulate import SimulationError, run_well_mixed
@@ -159,5 +160,6 @@ def test_stored_states_realizable_and_number_never_increases(kernel, rate):
                           if n in c else np.nan for n in arrays.state_names])
         if np.any(np.isnan(state)):
             continue     # moments beyond the output set are checked inside the integrator
-        assert qmom_realizable(state, np.zeros(1), arrays.params, arrays.config)
+        assert qmom_realizable(state, np.zeros(1), arrays.params, arrays.config,
+                               np.zeros(WORK_SIZE))
     assert res.stats["accepted_steps"] > 0

@@ -2,7 +2,8 @@
 
 The integrator calls ``method_rhs``, ``method_realizable`` and ``method_project``; each method
 module provides the three functions with the same signature
-``(state, [out, cell,] aux, params, config)``. numba caches compiled code only for a static call
+``(state, [out, cell,] aux, params, config, work)``, ``work`` a float scratch array of
+``WORK_SIZE`` allocated once per cell so that no call allocates. numba caches compiled code only for a static call
 graph, so the choice is an if-chain on the method code rather than a function argument.
 """
 import numba as nb
@@ -15,19 +16,23 @@ LAGUERRE = 1
 METHOD_CODES = {"qmom": QMOM, "laguerre": LAGUERRE}
 
 
+#: length of the per-cell float work array handed to every method function
+WORK_SIZE = 2048
+
+
 @nb.njit(cache=True)
-def method_rhs(state, out, cell, aux, params, config):
+def method_rhs(state, out, cell, aux, params, config, work):
     """d(state)/dt [scaled units per s] of one cell for the method config[METHOD]."""
-    qmom_rhs(state, out, cell, aux, params, config)
+    qmom_rhs(state, out, cell, aux, params, config, work)
 
 
 @nb.njit(cache=True)
-def method_realizable(state, aux, params, config):
+def method_realizable(state, aux, params, config, work):
     """True if the state is a realizable moment set for the method config[METHOD]."""
-    return qmom_realizable(state, aux, params, config)
+    return qmom_realizable(state, aux, params, config, work)
 
 
 @nb.njit(cache=True)
-def method_project(state, aux, params, config):
+def method_project(state, aux, params, config, work):
     """Re-project an accepted state onto the method's realizable set, in place."""
-    qmom_project(state, aux, params, config)
+    qmom_project(state, aux, params, config, work)

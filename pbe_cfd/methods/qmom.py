@@ -17,13 +17,22 @@ import numba as nb
 import numpy as np
 
 from ..physics import parameters as P
-from ..physics.rates import aggregation_rate, droplet_capture_rate
+from ..physics.kernels import kernel_cell_factor
+from ..physics.properties import N_PROPS, particle_properties
+from ..physics.rates import pair_rate
 from .quadrature import solve_vandermonde, wheeler_nodes
 
 #: Re-projection mismatch (relative to each moment's size) up to which a moment set whose
 #: quadrature lost nodes is still accepted as (numerically) on the realizable boundary.
 PROJECTION_TOLERANCE = 1.0e-8
 MAX_NODES = 6
+
+
+@nb.njit(cache=True)
+def work_size(n_max):
+    """Length of the float work array the QMOM functions need for n_max nodes."""
+    return 3 * n_max + (2 * n_max + 1) * (2 * n_max + 1) + 4 * n_max + (n_max + 1) * N_PROPS \
+        + 3 * n_max + 2 + (n_max + 1) * 2 * n_max + 4 * n_max * n_max
 
 
 def state_length(nodes, bivariate, separate_droplets):
@@ -39,34 +48,6 @@ def state_names(nodes, bivariate, separate_droplets):
     if separate_droplets:
         names.append("droplet_number_density")
     return names
-
-
-@nb.njit(cache=True)
-def _binomial(n, k):
-    result = 1.0
-    for i in range(1, k + 1):
-        result = result * (n - k + i) / i
-    return result
-
-
-@nb.njit(cache=True)
-def _power_gain(x, y, k):
-    """(x + y)^k - x^k, as a binomial sum so that it is exactly 0 for k = 0."""
-    total = 0.0
-    for j in range(k):
-        total += _binomial(k, j) * x ** j * y ** (k - j)
-    return total
-
-
-@nb.njit(cache=True)
-def _pair_gain(x, y, k):
-    """(x + y)^k - x^k - y^k, exactly -1 for k = 0 and exactly 0 for k = 1."""
-    if k == 0:
-        return -1.0
-    total = 0.0
-    for j in range(1, k):
-        total += _binomial(k, j) * x ** j * y ** (k - j)
-    return total
 
 
 @nb.njit(cache=True)
@@ -124,10 +105,60 @@ def _d43(nodes, weights, n, mass_scale, density):
 
 
 @nb.njit(cache=True)
-def qmom_rhs(state, out, cell, aux, params, config):
+def _split_work(work, n_max):
+    nodes = work[0:n_max]
+    weights = work[n_max:2 * n_max]
+    binder = work[2 * n_max:3 * n_max]
+    start = 3 * n_max
+    size = (2 * n_max + 1) * (2 * n_max + 1) + 4 * n_max
+    wheeler = work[start:start + size]
+    start += size
+    props = work[start:start + (n_max + 1) * N_PROPS].reshape((n_max + 1, N_PROPS))
+    start += (n_max + 1) * N_PROPS
+    target = work[start:start + 3 * n_max + 2]
+    start += 3 * n_max + 2
+    n_pow = 2 * n_max
+    powers = work[start:start + (n_max + 1) * n_pow].reshape((n_max + 1, n_pow))
+    start += (n_max + 1) * n_pow
+    binomial = work[start:start + n_pow * n_pow].reshape((n_pow, n_pow))
+    return nodes, weights, binder, wheeler, props, target, powers, binomial
+
+
+@nb.njit(cache=True)
+def _fill_binomial(binomial, n_pow):
+    for k in range(n_pow):
+        binomial[k, 0] = 1.0
+        binomial[k, k] = 1.0
+        for j in range(1, k):
+            binomial[k, j] = binomial[k - 1, j - 1] + binomial[k - 1, j]
+
+
+@nb.njit(cache=True)
+def _fill_powers(powers, row, x, n_pow):
+    value = 1.0
+    for k in range(n_pow):
+        powers[row, k] = value
+        value *= x
+
+
+@nb.njit(cache=True)
+def _gain(powers, binomial, a, c, k, first):
+    """sum_{j=first}^{k-1} C(k, j) x_a^j x_c^(k-j): with first = 1 the pair gain
+    (x_a + x_c)^k - x_a^k - x_c^k (k >= 1), with first = 0 the gain (x_a + x_c)^k - x_a^k."""
+    total = 0.0
+    for j in range(first, k):
+        total += binomial[k, j] * powers[a, j] * powers[c, k - j]
+    return total
+
+
+@nb.njit(cache=True)
+def qmom_rhs(state, out, cell, aux, params, config, work):
     """d(state)/dt of one cell [scaled moments per s] (see module docstring for the layout).
 
-    cell: (alpha [-], theta [m2/s2], collision velocity [m/s], injection [droplets/(m3 s)]).
+    cell: (alpha [-], theta [m2/s2], collision velocity [m/s], injection [droplets/(m3 s)]);
+    work: float array of at least ``work_size(N)``. No allocation: powers of the nodes and
+    binomial coefficients are tabulated in ``work``, so the moment gains of a pair are
+    multiply-adds, exact zero for the mass moment (k = 1) and exact -1 for the number (k = 0).
     """
     n_max = config[P.ORDER]
     bivariate = config[P.BIVARIATE] == 1
@@ -135,66 +166,71 @@ def qmom_rhs(state, out, cell, aux, params, config):
     n_state = config[P.N_STATE]
     for k in range(n_state):
         out[k] = 0.0
-    nodes = np.empty(n_max)
-    weights = np.empty(n_max)
-    binder = np.empty(n_max)
-    work = np.empty((2 * n_max + 1) * (2 * n_max + 1) + 4 * n_max)
-    n = invert(state, config, nodes, weights, binder, work)
+    nodes, weights, binder, wheeler, props, _, powers, binomial = _split_work(work, n_max)
+    n = invert(state, config, nodes, weights, binder, wheeler)
     number_scale = params[P.NUMBER_SCALE]
     mass_scale = params[P.MASS_SCALE]
-    alpha = cell[P.ALPHA]
-    theta = cell[P.THETA]
     u0 = cell[P.COLLISION_VELOCITY]
-    d43 = _d43(nodes, weights, n, mass_scale, params[P.DENSITY])
+    code = config[P.KERNEL]
     n_size = 2 * n_max
-    # granule-granule aggregation, each unordered pair once
+    _fill_binomial(binomial, n_size)
+    d43 = 0.0
+    if code == 4:
+        d43 = _d43(nodes, weights, n, mass_scale, params[P.DENSITY])
+    factor = kernel_cell_factor(code, cell[P.ALPHA], cell[P.THETA], d43, params)
     for a in range(n):
-        for c in range(a, n):
-            rate = number_scale * aggregation_rate(
-                nodes[a] * mass_scale, binder[a] * mass_scale,
-                nodes[c] * mass_scale, binder[c] * mass_scale,
-                alpha, theta, u0, d43, params, config)
-            if rate == 0.0:
-                continue
-            pair = weights[a] * weights[c] * rate
-            if a == c:
-                pair *= 0.5
-            xa = nodes[a]
-            xc = nodes[c]
-            for k in range(n_size):
-                out[k] += pair * _pair_gain(xa, xc, k)
-            if bivariate:
-                for k in range(1, n_max):
-                    out[n_size + k] += pair * (binder[a] * _power_gain(xa, xc, k)
-                                               + binder[c] * _power_gain(xc, xa, k))
+        b = min(max(binder[a], 0.0), nodes[a])
+        particle_properties(nodes[a] * mass_scale, b * mass_scale, params, config, props, a)
+        _fill_powers(powers, a, nodes[a], n_size)
+    # granule-granule aggregation, each unordered pair once
+    if factor != 0.0:
+        for a in range(n):
+            for c in range(a, n):
+                rate = number_scale * pair_rate(props, a, c, factor, u0, params, config)
+                if rate == 0.0:
+                    continue
+                pair = weights[a] * weights[c] * rate
+                if a == c:
+                    pair *= 0.5
+                out[0] -= pair
+                for k in range(2, n_size):
+                    out[k] += pair * _gain(powers, binomial, a, c, k, 1)
+                if bivariate:
+                    for k in range(1, n_max):
+                        out[n_size + k] += pair * (binder[a] * _gain(powers, binomial, a, c, k, 0)
+                                                   + binder[c] * _gain(powers, binomial, c, a, k, 0))
     inj = cell[P.INJECTION] / number_scale
-    xd = params[P.DROPLET_MASS] / mass_scale
+    pd = params[P.DROPLET_MASS]
+    xd = pd / mass_scale
     if separate:
         nd = state[n_state - 1]
-        if nd > 0.0:
+        if nd > 0.0 and factor != 0.0 and n > 0:
+            particle_properties(pd, pd, params, config, props, n_max)
+            _fill_powers(powers, n_max, xd, n_size)
             captured = 0.0
             for a in range(n):
-                rate = number_scale * droplet_capture_rate(
-                    nodes[a] * mass_scale, binder[a] * mass_scale,
-                    alpha, theta, u0, d43, params, config)
+                rate = number_scale * params[P.DROPLET_FACTOR] * pair_rate(
+                    props, a, n_max, factor, u0, params, config)
                 flux = nd * weights[a] * rate
                 captured += flux
-                xa = nodes[a]
                 for k in range(1, n_size):
-                    out[k] += flux * _power_gain(xa, xd, k)
+                    out[k] += flux * _gain(powers, binomial, a, n_max, k, 0)
                 if bivariate:
+                    total = 1.0     # (x + xd)^k, built up from k = 0
                     for k in range(n_max):
                         # (x+xd)^k (b + xd) - x^k b
-                        out[n_size + k] += flux * (binder[a] * _power_gain(xa, xd, k)
-                                                   + xd * (xa + xd) ** k)
+                        out[n_size + k] += flux * (binder[a] * _gain(powers, binomial, a, n_max,
+                                                                     k, 0) + xd * total)
+                        total *= nodes[a] + xd
             out[n_state - 1] -= captured
         out[n_state - 1] += inj
     elif inj != 0.0:
+        value = inj
         for k in range(n_size):
-            out[k] += inj * xd ** k
-        if bivariate:
-            for k in range(n_max):
-                out[n_size + k] += inj * xd ** (k + 1)
+            out[k] += value
+            if bivariate and k < n_max:
+                out[n_size + k] += value * xd
+            value *= xd
 
 
 @nb.njit(cache=True)
@@ -217,7 +253,7 @@ def _project_into(state, target, config, nodes, weights, binder, n):
 
 
 @nb.njit(cache=True)
-def qmom_realizable(state, aux, params, config):
+def qmom_realizable(state, aux, params, config, work):
     """True if the cell's state is a realizable moment set (within PROJECTION_TOLERANCE).
 
     Checks finiteness, non-negative number and droplets, positive nodes, the consistency of the
@@ -238,15 +274,11 @@ def qmom_realizable(state, aux, params, config):
         return True
     if state[0] < 0.0:
         return False
-    nodes = np.empty(n_max)
-    weights = np.empty(n_max)
-    binder = np.empty(n_max)
-    work = np.empty((2 * n_max + 1) * (2 * n_max + 1) + 4 * n_max)
-    n = invert(state, config, nodes, weights, binder, work)
+    nodes, weights, binder, wheeler, _, target, _, _ = _split_work(work, n_max)
+    n = invert(state, config, nodes, weights, binder, wheeler)
     if n == 0:
         return False
     if n < n_max:
-        target = np.empty(n_state)
         _project_into(state, target, config, nodes, weights, binder, n)
         for k in range(2 * n_max):
             if abs(target[k] - state[k]) > PROJECTION_TOLERANCE * abs(state[k]):
@@ -260,18 +292,15 @@ def qmom_realizable(state, aux, params, config):
 
 
 @nb.njit(cache=True)
-def qmom_project(state, aux, params, config):
+def qmom_project(state, aux, params, config, work):
     """Re-project an accepted state onto its quadrature where nodes were lost or binder per node
     left [0, p_a]: the state becomes the exact moments of a valid quadrature. In-place."""
     n_state = config[P.N_STATE]
     n_max = config[P.ORDER]
     if state[0] <= 0.0:
         return
-    nodes = np.empty(n_max)
-    weights = np.empty(n_max)
-    binder = np.empty(n_max)
-    work = np.empty((2 * n_max + 1) * (2 * n_max + 1) + 4 * n_max)
-    n = invert(state, config, nodes, weights, binder, work)
+    nodes, weights, binder, wheeler, _, target, _, _ = _split_work(work, n_max)
+    n = invert(state, config, nodes, weights, binder, wheeler)
     needed = n < n_max
     if config[P.BIVARIATE] == 1:
         for a in range(n):
@@ -282,7 +311,6 @@ def qmom_project(state, aux, params, config):
                 binder[a] = nodes[a]
                 needed = True
     if needed and n > 0:
-        target = np.empty(n_state)
         _project_into(state, target, config, nodes, weights, binder, n)
         # keep the number and mass moments exactly as carried (they are conserved quantities)
         for k in range(n_state):
@@ -296,6 +324,6 @@ def quadrature_of(state, config):
     nodes = np.zeros(n_max)
     weights = np.zeros(n_max)
     binder = np.zeros(n_max)
-    work = np.zeros((2 * n_max + 1) ** 2 + 4 * n_max)
+    work = np.zeros(work_size(n_max))
     n = invert(np.ascontiguousarray(state, dtype=np.float64), config, nodes, weights, binder, work)
     return nodes[:n], weights[:n], np.clip(binder[:n], 0.0, nodes[:n])

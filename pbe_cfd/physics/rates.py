@@ -2,33 +2,44 @@
 
 Combines ``kernels`` and ``efficiency`` with the droplet rules of DESIGN section 3: where droplets
 are a population of their own, droplets never aggregate with each other and a droplet meets a
-granule at ``droplet_factor`` times the kernel.
+granule at ``droplet_factor`` times the kernel. ``pair_rate`` works on precomputed property rows
+(the fast path of the moment methods); ``aggregation_rate`` and ``droplet_capture_rate`` are the
+single-pair forms used where particles come one pair at a time (Monte Carlo, tensor builds).
 """
 import numba as nb
+import numpy as np
 
 from . import parameters as P
-from .efficiency import success_probability
-from .kernels import collision_frequency
+from .efficiency import pair_success_probability
+from .kernels import kernel_cell_factor, pair_collision_frequency
+from .properties import N_PROPS, particle_properties
+
+
+@nb.njit(cache=True)
+def pair_rate(props, a, c, cell_factor, u0, params, config):
+    """Aggregation rate beta * psi [m3/s] of property rows a and c (see physics.properties);
+    cell_factor from ``kernel_cell_factor``, u0 the collision velocity [m/s]."""
+    beta = pair_collision_frequency(config[P.KERNEL], props, a, c, cell_factor, params)
+    if beta == 0.0:
+        return 0.0
+    return beta * pair_success_probability(props, a, c, u0, params, config)
 
 
 @nb.njit(cache=True)
 def aggregation_rate(p1, b1, p2, b2, alpha, theta, u0, d43, params, config):
-    """Aggregation rate beta * psi [m3/s] of two granules (p [kg], b [kg]).
-
-    alpha [-], theta [m2/s2], u0 [m/s] and d43 [m] are the cell's local values.
-    """
-    beta = collision_frequency(config[P.KERNEL], p1, p2, alpha, theta, d43, params)
-    if beta == 0.0:
-        return 0.0
-    return beta * success_probability(p1, b1, p2, b2, u0, params, config)
+    """Aggregation rate beta * psi [m3/s] of two granules (p [kg], b [kg]) in a cell with
+    alpha [-], theta [m2/s2], collision velocity u0 [m/s] and volume-mean diameter d43 [m]."""
+    props = np.empty((2, N_PROPS))
+    particle_properties(p1, b1, params, config, props, 0)
+    particle_properties(p2, b2, params, config, props, 1)
+    factor = kernel_cell_factor(config[P.KERNEL], alpha, theta, d43, params)
+    return pair_rate(props, 0, 1, factor, u0, params, config)
 
 
 @nb.njit(cache=True)
 def droplet_capture_rate(p, b, alpha, theta, u0, d43, params, config):
-    """Rate [m3/s] at which one granule (p, b) [kg] captures one binder droplet.
-
-    droplet_factor times the pair aggregation rate with the droplet (p_d, b = p_d).
-    """
+    """Rate [m3/s] at which one granule (p, b) [kg] captures one binder droplet:
+    droplet_factor times the pair aggregation rate with the droplet (p_d, b = p_d)."""
     pd = params[P.DROPLET_MASS]
     return params[P.DROPLET_FACTOR] * aggregation_rate(p, b, pd, pd, alpha, theta, u0, d43,
                                                        params, config)
