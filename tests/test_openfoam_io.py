@@ -87,6 +87,20 @@ def test_snapshot_flux(snap):
     np.testing.assert_allclose(d, BED_WIDTH / 15, rtol=1e-5)
 
 
+def test_snapshot_flux_balances_alpha_change(snap):
+    # the window-averaged solids flux carries exactly the solids that moved over the window:
+    # net outflow = -(alpha_end - alpha_start) V / T, up to the time discretisation
+    cells, flux = snap
+    assert flux.window_start == pytest.approx(0.5) and flux.time == pytest.approx(1.5)
+    out = flux.net_outflow()
+    moved = -(flux.alpha_end - flux.alpha_start) * cells.cell_volume / (flux.time -
+                                                                       flux.window_start)
+    assert np.abs(out - moved).max() < 0.01 * np.abs(out).max()
+    # the solids inventory is constant, so the mean field holds the same solids volume
+    np.testing.assert_allclose((cells.alpha * cells.cell_volume).sum(),
+                               (flux.alpha_end * cells.cell_volume).sum(), rtol=1e-4)
+
+
 # --------------------------------------------------------------------------- fake cases
 
 def _fake_case(tmp_path: Path, mesh: meshio.Mesh, cell_data: dict, time: float = 1.5) -> Path:
@@ -312,6 +326,10 @@ def test_real_case_end_to_end(real_case):
     assert flux.field == "alphaPhi.particlesMean"
     assert flux.n_cells == 900 and len(flux.flux) == 14 * 60 + 15 * 59
     assert np.all(np.isfinite(flux.flux))
+    assert flux.window_start == pytest.approx(0.1)
+    out = flux.net_outflow()
+    moved = -(flux.alpha_end - flux.alpha_start) * V / (flux.time - flux.window_start)
+    assert np.abs(out - moved).max() < 0.02 * np.abs(out).max()
 
 
 @pytest.mark.openfoam
