@@ -447,3 +447,28 @@ def test_escaped_mass_share(cache):
     from scipy.special import gammaincc
     exact = gammaincc(4.0, 1e-8 / (8e-9 / 3.0))
     assert s_big >= exact * 0.999
+
+
+def test_scene_helpers(tmp_path):
+    """aux_for_scene / population_for_output / escaped_share_report on the bundled seed scene."""
+    from pbe_cfd import model
+    from pbe_cfd.scene import load_scene, resolve_scene_path
+    scene = load_scene(resolve_scene_path("seed-wurster")).with_method(name="laguerre", order=3)
+    arrays = model.pack(scene)
+    aux = LT.aux_for_scene(scene, arrays, cache_dir=str(tmp_path))
+    assert aux[LT.AUX_U0_FIXED] == pytest.approx(5.5)
+    assert aux[LT.AUX_SPACING] == LT.SPACINGS[LT.SCENE_SPACING]
+    m = 3
+    M = product_gamma_moments(2e10, 3.0, 2e-9, 0.7, 0.3e-9)
+    state = L.initial_state(M, arrays.params, arrays.config, n_droplets=1e9)
+    w, p, b = LT.population_for_output(state, aux, arrays)
+    tol = 100 * EPS * aux[LT.AUX_COND_G]
+    for i in range(m):
+        for j in range(m):
+            assert np.sum(w * p ** i * b ** j) == pytest.approx(M(i, j), rel=tol)
+    share, text = LT.escaped_share_report(np.stack([state, state]), aux, arrays)
+    assert 0.0 <= share < LT.ESCAPE_WARN_SHARE and text == ""
+    big = L.initial_state(product_gamma_moments(2e10, 3.0, 8e-9, 0.7, 2e-9), arrays.params,
+                          arrays.config, n_droplets=1e9)
+    share, text = LT.escaped_share_report(np.stack([state, big]), aux, arrays)
+    assert share > 0.1 and "beyond the integration support" in text
