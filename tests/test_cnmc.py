@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from pbe_cfd.methods import cnmc
 from pbe_cfd.physics import parameters as P
@@ -92,7 +93,7 @@ def test_sum_kernel_matches_analytic_moments():
     k0 = 1e-12 / P0
     params, config, cell = make_physics("sum", k0, bivariate=False)
     m1 = N0 * P0
-    for n, replicas, tau in ((2000, 16, 1.0),):   # tau = 5 follows with the binned majorant
+    for n, replicas, tau in ((2000, 16, 1.0), (20000, 8, 5.0)):
         t = np.array([0.0, tau / (k0 * m1)])
         res = cnmc.simulate_ensemble(params, config, cell, initial(), t, n, replicas, seed=5)
         for name, exact in (("M00", N0 * math.exp(-tau)),
@@ -129,15 +130,20 @@ def test_injection_adds_exactly_the_droplet_mass(separate):
     cell[P.INJECTION] = rate
     t = np.linspace(0.0, 300.0, 7)
     res = cnmc.simulate_ensemble(params, config, cell, initial(y0=0.1, nd0=0.02 * N0), t,
-                                 1000, 8, seed=7)
+                                 1000, 32, seed=7)
     assert res["events_injection"] > 0 and res["accepted"] > 0
     m10 = res["M10"][0] + rate * pd * t
     assert np.allclose(res["M10"], m10, rtol=1e-12, atol=0)
-    # the binder follows the same line in expectation (copies change the box's binder/mass
-    # ratio by O(1/N) per event, see the module docstring): band and 1% at the end
+    # M01 follows the same line in expectation only: a copy changes the box's binder/mass
+    # ratio by O(1/N) (module docstring). Over 40 ensembles of this case (1280 replicas) the
+    # mean deviation was below 0.04% +- 0.04% and the 95% band held the line in 37-40 of 40,
+    # so a single 95% band misses it 1 time in 20 by design: test the deviation in standard
+    # errors of the ensemble mean instead (|z| < 4: a false alarm 1 time in 16,000).
     m01 = res["M01"][0] + rate * pd * t
-    assert res["M01_lo"][-1] <= m01[-1] <= res["M01_hi"][-1]
-    assert abs(res["M01"][-1] / m01[-1] - 1.0) < 0.01
+    t975 = (res["M01_hi"] - res["M01"])[1:]
+    z = (res["M01"][1:] - m01[1:]) / (t975 / stats.t.ppf(0.975, 31))
+    assert np.all(np.abs(z) < 4.0), z
+    assert np.all(np.abs(res["M01"] / m01 - 1.0) < 0.02)
     if separate:
         assert np.all(res["droplet_number_density"] > 0)
     else:
@@ -244,10 +250,12 @@ def test_ten_particle_box_stays_finite():
 
 
 @pytest.mark.parametrize("kernel,rate,t_end,distinct", [("constant", 1e-12, 1e6, 20),
-                                                        ("sum", 1e-3, 3e3, 5)])
+                                                        ("sum", 1e-3, 3e3, 12),
+                                                        ("product", 1e6, 3e3, 3)])
 def test_box_coalescing_to_few_particles_stays_finite(kernel, rate, t_end, distinct):
-    # constant: tau = 1e4, M00 falls 5000-fold; sum: k0 M1 t = 30, M00 falls e^30-fold and the
-    # box ends as copies of one or two giants
+    # constant: tau = 1e4, M00 falls 5000-fold; sum: k0 M1 t = 30, M00 falls e^30-fold;
+    # product: 30 gel times (t_gel = 1/(k0 M20(0)) = 100 s), the box ends as copies of a giant
+    # and of monomers
     params, config, cell = make_physics(kernel, rate)
     n = 20
     t = np.concatenate(([0.0], np.geomspace(1.0, t_end, 30)))

@@ -107,6 +107,8 @@ STATUS_STALLED = 3         # dt below the resolution of t (event rate ~1e16 time
 MAX_TRIALS = 10 ** 10      # per replica; ~ minutes of work, then simulate_ensemble raises
 
 _BOUND_SAFETY = 1.0 + 1e-12
+_D43_MARGIN = 1.02         # majorant tables use d43 * 1.02, rebuilt when d43 leaves the margin
+N_BINS = 64                # mass classes of the granules (factor 2 wide)
 _C_D = 6.0 / math.pi
 
 
@@ -132,45 +134,99 @@ def pair_rate_bounds(gmin, gmax, n_granules, alpha, theta, d43, params, config):
     """
     if n_granules <= 0:
         return 0.0, 0.0
-    code = config[P.KERNEL]
-    b11 = collision_frequency(code, gmin, gmin, alpha, theta, d43, params)
-    b12 = collision_frequency(code, gmin, gmax, alpha, theta, d43, params)
-    b22 = collision_frequency(code, gmax, gmax, alpha, theta, d43, params)
-    bgg = max(b11, max(b12, b22)) * _BOUND_SAFETY
+    bgg = interval_pair_bound(gmin, gmax, gmin, gmax, alpha, theta, d43, params, config)
     bdg = 0.0
     if config[P.SEPARATE_DROPLETS] == 1:
         pd = params[P.DROPLET_MASS]
-        c1 = collision_frequency(code, gmin, pd, alpha, theta, d43, params)
-        c2 = collision_frequency(code, gmax, pd, alpha, theta, d43, params)
-        bdg = params[P.DROPLET_FACTOR] * max(c1, c2) * _BOUND_SAFETY
+        bdg = params[P.DROPLET_FACTOR] * interval_pair_bound(gmin, gmax, pd, pd, alpha, theta,
+                                                             d43, params, config)
     return bgg, bdg
 
 
 @nb.njit(cache=True)
-def _set_kind(k, kind, isdrop, glist, dlist, pos, cnt):
-    """Move slot k to the granule list (kind 0) or the droplet list (kind 1); O(1)."""
-    old = isdrop[k]
-    if old == kind:
+def interval_pair_bound(lo1, hi1, lo2, hi2, alpha, theta, d43, params, config):
+    """Majorant [m3/s] of the collision frequency over [lo1, hi1] x [lo2, hi2] (masses, kg).
+
+    The maximum of the kernel over the four corners (times 1 + 1e-12): an upper bound for every
+    kernel of the registry because each is quasi-convex in each mass (module docstring).
+    alpha [-], theta [m2/s2], d43 [m]: the local values passed to the kernel.
+    """
+    code = config[P.KERNEL]
+    m = collision_frequency(code, lo1, lo2, alpha, theta, d43, params)
+    m = max(m, collision_frequency(code, lo1, hi2, alpha, theta, d43, params))
+    m = max(m, collision_frequency(code, hi1, lo2, alpha, theta, d43, params))
+    m = max(m, collision_frequency(code, hi1, hi2, alpha, theta, d43, params))
+    return m * _BOUND_SAFETY
+
+
+@nb.njit(cache=True)
+def _bin_index(p, m_ref):
+    """Mass class of a granule: floor(log2(p / m_ref)) clipped to [0, N_BINS - 1]."""
+    if not p > m_ref:
+        return 0
+    c = int(math.floor(math.log2(p / m_ref)))
+    if c >= N_BINS:
+        return N_BINS - 1
+    return c
+
+
+@nb.njit(cache=True)
+def _remove(k, bin_of, bpos, members, bcnt, dlist, dpos, dcnt):
+    """Take slot k out of its mass class (or out of the droplet list); O(1)."""
+    c = bin_of[k]
+    if c >= 0:
+        last = members[c, bcnt[c] - 1]
+        members[c, bpos[k]] = last
+        bpos[last] = bpos[k]
+        bcnt[c] -= 1
+    else:
+        last = dlist[dcnt[0] - 1]
+        dlist[dpos[k]] = last
+        dpos[last] = dpos[k]
+        dcnt[0] -= 1
+
+
+@nb.njit(cache=True)
+def _insert(k, droplet, p, m_ref, bin_of, bpos, members, bcnt, lo, hi, dirty, dlist, dpos,
+            dcnt):
+    """Put slot k (mass p[k]) into its mass class, widening the class interval if needed
+    (and marking the class dirty), or into the droplet list; O(1)."""
+    if droplet:
+        bin_of[k] = -1
+        dlist[dcnt[0]] = k
+        dpos[k] = dcnt[0]
+        dcnt[0] += 1
         return
-    if old == 0:
-        last = glist[cnt[0] - 1]
-        glist[pos[k]] = last
-        pos[last] = pos[k]
-        cnt[0] -= 1
-    else:
-        last = dlist[cnt[1] - 1]
-        dlist[pos[k]] = last
-        pos[last] = pos[k]
-        cnt[1] -= 1
-    if kind == 0:
-        glist[cnt[0]] = k
-        pos[k] = cnt[0]
-        cnt[0] += 1
-    else:
-        dlist[cnt[1]] = k
-        pos[k] = cnt[1]
-        cnt[1] += 1
-    isdrop[k] = kind
+    c = _bin_index(p[k], m_ref)
+    bin_of[k] = c
+    members[c, bcnt[c]] = k
+    bpos[k] = bcnt[c]
+    bcnt[c] += 1
+    if p[k] < lo[c]:
+        lo[c] = p[k]
+        dirty[c] = True
+    if p[k] > hi[c]:
+        hi[c] = p[k]
+        dirty[c] = True
+
+
+@nb.njit(cache=True)
+def _bound_row(c, lo, hi, table, tabd, alpha, theta, d43, params, config):
+    """Recompute the majorants of class c against every class with a valid interval."""
+    sep = config[P.SEPARATE_DROPLETS] == 1
+    for a in range(N_BINS):
+        if hi[a] > 0.0 and hi[c] > 0.0:
+            bnd = interval_pair_bound(lo[a], hi[a], lo[c], hi[c], alpha, theta, d43, params,
+                                      config)
+        else:
+            bnd = 0.0
+        table[a, c] = bnd
+        table[c, a] = bnd
+    tabd[c] = 0.0
+    if sep and hi[c] > 0.0:
+        pd = params[P.DROPLET_MASS]
+        tabd[c] = params[P.DROPLET_FACTOR] * interval_pair_bound(
+            lo[c], hi[c], pd, pd, alpha, theta, d43, params, config)
 
 
 @nb.njit(cache=True)
@@ -250,40 +306,47 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
     u0 = cell[P.COLLISION_VELOCITY]
     inj = cell[P.INJECTION]
 
-    glist = np.empty(n, np.int64)
+    # mass classes of the granules, the droplet list
+    members = np.empty((N_BINS, n), np.int32)
+    bcnt = np.zeros(N_BINS, np.int64)
+    bpos = np.empty(n, np.int64)
+    bin_of = np.empty(n, np.int64)
+    lo = np.full(N_BINS, np.inf)
+    hi = np.zeros(N_BINS)
+    dirty = np.zeros(N_BINS, np.bool_)
+    table = np.zeros((N_BINS, N_BINS))
+    tabd = np.zeros(N_BINS)
     dlist = np.empty(n, np.int64)
-    pos = np.empty(n, np.int64)
-    cnt = np.zeros(2, np.int64)
+    dpos = np.empty(n, np.int64)
+    dcnt = np.zeros(1, np.int64)
+    occ = np.empty(N_BINS, np.int64)
+    srow = np.zeros(N_BINS)
+    trow = np.zeros(N_BINS)
+    drow = np.zeros(N_BINS)
+
+    m_ref = np.inf
+    for k in range(n):
+        m_ref = min(m_ref, p[k])
+    m_ref = m_ref * 2.0 ** -8
+    ptot = 0.0
+    s4 = 0.0
     for k in range(n):
         if not sep:
             isdrop[k] = 0
         if isdrop[k] != 0:
             isdrop[k] = 1
-            dlist[cnt[1]] = k
-            pos[k] = cnt[1]
-            cnt[1] += 1
-        else:
-            glist[cnt[0]] = k
-            pos[k] = cnt[0]
-            cnt[0] += 1
-
-    # running sums and the granule mass interval
-    ptot = 0.0
-    s4 = 0.0
-    gmin = np.inf
-    gmax = 0.0
-    for k in range(n):
+        _insert(k, isdrop[k] == 1, p, m_ref, bin_of, bpos, members, bcnt, lo, hi, dirty,
+                dlist, dpos, dcnt)
         ptot += p[k]
         s4 += _d4(p[k], rho)
-        if isdrop[k] == 0:
-            gmin = min(gmin, p[k])
-            gmax = max(gmax, p[k])
     conc0 = ptot / volume0
     mass_rate = inj * pd                     # kg/(m3 s) added by injection
     s3_factor = _C_D / rho                   # sum d^3 = s3_factor * ptot
-
     d43 = s4 / (s3_factor * ptot)
-    bgg, bdg = pair_rate_bounds(gmin, gmax, cnt[0], alpha, theta, d43, params, config)
+    d43_tab = d43 * _D43_MARGIN
+    for c in range(N_BINS):
+        _bound_row(c, lo, hi, table, tabd, alpha, theta, d43_tab, params, config)
+        dirty[c] = False
 
     trials = 0
     accepted = 0
@@ -293,13 +356,38 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
     since_sync = 0
     t = 0.0
     k_out = 0
+    changed = True
+    w_gg = 0.0
+    w_dg = 0.0
+    n_occ = 0
     while k_out < n_out:
+        if changed:
+            # class-pair majorant weights over the occupied classes, O(K_occ^2)
+            changed = False
+            n_occ = 0
+            for c in range(N_BINS):
+                if bcnt[c] > 0:
+                    occ[n_occ] = c
+                    n_occ += 1
+            w_gg = 0.0
+            w_dg = 0.0
+            for ia in range(n_occ):
+                a = occ[ia]
+                s = (bcnt[a] - 1) * table[a, a]
+                for ib in range(n_occ):
+                    c = occ[ib]
+                    if c != a:
+                        s += bcnt[c] * table[a, c]
+                srow[a] = s
+                trow[a] = bcnt[a] * s          # ordered pairs (i in a, j != i)
+                w_gg += trow[a]
+                drow[a] = bcnt[a] * tabd[a]
+                w_dg += drow[a]
         conc = conc0 + mass_rate * t
         vol = ptot / conc
-        ng = cnt[0]
-        nd = cnt[1]
-        r_gg = 0.5 * ng * (ng - 1) * bgg / vol
-        r_dg = ng * nd * bdg / vol
+        nd = dcnt[0]
+        r_gg = 0.5 * w_gg / vol
+        r_dg = nd * w_dg / vol
         r_inj = inj * vol
         r = r_gg + r_dg + r_inj
         if not (r < np.inf):
@@ -323,20 +411,18 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
         t = t_next
 
         u = np.random.random() * r
-        changed = False
         if u < r_inj or (r_gg <= 0.0 and r_dg <= 0.0):
             # injection: overwrite a random slot with a droplet
             injections += 1
             k = np.random.randint(n)
             ptot -= p[k]
             s4 -= _d4(p[k], rho)
+            _remove(k, bin_of, bpos, members, bcnt, dlist, dpos, dcnt)
             p[k] = pd
             b[k] = bd
-            if sep:
-                _set_kind(k, 1, isdrop, glist, dlist, pos, cnt)
-            else:
-                gmin = min(gmin, pd)
-                gmax = max(gmax, pd)
+            isdrop[k] = 1 if sep else 0
+            _insert(k, sep, p, m_ref, bin_of, bpos, members, bcnt, lo, hi, dirty, dlist,
+                    dpos, dcnt)
             ptot += pd
             s4 += _d4(pd, rho)
             changed = True
@@ -344,38 +430,83 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
             trials += 1
             d43 = s4 / (s3_factor * ptot)
             if (u < r_inj + r_gg and r_gg > 0.0) or r_dg <= 0.0:
-                ia = np.random.randint(ng)
-                ja = np.random.randint(ng - 1)
-                if ja >= ia:
-                    ja += 1
-                i = glist[ia]
-                j = glist[ja]
+                # granule-granule: class a by its share of ordered pairs, then class c
+                x = np.random.random() * w_gg
+                a = occ[n_occ - 1]
+                for ia in range(n_occ):
+                    if x < trow[occ[ia]]:
+                        a = occ[ia]
+                        break
+                    x -= trow[occ[ia]]
+                while trow[a] <= 0.0:          # round-off guard: a class with pairs
+                    a = occ[np.random.randint(n_occ)]
+                x = np.random.random() * srow[a]
+                c = -1
+                for ib in range(n_occ):
+                    cc = occ[ib]
+                    wc = (bcnt[cc] - 1 if cc == a else bcnt[cc]) * table[a, cc]
+                    if x < wc:
+                        c = cc
+                        break
+                    x -= wc
+                if c < 0:
+                    for ib in range(n_occ - 1, -1, -1):
+                        cc = occ[ib]
+                        if (bcnt[cc] - 1 if cc == a else bcnt[cc]) * table[a, cc] > 0.0:
+                            c = cc
+                            break
+                ia = np.random.randint(bcnt[a])
+                i = members[a, ia]
+                if c == a:
+                    ja = np.random.randint(bcnt[a] - 1)
+                    if ja >= ia:
+                        ja += 1
+                    j = members[a, ja]
+                else:
+                    j = members[c, np.random.randint(bcnt[c])]
                 rate = aggregation_rate(p[i], b[i], p[j], b[j], alpha, theta, u0, d43,
                                         params, config)
-                bound = bgg
+                bound = table[a, c]
             else:
-                i = glist[np.random.randint(ng)]
+                # droplet-granule: granule class a by n_a * B_d(a), a random droplet
+                x = np.random.random() * w_dg
+                a = -1
+                for ia in range(n_occ):
+                    if x < drow[occ[ia]]:
+                        a = occ[ia]
+                        break
+                    x -= drow[occ[ia]]
+                if a < 0:
+                    for ia in range(n_occ - 1, -1, -1):
+                        if drow[occ[ia]] > 0.0:
+                            a = occ[ia]
+                            break
+                i = members[a, np.random.randint(bcnt[a])]
                 j = dlist[np.random.randint(nd)]
                 rate = droplet_capture_rate(p[i], b[i], alpha, theta, u0, d43, params, config)
-                bound = bdg
+                bound = tabd[a]
             if rate > bound:
                 violations += 1
             if np.random.random() * bound < rate:
                 accepted += 1
                 # merge j into i (i is a granule)
+                _remove(i, bin_of, bpos, members, bcnt, dlist, dpos, dcnt)
+                _remove(j, bin_of, bpos, members, bcnt, dlist, dpos, dcnt)
                 s4 -= _d4(p[i], rho) + _d4(p[j], rho)
                 p[i] += p[j]
                 b[i] += b[j]
                 s4 += _d4(p[i], rho)
-                if p[i] > gmax:
-                    gmax = p[i]
+                _insert(i, False, p, m_ref, bin_of, bpos, members, bcnt, lo, hi, dirty,
+                        dlist, dpos, dcnt)
                 # refill j with a copy of a particle k != j
                 k = np.random.randint(n - 1)
                 if k >= j:
                     k += 1
                 p[j] = p[k]
                 b[j] = b[k]
-                _set_kind(j, isdrop[k], isdrop, glist, dlist, pos, cnt)
+                isdrop[j] = isdrop[k]
+                _insert(j, isdrop[k] == 1, p, m_ref, bin_of, bpos, members, bcnt, lo, hi,
+                        dirty, dlist, dpos, dcnt)
                 ptot += p[j]
                 s4 += _d4(p[j], rho)
                 changed = True
@@ -384,21 +515,37 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
                 break
         if changed:
             since_sync += 1
+            rebuild = False
             if since_sync >= n:
-                # O(N) pass every N changes: exact sums and the tight granule interval
+                # O(N) pass every N changes: exact sums and tight class intervals
                 since_sync = 0
                 ptot = 0.0
                 s4 = 0.0
-                gmin = np.inf
-                gmax = 0.0
+                for c in range(N_BINS):
+                    lo[c] = np.inf
+                    hi[c] = 0.0
                 for k in range(n):
                     ptot += p[k]
                     s4 += _d4(p[k], rho)
-                    if isdrop[k] == 0:
-                        gmin = min(gmin, p[k])
-                        gmax = max(gmax, p[k])
+                    c = bin_of[k]
+                    if c >= 0:
+                        lo[c] = min(lo[c], p[k])
+                        hi[c] = max(hi[c], p[k])
+                rebuild = True
             d43 = s4 / (s3_factor * ptot)
-            bgg, bdg = pair_rate_bounds(gmin, gmax, cnt[0], alpha, theta, d43, params, config)
+            if d43 > d43_tab or d43 * _D43_MARGIN ** 3 < d43_tab:
+                rebuild = True
+            if rebuild:
+                d43_tab = d43 * _D43_MARGIN
+                for c in range(N_BINS):
+                    _bound_row(c, lo, hi, table, tabd, alpha, theta, d43_tab, params, config)
+                    dirty[c] = False
+            else:
+                for c in range(N_BINS):
+                    if dirty[c]:
+                        _bound_row(c, lo, hi, table, tabd, alpha, theta, d43_tab, params,
+                                   config)
+                        dirty[c] = False
 
     for k in range(k_out, n_out):
         for q in range(out.shape[1]):
