@@ -413,3 +413,4 @@ def render_command(args) -> int:
     for p in paths:
         print(p)
     return 0
+from .transport import transport_plan_lines  # noqa: E402

@@ -128,8 +128,12 @@ class Method:
 
 @dataclass(frozen=True)
 class Transport:
-    """Transport of the population by the granular flux (OpenFOAM domains): courant [-]."""
+    """Transport of the population by the granular flux (OpenFOAM domains): courant [-] (CFL
+    limit of the upwind substeps, <= 1), split_step [s] (operator-splitting step; None: the
+    default of ``pbe_cfd.transport``), splitting ("strang" or "lie")."""
     courant: float = 0.5
+    split_step: float | None = None
+    splitting: str = "strang"
 
 
 @dataclass(frozen=True)
@@ -310,7 +314,9 @@ def scene_from_dict(data: dict, path="<scene>") -> Scene:
     transport = None
     if "transport" in data:
         tt = _Table(path, "transport", data["transport"])
-        transport = Transport(courant=tt.number("courant", 0.5, positive=True, high=1.0))
+        transport = Transport(courant=tt.number("courant", 0.5, positive=True, high=1.0),
+                              split_step=tt.number("split_step", None, positive=True, unit="s"),
+                              splitting=tt.choice("splitting", ("strang", "lie"), "strang"))
         tt.finish()
         if domain.type != "openfoam":
             raise SceneError(path, "transport",
