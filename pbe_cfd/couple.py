@@ -254,7 +254,7 @@ def run_coupled(scene: Scene, domain: Domain, progress=None, threads: int | None
 def _advance(states, rows, aux, arrays, method, t0, t1, steps, stats, status, reached, idx,
              scene):
     integrate.integrate_cells(states, rows, aux, arrays.params, arrays.config, t0, t1, steps,
-                              method.rtol, method.atol, 10_000_000, stats, status, reached)
+                              method.rtol, method.atol, integrate.MAX_STEPS_PER_INTERVAL, stats, status, reached)
     bad = np.flatnonzero(status != integrate.OK)
     if bad.size:
         c = int(bad[0])

@@ -24,9 +24,13 @@ STATUS_TEXT = {
     OK: "ok",
     STEP_FLOOR: "the step size fell below its floor",
     NOT_FINITE: "the right-hand side became non-finite",
-    TOO_MANY_STEPS: "the step budget ran out",
+    TOO_MANY_STEPS: "the step budget of one output interval ran out (the cell's rates are "
+                    "stiff for this explicit integrator: far faster than the output interval)",
     UNREALIZABLE_START: "the initial moment set is not realizable",
 }
+
+#: accepted-or-rejected steps one cell may take within one output interval
+MAX_STEPS_PER_INTERVAL = 1_000_000
 
 # statistics columns per cell
 ACCEPTED = 0

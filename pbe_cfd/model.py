@@ -48,6 +48,7 @@ def pack(scene: Scene) -> Arrays:
     mat = scene.material
     params[P.DENSITY] = mat.density
     params[P.ALPHA_MAX] = scene.domain.alpha_max
+    params[P.ALPHA_MIN_FRICTION] = scene.domain.alpha_min_friction or 0.0
     for slot, value in ((P.BINDER_DENSITY, mat.binder_density),
                         (P.BINDER_VISCOSITY, mat.binder_viscosity),
                         (P.GEO_SLOPE, mat.accessible_binder_slope),

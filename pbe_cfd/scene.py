@@ -50,6 +50,7 @@ class Domain:
     solids_fraction: float | None = None
     collision_velocity: float | None = None
     alpha_max: float = 0.62
+    alpha_min_friction: float | None = None
     case: str | None = None
     time: str = "latest"
     alpha_min: float = 0.05
@@ -122,8 +123,9 @@ class Method:
     weight_shape_binder: float = 0.2
     support_mass: float = 1.0e-8
     support_binder: float = 4.0e-9
-    grid_mass: int = 21
-    grid_binder: int = 21
+    grid_mass: int = 20
+    grid_binder: int = 20
+    grid_spacing: str = "fraction"
 
 
 @dataclass(frozen=True)
@@ -333,12 +335,13 @@ def _domain(path, data):
     t = _Table(path, "domain", data)
     kind = t.choice("type", ("well-mixed", "openfoam"))
     alpha_max = t.number("alpha_max", 0.62, positive=True, high=1.0)
+    alpha_min_friction = t.number("alpha_min_friction", None, positive=True, high=alpha_max)
     if kind == "well-mixed":
         alpha = t.number("solids_fraction", None, non_negative=True)
         if alpha is not None and alpha >= alpha_max:
             raise SceneError(path, "domain.solids_fraction",
                              f"expected a solids fraction below alpha_max = {alpha_max}, got {alpha}")
-        d = Domain(type=kind, alpha_max=alpha_max,
+        d = Domain(type=kind, alpha_max=alpha_max, alpha_min_friction=alpha_min_friction,
                    granular_temperature=t.number("granular_temperature", None, non_negative=True,
                                                  unit="m2/s2"),
                    solids_fraction=alpha,
@@ -350,7 +353,8 @@ def _domain(path, data):
                                      and time >= 0)):
             raise SceneError(path, "domain.time",
                              f"expected \"latest\" or a non-negative time in s, got {time!r}")
-        d = Domain(type=kind, alpha_max=alpha_max, case=t.string("case", "bundled:fluid_bed_small"),
+        d = Domain(type=kind, alpha_max=alpha_max, alpha_min_friction=alpha_min_friction,
+                   case=t.string("case", "bundled:fluid_bed_small"),
                    time=str(time), alpha_min=t.number("alpha_min", 0.05, non_negative=True,
                                                       high=1.0))
     t.finish()
@@ -478,7 +482,8 @@ def _method(path, data):
                           ("support_mass", "kg"), ("support_binder", "kg")):
             kw[key] = t.number(key, getattr(Method, key), positive=True, unit=unit)
         for key in ("grid_mass", "grid_binder"):
-            kw[key] = t.number(key, getattr(Method, key), integer=True, low=5, high=400)
+            kw[key] = t.number(key, getattr(Method, key), integer=True, low=4, high=400)
+        kw["grid_spacing"] = t.choice("grid_spacing", ("fraction", "uniform"), "fraction")
     else:
         kw["particles"] = t.number("particles", 10000, integer=True, low=2, high=10_000_000)
         kw["replicas"] = t.number("replicas", 8, integer=True, low=1, high=100_000)

@@ -127,7 +127,7 @@ def run_well_mixed(scene: Scene, progress=None) -> RunResult:
     m = scene.method
     for k in range(1, len(times)):
         integrate.integrate_cells(work, cells, aux, arrays.params, arrays.config,
-                                  times[k - 1], times[k], steps, m.rtol, m.atol, 10_000_000,
+                                  times[k - 1], times[k], steps, m.rtol, m.atol, integrate.MAX_STEPS_PER_INTERVAL,
                                   stats, status, reached)
         if status[0] != integrate.OK:
             raise SimulationError(

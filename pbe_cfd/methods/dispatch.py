@@ -9,6 +9,7 @@ graph, so the choice is an if-chain on the method code rather than a function ar
 import numba as nb
 
 from ..physics import parameters as P
+from .laguerre import laguerre_project, laguerre_realizable, laguerre_rhs
 from .qmom import qmom_project, qmom_realizable, qmom_rhs
 
 QMOM = 0
@@ -23,16 +24,24 @@ WORK_SIZE = 2048
 @nb.njit(cache=True)
 def method_rhs(state, out, cell, aux, params, config, work):
     """d(state)/dt [scaled units per s] of one cell for the method config[METHOD]."""
-    qmom_rhs(state, out, cell, aux, params, config, work)
+    if config[P.METHOD] == LAGUERRE:
+        laguerre_rhs(state, out, cell, aux, params, config, work)
+    else:
+        qmom_rhs(state, out, cell, aux, params, config, work)
 
 
 @nb.njit(cache=True)
 def method_realizable(state, aux, params, config, work):
     """True if the state is a realizable moment set for the method config[METHOD]."""
+    if config[P.METHOD] == LAGUERRE:
+        return laguerre_realizable(state, aux, params, config, work)
     return qmom_realizable(state, aux, params, config, work)
 
 
 @nb.njit(cache=True)
 def method_project(state, aux, params, config, work):
     """Re-project an accepted state onto the method's realizable set, in place."""
-    qmom_project(state, aux, params, config, work)
+    if config[P.METHOD] == LAGUERRE:
+        laguerre_project(state, aux, params, config, work)
+    else:
+        qmom_project(state, aux, params, config, work)

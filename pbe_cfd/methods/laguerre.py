@@ -28,7 +28,7 @@ import numpy as np
 from scipy.special import gammaincc
 
 from ..physics import parameters as P
-from ..physics.kernels import radial_distribution
+from ..physics.kernels import kernel_cell_factor
 from . import laguerre_tensor as LT
 from .laguerre_tensor import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_CONSISTENT, AUX_DROPLET_MASS, AUX_N_B, AUX_N_P,
                               AUX_NMOM, AUX_NPAIR, AUX_NSLICE, AUX_OFF_CD, AUX_OFF_CD0,
@@ -123,11 +123,11 @@ def laguerre_rhs(state, out, cell, aux, params, config, work=None):
     for a in range(n):
         out[a] = 0.0
     nref = params[P.NUMBER_SCALE]
-    mult = params[P.RATE] * nref
     if config[P.KERNEL] == KTGF:
         d43 = laguerre_d43(state, aux, params, config)
-        mult *= (radial_distribution(cell[P.ALPHA], params[P.ALPHA_MAX])
-                 * math.sqrt(max(cell[P.THETA], 0.0)) * d43 ** 1.5)
+        mult = nref * kernel_cell_factor(KTGF, cell[P.ALPHA], cell[P.THETA], d43, params)
+    else:
+        mult = params[P.RATE] * nref
     i0, t = _slice_position(cell, aux)
     npair = int(aux[AUX_NPAIR])
     stride_q = npair * K

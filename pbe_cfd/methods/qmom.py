@@ -25,6 +25,12 @@ from .quadrature import solve_vandermonde, wheeler_nodes
 #: Re-projection mismatch (relative to each moment's size) up to which a moment set whose
 #: quadrature lost nodes is still accepted as (numerically) on the realizable boundary.
 PROJECTION_TOLERANCE = 1.0e-8
+#: Binder moments M_k1 must be reproduced by the clipped per-node binder within this share of
+#: their bound M_(k+1)0 (b <= p). The per-node binder solve is a Vandermonde system whose
+#: conditioning follows the spread of the weights: a node carrying 1e-11 of the number (a few
+#: early aggregates among droplets) has its binder fixed by the moments only to ~1e-6 of M_k1,
+#: so a tighter test would reject sets that are realizable up to integration error.
+BINDER_TOLERANCE = 1.0e-6
 MAX_NODES = 6
 
 
@@ -51,12 +57,82 @@ def state_names(nodes, bivariate, separate_droplets):
 
 
 @nb.njit(cache=True)
+def _solve_binder(state, n_max, n, nodes, weights, binder, work):
+    """Binder per node from the conditional moments M_k1 with 0 <= b_a <= p_a enforced.
+
+    Active set: solve the Vandermonde system of the free nodes with the first n_free binder
+    moments (less what the bounded nodes hold); a node whose binder leaves [0, p_a] is put on
+    that bound and the rest solved again. Nodes of tiny weight are where the system is
+    ill-conditioned; bounding them keeps every node's binder physical and the binder moments
+    consistent with the size moments (a pure-binder population stays pure binder).
+    Returns the number of bounded nodes.
+    """
+    fixed = work[0:n_max]
+    rhs = work[n_max:2 * n_max]
+    sol = work[2 * n_max:3 * n_max]
+    scaled = work[3 * n_max:4 * n_max]
+    index = work[4 * n_max:5 * n_max]
+    solve_work = work[5 * n_max:]
+    mean = state[1] / state[0]
+    for a in range(n):
+        fixed[a] = 0.0
+        binder[a] = 0.0
+    n_fixed = 0
+    for _ in range(n + 1):
+        n_free = 0
+        for a in range(n):
+            if fixed[a] == 0.0:
+                index[n_free] = a
+                scaled[n_free] = nodes[a] / mean
+                n_free += 1
+        if n_free == 0:
+            break
+        for k in range(n_free):
+            value = state[2 * n_max + k]
+            for a in range(n):
+                if fixed[a] != 0.0:
+                    value -= weights[a] * nodes[a] ** k * binder[a]
+            rhs[k] = value / mean ** k
+        if not solve_vandermonde(scaled, rhs, sol, n_free, solve_work):
+            # coincident free nodes: share the remaining binder in proportion to mass
+            total = 0.0
+            for f in range(n_free):
+                a = int(index[f])
+                total += weights[a] * nodes[a]
+            for f in range(n_free):
+                a = int(index[f])
+                binder[a] = min(max(rhs[0] / total, 0.0), 1.0) * nodes[a] if total > 0 else 0.0
+            break
+        violated = False
+        for f in range(n_free):
+            a = int(index[f])
+            value = sol[f] / weights[a]
+            if value < 0.0:
+                binder[a] = 0.0
+                fixed[a] = 1.0
+                violated = True
+            elif value > nodes[a]:
+                binder[a] = nodes[a]
+                fixed[a] = 1.0
+                violated = True
+            else:
+                binder[a] = value
+        if not violated:
+            break
+    for a in range(n):
+        if fixed[a] != 0.0:
+            n_fixed += 1
+    return n_fixed
+
+
+@nb.njit(cache=True)
 def invert(state, config, nodes, weights, binder, work):
     """Quadrature of one cell's state: fills nodes (scaled mass), weights (scaled number) and
-    binder (scaled binder mass per node); returns the node count (0 for an empty cell).
+    binder (scaled binder mass per node, within [0, node mass]); returns the node count (0 for
+    an empty cell).
 
     A node count below config[ORDER] means the size moments were degenerate or not realizable;
-    binder per node is solved from the first n_eff binder moments and is not clipped here.
+    whether the binder moments are reproduced is for the caller to check (re-projection).
     """
     n_max = config[P.ORDER]
     n_eff = wheeler_nodes(state, n_max, nodes, weights, work)
@@ -67,23 +143,7 @@ def invert(state, config, nodes, weights, binder, work):
     if n_eff == 0:
         return 0
     if config[P.BIVARIATE] == 1:
-        rhs = work[0:n_max]
-        sol = work[n_max:2 * n_max]
-        for k in range(n_eff):
-            rhs[k] = state[2 * n_max + k]
-        # nodes are O(1) after scaling by the mean; solve in those units for conditioning
-        mean = state[1] / state[0]
-        scaled = work[2 * n_max:3 * n_max]
-        for a in range(n_eff):
-            scaled[a] = nodes[a] / mean
-        for k in range(n_eff):
-            rhs[k] = rhs[k] / mean ** k
-        if not solve_vandermonde(scaled, rhs, sol, n_eff, work[3 * n_max:]):
-            for a in range(n_eff):
-                binder[a] = 0.0
-            return n_eff
-        for a in range(n_eff):
-            binder[a] = sol[a] / weights[a]
+        _solve_binder(state, n_max, n_eff, nodes, weights, binder, work)
     else:
         for a in range(n_eff):
             binder[a] = 0.0
@@ -257,7 +317,10 @@ def qmom_realizable(state, aux, params, config, work):
     """True if the cell's state is a realizable moment set (within PROJECTION_TOLERANCE).
 
     Checks finiteness, non-negative number and droplets, positive nodes, the consistency of the
-    moments a reduced quadrature discards, and 0 <= b_a <= p_a for the binder of every node.
+    moments a reduced quadrature discards, and the binder: 0 <= M01 <= M10, and the binder
+    moments M_k1 must be reproduced (within the tolerance) by binder per node clipped to
+    0 <= b_a <= p_a. Nearly coincident nodes make the per-node binder solve ill-conditioned,
+    so the test is on the moments it reproduces, not on the raw per-node values.
     An all-zero (empty) state is realizable.
     """
     n_state = config[P.N_STATE]
@@ -284,38 +347,42 @@ def qmom_realizable(state, aux, params, config, work):
             if abs(target[k] - state[k]) > PROJECTION_TOLERANCE * abs(state[k]):
                 return False
     if config[P.BIVARIATE] == 1:
-        for a in range(n):
-            slack = PROJECTION_TOLERANCE * nodes[a]
-            if binder[a] < -slack or binder[a] > nodes[a] + slack:
+        m01 = state[2 * n_max]
+        if m01 < 0.0 or m01 > state[1] * (1.0 + PROJECTION_TOLERANCE):
+            return False
+        # binder moments reproduced by the bounded per-node binder
+        _project_into(state, target, config, nodes, weights, binder, n)
+        for k in range(n_max):
+            i = 2 * n_max + k
+            if abs(target[i] - state[i]) > BINDER_TOLERANCE * abs(state[k + 1]):
                 return False
     return True
 
 
 @nb.njit(cache=True)
 def qmom_project(state, aux, params, config, work):
-    """Re-project an accepted state onto its quadrature where nodes were lost or binder per node
-    left [0, p_a]: the state becomes the exact moments of a valid quadrature. In-place."""
+    """Re-project an accepted state onto its quadrature, in place: where nodes were lost, every
+    moment but M00, M10 and M01 becomes that of the reduced quadrature; the binder moments
+    M_k1 (k >= 1) become those of the bounded per-node binder. The conserved number, mass and
+    binder mass are never touched."""
     n_state = config[P.N_STATE]
     n_max = config[P.ORDER]
     if state[0] <= 0.0:
         return
     nodes, weights, binder, wheeler, _, target, _, _ = _split_work(work, n_max)
     n = invert(state, config, nodes, weights, binder, wheeler)
-    needed = n < n_max
-    if config[P.BIVARIATE] == 1:
-        for a in range(n):
-            if binder[a] < 0.0:
-                binder[a] = 0.0
-                needed = True
-            elif binder[a] > nodes[a]:
-                binder[a] = nodes[a]
-                needed = True
-    if needed and n > 0:
-        _project_into(state, target, config, nodes, weights, binder, n)
+    if n == 0:
+        return
+    _project_into(state, target, config, nodes, weights, binder, n)
+    if n < n_max:
         # keep the number and mass moments exactly as carried (they are conserved quantities)
         for k in range(n_state):
             if k != 0 and k != 1 and k != 2 * n_max:
                 state[k] = target[k]
+    elif config[P.BIVARIATE] == 1:
+        # binder moments of the bounded per-node binder (M01, the binder mass, kept)
+        for k in range(1, n_max):
+            state[2 * n_max + k] = target[2 * n_max + k]
 
 
 def quadrature_of(state, config):

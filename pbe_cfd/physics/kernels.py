@@ -92,8 +92,15 @@ KERNEL_USES_CELL = {"ktgf": ("solids_fraction", "granular_temperature", "d43")}
 @nb.njit(cache=True)
 def kernel_cell_factor(code, alpha, theta, d43, params):
     """The part of the kernel shared by every pair of a cell: k0, or for ktgf
-    k0 g0(alpha) sqrt(Theta) d43^(3/2) (alpha [-], Theta [m2/s2], d43 [m])."""
+    k0 g0(alpha) sqrt(Theta) d43^(3/2) (alpha [-], Theta [m2/s2], d43 [m]).
+
+    Like OpenFOAM's radial models, g0 is evaluated at min(alpha, alpha_min_friction) where
+    params[ALPHA_MIN_FRICTION] > 0 (the scene's ``alpha_min_friction``; unset: no cap).
+    """
     if code == 4:
+        cap = params[P.ALPHA_MIN_FRICTION]
+        if cap > 0.0 and alpha > cap:
+            alpha = cap
         g0 = radial_distribution(alpha, params[P.ALPHA_MAX])
         return params[P.RATE] * g0 * math.sqrt(max(theta, 0.0)) * d43 ** 1.5
     return params[P.RATE]

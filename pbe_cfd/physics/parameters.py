@@ -32,7 +32,8 @@ DROPLET_MASS = 16        # mass of one binder droplet p_d [kg]
 NUMBER_SCALE = 17        # number-density scale N_ref [1/m3] (non-dimensionalisation)
 MASS_SCALE = 18          # particle-mass scale p_ref [kg] (non-dimensionalisation)
 STEP_FLOOR = 19          # smallest step the integrator may take before it reports a stall [s]
-N_PARAMS = 20
+ALPHA_MIN_FRICTION = 20  # g0 is evaluated at min(alpha, this) as OpenFOAM's radial models do [-]
+N_PARAMS = 21
 
 # ---- config (int64) ---------------------------------------------------------------------
 KERNEL = 0               # code of the collision kernel (physics.kernels.KERNELS)
