@@ -169,10 +169,12 @@ def coupled_scales(scene: Scene, alpha_active: np.ndarray) -> Scene:
 
 
 # ---------------------------------------------------------------------------- run
-def run_coupled(scene: Scene, domain: Domain, progress=None, threads: int | None = None
-                ) -> CoupledResult:
+def run_coupled(scene: Scene, domain: Domain, progress=None, threads: int | None = None,
+                executor=None) -> CoupledResult:
     """Solve the population balance in every active cell of ``domain`` to the scene's end
-    time. ``progress(fraction, text)`` is called after each output interval."""
+    time. ``progress(fraction, text)`` is called after each output interval. ``executor``
+    (``pbe_cfd.distributed.ClusterExecutor``) integrates the per-cell sources on a Dask
+    cluster instead of in this process, with the same results."""
     import numba
 
     if scene.method.name not in model.MOMENT_METHODS:
@@ -211,7 +213,12 @@ def run_coupled(scene: Scene, domain: Domain, progress=None, threads: int | None
     reached = np.zeros(idx.size)
     history = [states.copy()]
     m = scene.method
-    for k in range(1, len(times)):
+    if executor is not None:  # the per-cell sources on a Dask cluster (pbe_cfd.distributed)
+        history = executor.run(states, times, transport, rows=work_rows, aux=aux,
+                               arrays=arrays, method=m, steps=steps, stats=stats,
+                               status=status, reached=reached, idx=idx, scene=scene,
+                               progress=progress)
+    for k in range(len(history), len(times)):
         if transport is None:
             _advance(states, work_rows, aux, arrays, m, times[k - 1], times[k], steps, stats,
                      status, reached, idx, scene)
@@ -237,6 +244,8 @@ def run_coupled(scene: Scene, domain: Domain, progress=None, threads: int | None
                  "threads": int(numba.get_num_threads()), **notes}
     if transport is not None:
         run_stats["transport"] = transport.report()
+    if executor is not None:
+        run_stats["cluster"] = executor.report()
     if scene.method.name == "laguerre":
         from .methods import laguerre_tensor
         share, text = laguerre_tensor.escaped_share_report(history[-1], aux, arrays)
@@ -314,8 +323,10 @@ def couple_command(args) -> int:
     """``pbe-cfd couple [SCENE] --out DIR``."""
     from . import output
     from .cli import DEFAULT_COUPLED, _Progress
+    from .distributed import executor_from_args, prepare_args
     from .scene import describe, load_scene
 
+    prepare_args(args)  # --resume DIR: the output directory and the scene of the first run
     scene = load_scene(args.scene or DEFAULT_COUPLED)
     if scene.domain.type != "openfoam":
         raise SceneError(scene.source, "domain.type",
@@ -324,18 +335,26 @@ def couple_command(args) -> int:
     if args.run_case:
         scene = _fresh_case(scene, args.mesh)
     domain = load_domain(scene, need_flux=scene.transport is not None)
+    executor = executor_from_args(args, scene, domain)  # --workers/--scheduler, or None
     progress = _Progress(f"{scene.name} ({domain.cells.n_cells} cells)")
     try:
-        result = run_coupled(scene, domain, progress=progress, threads=args.threads)
+        result = run_coupled(scene, domain, progress=progress, threads=args.threads,
+                             executor=executor)
     finally:
         progress.close()
+        if executor is not None:
+            executor.close()
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
     out = Path(args.out)
     with output.atomic_directory(out) as tmp:
         write_coupled(tmp, scene, domain, result)
         if args.foam_fields and not scene.domain.case.startswith(BUNDLED_PREFIX):
-            _write_foam(scene, domain, result)
+            written = _write_foam(scene, domain, result)
+            if executor is not None:  # a decomposed case: the same fields per processor
+                executor.mirror_to_processors(written)
+    if executor is not None:
+        executor.finish()  # the output is complete: drop the chunk store DIR.chunks/
     print(f"{scene.name}: {result.stats['active_cells']} of {result.stats['cells']} cells to "
           f"t = {scene.end_time:g} s in {result.wall_time_s:.2f} s "
           f"({result.stats['cell_steps_per_second']:.3g} cell-steps/s); wrote {out}/")
@@ -364,14 +383,21 @@ def write_coupled(out_dir: Path, scene: Scene, domain: Domain, result: CoupledRe
 
 
 def _write_foam(scene, domain, result):
+    """Write the final moment fields as volScalarFields into the case's time directory of the
+    CFD fields they were computed from (ParaView's OpenFOAM reader lists numeric times only)."""
     from .cfd import openfoam as of
     case = Path(scene.domain.case)
     if not case.is_dir():
-        return
-    name = f"pbe_{result.times[-1]:g}"
-    fields = {k: v for k, v in result.cell_fields[-1].items()
-              if k.startswith("M") or k in ("d32_m", "d43_m", "binder_fraction")}
-    of.write_foam_fields(case, name, fields)
+        return []
+    units = {"M00": "[0 -3 0 0 0 0 0]", "M10": "[1 -3 0 0 0 0 0]", "M01": "[1 -3 0 0 0 0 0]",
+             "M20": "[2 -3 0 0 0 0 0]", "M11": "[2 -3 0 0 0 0 0]", "M02": "[2 -3 0 0 0 0 0]",
+             "d32_m": "[0 1 0 0 0 0 0]", "d43_m": "[0 1 0 0 0 0 0]",
+             "droplet_number_density": "[0 -3 0 0 0 0 0]"}
+    fields = {f"pbe.{k}": v for k, v in result.cell_fields[-1].items()
+              if k in units or k == "binder_fraction"}
+    dims = {f"pbe.{k}": u for k, u in units.items()}
+    return of.write_foam_fields(case, of.time_name(case, domain.cells.time), fields,
+                                dimensions=dims)
 
 
 def _fresh_case(scene: Scene, mesh: str) -> Scene:

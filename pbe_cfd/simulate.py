@@ -105,6 +105,18 @@ def population_of(scene: Scene, arrays: model.Arrays, state, aux):
     return laguerre_tensor.population_for_output(state, aux, arrays)
 
 
+def failure_hint(scene: Scene, arrays: model.Arrays, state, aux) -> str:
+    """Extra context for a stopped cell: for the Laguerre ROM, the share of the mass that has
+    left the integration support (the usual reason the ROM's moments stop being realizable)."""
+    if scene.method.name != "laguerre":
+        return ""
+    from .methods import laguerre_tensor
+    share, _ = laguerre_tensor.escaped_share_report(np.atleast_2d(state), aux, arrays)
+    return (f"; {share:.1%} of the granule mass had left the Laguerre support (p_max = "
+            f"{scene.method.support_mass:g} kg, b_max = {scene.method.support_binder:g} kg): "
+            "widen the support or use qmom")
+
+
 def run_well_mixed(scene: Scene, progress=None) -> RunResult:
     """Run a well-mixed scene to its end time. ``progress(fraction, text)`` is called after each
     output interval. Raises SimulationError on a stall or an unrealizable start."""
@@ -133,7 +145,8 @@ def run_well_mixed(scene: Scene, progress=None) -> RunResult:
             raise SimulationError(
                 f"{scene.source}: cell 0 stopped at t = {reached[0]:.6g} s: "
                 f"{integrate.STATUS_TEXT[int(status[0])]} "
-                f"(floor {arrays.params[P.STEP_FLOOR]:.3g} s)")
+                f"(floor {arrays.params[P.STEP_FLOOR]:.3g} s)" + failure_hint(scene, arrays,
+                                                                               work[0], aux))
         states[k] = work[0]
         if progress is not None:
             progress(times[k] / scene.end_time, f"t = {times[k]:.4g} s")

@@ -50,7 +50,7 @@ def test_one_coupled_cell_equals_the_well_mixed_run(snapshot):
     mixed_scene = make_scene(
         scene={"end_time": 20.0, "output_interval": 5.0},
         domain={"type": "well-mixed", "solids_fraction": alpha, "granular_temperature": theta,
-                "alpha_max": 0.62},
+                "alpha_max": 0.62, "alpha_min_friction": 0.5},
         material=dict(AVICEL),
         initial={"distribution": "monodisperse", "number_density": alpha * 1021.0 / p0,
                  "mean_mass": p0, "binder_fraction": 0.0},
