@@ -252,6 +252,10 @@ def run_coupled(scene: Scene, domain: Domain, progress=None, threads: int | None
         run_stats["escaped_mass_share"] = share
         if text:
             warnings.append(text)
+    if scene.binder_injection is not None and not np.any(spray):
+        warnings.append("the spray zone of [binder_injection] holds no cell with alpha >= "
+                        "alpha_min: no binder is injected (check zone's box and alpha window "
+                        "against the bed)")
     if notes["cells_capped_below_alpha_max"]:
         warnings.append(f"{notes['cells_capped_below_alpha_max']} cells had alpha at or above "
                         f"alpha_max = {scene.domain.alpha_max:g}; kept {PACKING_MARGIN:g} "
