@@ -348,3 +348,19 @@ def test_bundled_transport_scene_spreads_binder_and_conserves_it():
     outside = ~spray & (last["active"] > 0)
     wet_outside = last["M01"][outside] + last["droplet_number_density"][outside]
     assert np.count_nonzero(wet_outside > 0) > 0           # binder left the spray zone
+
+
+def test_a_bed_without_circulation_reports_no_mixing():
+    """A broken ring (one cell below alpha_min) is a line: no divergence-free flux, nothing
+    moves, the correction is the whole flux, and the mixing time is reported as none."""
+    domain = ring(n=8, alpha=[0.3, 0.3, 0.3, 0.01, 0.3, 0.3, 0.3, 0.3])
+    scene = bed_scene(transport={})
+    tr, rows, active, arrays = setup(scene, domain)
+    assert tr.flux_stats["correction_l1_rel"] == pytest.approx(1.0)
+    assert not math.isfinite(tr.dt_max)
+    assert tr.mixing()["mixing_time_s"] is None
+    states = np.outer(tr.alpha, mono(arrays, RHO / P0, P0)) * np.arange(1, 8)[:, None]
+    before = states.copy()
+    tr.transport(states, 1.0)
+    assert np.allclose(states, before, rtol=1e-15, atol=0)
+    assert any("divergence correction" in w for w in tr.warnings)
