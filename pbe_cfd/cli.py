@@ -35,6 +35,16 @@ class _Progress:
         self.bar.close()
 
 
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
+    return value
+
+
 def _fail(message, code=2):
     print(f"pbe-cfd: error: {message}", file=sys.stderr)
     return code
@@ -165,6 +175,27 @@ def build_parser():
     p.add_argument("--threads", type=int, default=None, help="numba threads (default: all)")
     p.add_argument("--foam-fields", action="store_true",
                    help="also write the fields as OpenFOAM volScalarFields into the case")
+    g = p.add_argument_group(
+        "cluster (dask.distributed; pip install \"pbe_cfd[dask]\")",
+        "Solve the cells on a Dask cluster. Finished chunks are kept in DIR.chunks/ next to "
+        "the output DIR until the output is written; a run with failed chunks names them "
+        "and --resume DIR computes only those.")
+    w = g.add_mutually_exclusive_group()
+    w.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                   help="address of a running Dask scheduler (e.g. tcp://host:8786)")
+    w.add_argument("--workers", metavar="N", type=_positive_int, default=None,
+                   help="start a local cluster of N worker processes (numba threads per "
+                        "worker: cores // N)")
+    g.add_argument("--chunks", metavar="K", type=_positive_int, default=None,
+                   help="split the active cells into K blocks (default: 4 per worker, or one "
+                        "per processor directory of a decomposed case)")
+    g.add_argument("--decompose", metavar="N", type=_positive_int, default=None,
+                   help="decomposePar the OpenFOAM case into N subdomains first; one task "
+                        "per processor directory, --foam-fields also written per processor")
+    g.add_argument("--resume", metavar="DIR", default=None,
+                   help="complete the failed or missing chunks of an earlier cluster run "
+                        "whose output directory was DIR (implies --out DIR; SCENE defaults "
+                        "to that run's)")
     p.set_defaults(func=cmd_couple)
 
     p = sub.add_parser("case", help="run the bundled OpenFOAM fluid-bed case")
