@@ -206,7 +206,10 @@ def build_parser():
 
     p = sub.add_parser("render", help="render PNGs of a coupled run's VTK series")
     p.add_argument("dir", help="output directory of `pbe-cfd couple`")
-    p.add_argument("--fields", nargs="*", default=None)
+    p.add_argument("--fields", nargs="*", default=None,
+                   help="fields to draw (default: alpha, Theta, M00, d43_m, binder_fraction)")
+    p.add_argument("--times", nargs="*", type=float, default=None,
+                   help="output times in s (nearest written; default: first and last)")
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")

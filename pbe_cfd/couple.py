@@ -437,7 +437,7 @@ def render_command(args) -> int:
     from .cfd.render import plot_bed_moments, render_series
     out = Path(args.dir)
     vtk_dir = out / "vtk" if (out / "vtk").is_dir() else out
-    paths = render_series(vtk_dir, fields=args.fields, png_dir=out / "png")
+    paths = render_series(vtk_dir, fields=args.fields, times=args.times, png_dir=out / "png")
     if (out / "bed_moments.csv").is_file():
         paths.append(plot_bed_moments(out / "bed_moments.csv", out / "png" / "bed_moments.png"))
     for p in paths:
