@@ -143,10 +143,11 @@ def processor_partition(decomposition: list, idx: np.ndarray, n_cells: int) -> P
 
 # ---------------------------------------------------------------------------- decomposed case
 def decomposition_dict(n_subdomains: int) -> str:
-    """Text of a decomposeParDict splitting the bed into ``n_subdomains`` horizontal slabs
-    (method simple, n = (1 N 1): the fluid-bed case's y axis is vertical)."""
+    """Text of a decomposeParDict splitting the bed into ``n_subdomains`` vertical slabs side
+    by side (method simple, n = (N 1 1); y is vertical in the fluid-bed case), so every
+    subdomain holds a share of the dense bed at the bottom."""
     return f"""/*--------------------------------*- C++ -*----------------------------------*\\
-  Written by pbe_cfd.distributed.decompose_case: {n_subdomains} horizontal slabs.
+  Written by pbe_cfd.distributed.decompose_case: {n_subdomains} vertical slabs side by side.
 \\*---------------------------------------------------------------------------*/
 FoamFile
 {{
@@ -162,7 +163,7 @@ method          simple;
 
 simpleCoeffs
 {{
-    n               (1 {n_subdomains} 1);
+    n               ({n_subdomains} 1 1);
     delta           0.001;
 }}
 """
@@ -508,7 +509,7 @@ def start_local_cluster(workers: int, cores: int | None = None):
     # queued chunk down with it
     with dask.config.set({"distributed.scheduler.worker-saturation": 1.0}):
         cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+                               dashboard_address=":0", silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 

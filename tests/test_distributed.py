@@ -216,6 +216,7 @@ def test_decomposed_case_one_task_per_processor(tmp_path):
     import json
     summary = json.loads((out / "summary.json").read_text())
     assert summary["stats"]["cluster"]["partition"] == "processors"
+    # side-by-side slabs: both processors hold bed cells, one task each
     assert summary["stats"]["cluster"]["chunks"] == 2
     # every field written into the case root is also in each processor, on its local cells
     from foamlib import FoamFieldFile
