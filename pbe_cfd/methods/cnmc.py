@@ -34,7 +34,7 @@ only when trials are rare (a box fed by injection alone gains up to one droplet 
 The class table costs O(K_occ) per trial and O(K_occ^2) per accepted event (K_occ = occupied
 classes, ~10-30), so trials stay cheap while acceptance stays high for broad distributions:
 with one global bound from the smallest and largest particle the sum kernel at k0 M1 t = 5
-accepted 1 trial in 175, with the classes about 1 in 2.
+accepted 1 trial in 175, with the classes 3 in 4.
 
 * Accepted aggregation: particle i becomes (p_i + p_j, b_i + b_j) (for a droplet-granule pair i
   is the granule), slot j is refilled with a copy of a particle k != j chosen uniformly among
