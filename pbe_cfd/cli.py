@@ -115,7 +115,8 @@ def cmd_compare(args):
         runs.append((label, read_columns_csv(csv_path)))
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    plotting.plot_trajectories(out, runs, title=" vs ".join(label for label, _ in runs))
+    plotting.plot_trajectories(out, runs, title=" vs ".join(label for label, _ in runs),
+                               common_only=True)
     print(f"wrote {out}")
     return 0
 

@@ -42,14 +42,17 @@ def spans_decades(values):
     return v.size > 1 and v.max() / v.min() > 100.0
 
 
-def plot_trajectories(path, runs, title=""):
+def plot_trajectories(path, runs, title="", common_only=False):
     """One panel per column; ``runs`` is a list of (label, columns dict). A run whose columns
-    carry ``_lo``/``_hi`` bands (cNMC) is drawn as a band with its mean; others as lines."""
+    carry ``_lo``/``_hi`` bands (cNMC) is drawn as a band with its mean; others as lines.
+    With ``common_only`` only the columns every run has are drawn (comparisons)."""
     names = []
     for _, cols in runs:
         for n in plotted_columns(cols):
             if n not in names:
                 names.append(n)
+    if common_only:
+        names = [n for n in names if all(n in cols for _, cols in runs)]
     ncol = 3
     nrow = max(1, math.ceil(len(names) / ncol))
     fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.0 * nrow), squeeze=False)
@@ -80,8 +83,10 @@ def plot_trajectories(path, runs, title=""):
     for idx in range(len(names), nrow * ncol):
         axes[idx // ncol][idx % ncol].axis("off")
     if title:
-        fig.suptitle(title)
-    fig.tight_layout()
+        fig.suptitle(title, fontsize=10)
+        fig.tight_layout(rect=(0, 0, 1, 0.97))
+    else:
+        fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
