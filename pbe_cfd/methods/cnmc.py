@@ -739,46 +739,18 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
 # seed 000 scenario (benchmark, not a test)
 # ---------------------------------------------------------------------------------------------
 def seed_scenario_setup():
-    """params, config, cell, initial of the seed 000 Wurster scenario (tables I-II), SI.
+    """params, config, cell, initial of the seed 000 Wurster scenario (tables I-II), SI, taken
+    from the bundled ``seed-wurster-cnmc`` scene (the one place those values are written)."""
+    from .. import model
+    from ..scene import load_scene
 
-    eke kernel k0 = 2.5e-14 m3/s, geometric and physical efficiency (sharp Stokes step),
-    droplet_factor 100, 60 um binder droplets (1000 kg/m3) kept as a separate population,
-    v_ref the volume of the 100.4 um primary particle, n0 = 3.30e10 1/m3 dry primaries,
-    nd0 = 0.045 n0, injection 1.485e6 droplets/s into 0.01 m3.
-    """
-    params = np.zeros(P.N_PARAMS)
-    config = np.zeros(P.N_CONFIG, np.int64)
-    rho = 1021.0
-    d0 = 100.4e-6
-    params[P.RATE] = 2.5e-14
-    params[P.DENSITY] = rho
-    params[P.BINDER_DENSITY] = 1000.0
-    params[P.BINDER_VISCOSITY] = 0.762
-    params[P.REFERENCE_VOLUME] = math.pi / 6.0 * d0 ** 3
-    params[P.ALPHA_MAX] = 0.63
-    params[P.GEO_SLOPE] = 35.1
-    params[P.GEO_CENTRE] = 0.129
-    params[P.PHI_SLOPE] = 25.9
-    params[P.PHI_CENTRE] = 0.327
-    params[P.ASPERITY] = 6.3e-6
-    params[P.GYRATION_RADIUS] = 60e-6
-    params[P.STOKES_WIDTH] = 0.0
-    params[P.DROPLET_FACTOR] = 100.0
-    params[P.DROPLET_MASS] = 1000.0 * math.pi / 6.0 * (60e-6) ** 3
-    config[P.KERNEL] = 3
-    config[P.USE_GEOMETRIC] = 1
-    config[P.USE_PHYSICAL] = 1
-    config[P.SEPARATE_DROPLETS] = 1
-    config[P.BIVARIATE] = 1
-    cell = np.zeros(P.N_CELL)
-    cell[P.ALPHA] = 0.1
-    cell[P.COLLISION_VELOCITY] = 5.5
-    cell[P.INJECTION] = 1.485e6 / 0.01
-    n0 = 3.30e10
-    initial = {"distribution": "monodisperse", "number_density": n0,
-               "mean_mass": rho * math.pi / 6.0 * d0 ** 3, "binder_fraction": 0.0,
-               "droplet_number_density": 0.045 * n0}
-    return params, config, cell, initial
+    scene = load_scene("seed-wurster-cnmc")
+    arrays = model.pack(scene)
+    init = scene.initial
+    initial = {"distribution": init.distribution, "number_density": init.number_density,
+               "mean_mass": init.mean_mass, "binder_fraction": init.binder_fraction,
+               "droplet_number_density": init.droplet_number_density}
+    return arrays.params, arrays.config, model.well_mixed_cell(scene)[0], initial
 
 
 def seed_scenario_benchmark(particles=10_000, replicas=1, seed=0, end_time=600.0,
