@@ -506,8 +506,10 @@ def start_local_cluster(workers: int, cores: int | None = None):
     import dask
 
     # worker-saturation 1.0: a worker holds only the task it runs, so a lost worker takes no
-    # queued chunk down with it
-    with dask.config.set({"distributed.scheduler.worker-saturation": 1.0}):
+    # queued chunk down with it; OpenMP (numba's omp layer) may use the worker's share of cores
+    share = max(1, (cores or host_cores()) // max(1, int(workers)))
+    with dask.config.set({"distributed.scheduler.worker-saturation": 1.0,
+                          "distributed.nanny.pre-spawn-environ.OMP_NUM_THREADS": share}):
         cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
                                dashboard_address=":0", silence_logs=logging.ERROR)
     return Client(cluster), cluster
@@ -852,8 +854,8 @@ def wants_cluster(args) -> bool:
 
 
 def prepare_args(args):
-    """``--resume DIR``: set ``--out DIR`` and, when no SCENE is given, the scene recorded in
-    ``DIR.chunks/manifest.json``. Call before the scene is loaded."""
+    """``--resume DIR``: set ``--out DIR`` and, when not given, SCENE and ``--chunks`` as
+    recorded in ``DIR.chunks/manifest.json``. Call before the scene is loaded."""
     resume = getattr(args, "resume", None)
     if not resume:
         return args
@@ -865,6 +867,8 @@ def prepare_args(args):
                          "cluster run with --out DIR and removed after its output was written)")
     if not args.scene and manifest.get("scene"):
         args.scene = manifest["scene"]
+    if getattr(args, "chunks", None) is None and manifest.get("partition") == "blocks":
+        args.chunks = manifest.get("chunks")      # the same blocks as the first run
     return args
 
 

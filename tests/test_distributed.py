@@ -175,7 +175,7 @@ def test_cli_workers_failure_and_resume(serial_short, tmp_path, monkeypatch):
     assert sorted(p.name for p in Path(f"{out}.chunks").glob("chunk_*")) == [
         "chunk_00000.npz", "chunk_00001.npz"]
     monkeypatch.delenv(D.FAULT_ENV)
-    code = main(["couple", "--resume", str(out), "--workers", "2", "--chunks", "3"])
+    code = main(["couple", "--resume", str(out), "--workers", "2"])  # scene, chunks: stored
     assert code == 0
     assert not Path(f"{out}.chunks").exists()
     cols = read_columns_csv(out / "bed_moments.csv")
