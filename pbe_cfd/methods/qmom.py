@@ -18,9 +18,11 @@ import numpy as np
 
 from ..physics import parameters as P
 from ..physics.kernels import kernel_cell_factor
-from ..physics.properties import N_PROPS, particle_properties
+from ..physics.properties import DIAMETER, N_PROPS, particle_properties
 from ..physics.rates import pair_rate
 from .quadrature import solve_vandermonde, wheeler_nodes
+
+_as_strided = np.lib.stride_tricks.as_strided
 
 #: Re-projection mismatch (relative to each moment's size) up to which a moment set whose
 #: quadrature lost nodes is still accepted as (numerically) on the realizable boundary.
@@ -33,12 +35,6 @@ PROJECTION_TOLERANCE = 1.0e-8
 BINDER_TOLERANCE = 1.0e-6
 MAX_NODES = 6
 
-
-@nb.njit(cache=True)
-def work_size(n_max):
-    """Length of the float work array the QMOM functions need for n_max nodes."""
-    return 3 * n_max + (2 * n_max + 1) * (2 * n_max + 1) + 4 * n_max + (n_max + 1) * N_PROPS \
-        + 3 * n_max + 2 + (n_max + 1) * 2 * n_max + 4 * n_max * n_max
 
 
 def state_length(nodes, bivariate, separate_droplets):
@@ -57,6 +53,33 @@ def state_names(nodes, bivariate, separate_droplets):
 
 
 @nb.njit(cache=True)
+def work_size(n_max):
+    """Length of the float work array the QMOM functions need for n_max nodes."""
+    return _off_target(n_max) + 3 * n_max + 2
+
+
+# ---- work layout (flat offsets; no reshape in the per-call path) -----------------------------
+# [0, 3n)                  nodes, weights, binder per node (scaled units)
+# [3n, 3n + W)             scratch of the Wheeler recurrence and the binder solve,
+#                          W = (2n + 1)^2 + 4n
+# then (n + 1) * N_PROPS   property rows of the nodes and the droplet (row n)
+# then 3n + 2              moments of the quadrature (re-projection target)
+@nb.njit(cache=True, inline="always")
+def _off_scratch(n_max):
+    return 3 * n_max
+
+
+@nb.njit(cache=True, inline="always")
+def _off_props(n_max):
+    return 3 * n_max + (2 * n_max + 1) * (2 * n_max + 1) + 4 * n_max
+
+
+@nb.njit(cache=True, inline="always")
+def _off_target(n_max):
+    return _off_props(n_max) + (n_max + 1) * N_PROPS
+
+
+@nb.njit(cache=True, error_model="numpy")
 def _solve_binder(state, n_max, n, nodes, weights, binder, work):
     """Binder per node from the conditional moments M_k1 with 0 <= b_a <= p_a enforced.
 
@@ -78,6 +101,7 @@ def _solve_binder(state, n_max, n, nodes, weights, binder, work):
         fixed[a] = 0.0
         binder[a] = 0.0
     n_fixed = 0
+    any_fixed = False
     for _ in range(n + 1):
         n_free = 0
         for a in range(n):
@@ -87,12 +111,15 @@ def _solve_binder(state, n_max, n, nodes, weights, binder, work):
                 n_free += 1
         if n_free == 0:
             break
+        mean_k = 1.0
         for k in range(n_free):
             value = state[2 * n_max + k]
-            for a in range(n):
-                if fixed[a] != 0.0:
-                    value -= weights[a] * nodes[a] ** k * binder[a]
-            rhs[k] = value / mean ** k
+            if any_fixed:
+                for a in range(n):
+                    if fixed[a] != 0.0:
+                        value -= weights[a] * nodes[a] ** k * binder[a]
+            rhs[k] = value / mean_k
+            mean_k *= mean
         if not solve_vandermonde(scaled, rhs, sol, n_free, solve_work):
             # coincident free nodes: share the remaining binder in proportion to mass
             total = 0.0
@@ -119,13 +146,14 @@ def _solve_binder(state, n_max, n, nodes, weights, binder, work):
                 binder[a] = value
         if not violated:
             break
+        any_fixed = True
     for a in range(n):
         if fixed[a] != 0.0:
             n_fixed += 1
     return n_fixed
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def invert(state, config, nodes, weights, binder, work):
     """Quadrature of one cell's state: fills nodes (scaled mass), weights (scaled number) and
     binder (scaled binder mass per node, within [0, node mass]); returns the node count (0 for
@@ -150,75 +178,33 @@ def invert(state, config, nodes, weights, binder, work):
     return n_eff
 
 
-@nb.njit(cache=True)
-def _d43(nodes, weights, n, mass_scale, density):
-    """Volume-mean diameter [m] of the quadrature (0 if empty)."""
-    num = 0.0
-    den = 0.0
-    for a in range(n):
-        d = (6.0 * nodes[a] * mass_scale / (math.pi * density)) ** (1.0 / 3.0)
-        num += weights[a] * d ** 4
-        den += weights[a] * d ** 3
-    if den <= 0.0:
-        return 0.0
-    return num / den
+@nb.njit(cache=True, error_model="numpy")
+def _invert_work(state, config, work):
+    """``invert`` into the fixed slots of ``work`` (nodes, weights, binder at the front)."""
+    n_max = config[P.ORDER]
+    o = _off_scratch(n_max)
+    return invert(state, config, work[0:n_max], work[n_max:2 * n_max],
+                  work[2 * n_max:3 * n_max], work[o:_off_props(n_max)])
 
 
-@nb.njit(cache=True)
-def _split_work(work, n_max):
-    nodes = work[0:n_max]
-    weights = work[n_max:2 * n_max]
-    binder = work[2 * n_max:3 * n_max]
-    start = 3 * n_max
-    size = (2 * n_max + 1) * (2 * n_max + 1) + 4 * n_max
-    wheeler = work[start:start + size]
-    start += size
-    props = work[start:start + (n_max + 1) * N_PROPS].reshape((n_max + 1, N_PROPS))
-    start += (n_max + 1) * N_PROPS
-    target = work[start:start + 3 * n_max + 2]
-    start += 3 * n_max + 2
-    n_pow = 2 * n_max
-    powers = work[start:start + (n_max + 1) * n_pow].reshape((n_max + 1, n_pow))
-    start += (n_max + 1) * n_pow
-    binomial = work[start:start + n_pow * n_pow].reshape((n_pow, n_pow))
-    return nodes, weights, binder, wheeler, props, target, powers, binomial
+@nb.njit(cache=True, inline="always")
+def _props_view(work, n_max):
+    """The property rows of ``work`` as a 2-D (n_max + 1, N_PROPS) view (no reshape cost)."""
+    o = _off_props(n_max)
+    return _as_strided(work[o:o + (n_max + 1) * N_PROPS], shape=(n_max + 1, N_PROPS),
+                       strides=(N_PROPS * 8, 8))
 
 
-@nb.njit(cache=True)
-def _fill_binomial(binomial, n_pow):
-    for k in range(n_pow):
-        binomial[k, 0] = 1.0
-        binomial[k, k] = 1.0
-        for j in range(1, k):
-            binomial[k, j] = binomial[k - 1, j - 1] + binomial[k - 1, j]
-
-
-@nb.njit(cache=True)
-def _fill_powers(powers, row, x, n_pow):
-    value = 1.0
-    for k in range(n_pow):
-        powers[row, k] = value
-        value *= x
-
-
-@nb.njit(cache=True)
-def _gain(powers, binomial, a, c, k, first):
-    """sum_{j=first}^{k-1} C(k, j) x_a^j x_c^(k-j): with first = 1 the pair gain
-    (x_a + x_c)^k - x_a^k - x_c^k (k >= 1), with first = 0 the gain (x_a + x_c)^k - x_a^k."""
-    total = 0.0
-    for j in range(first, k):
-        total += binomial[k, j] * powers[a, j] * powers[c, k - j]
-    return total
-
-
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def qmom_rhs(state, out, cell, aux, params, config, work):
     """d(state)/dt of one cell [scaled moments per s] (see module docstring for the layout).
 
     cell: (alpha [-], theta [m2/s2], collision velocity [m/s], injection [droplets/(m3 s)]);
-    work: float array of at least ``work_size(N)``. No allocation: powers of the nodes and
-    binomial coefficients are tabulated in ``work``, so the moment gains of a pair are
-    multiply-adds, exact zero for the mass moment (k = 1) and exact -1 for the number (k = 0).
+    work: float array of at least ``work_size(N)``. No allocation. The moment gains of a pair
+    come from recurrences in k with non-negative terms (see the pair loop): exact zero for the
+    mass moment (k = 1), exact -1 for the number (k = 0), no cancellation. d43 (ktgf) comes
+    from the nodes' diameters: d^3 is proportional to the mass, so d43 = sum w x d / sum w x
+    without further powers.
     """
     n_max = config[P.ORDER]
     bivariate = config[P.BIVARIATE] == 1
@@ -226,25 +212,37 @@ def qmom_rhs(state, out, cell, aux, params, config, work):
     n_state = config[P.N_STATE]
     for k in range(n_state):
         out[k] = 0.0
-    nodes, weights, binder, wheeler, props, _, powers, binomial = _split_work(work, n_max)
-    n = invert(state, config, nodes, weights, binder, wheeler)
+    n = _invert_work(state, config, work)
+    nodes = work[0:n_max]
+    weights = work[n_max:2 * n_max]
+    binder = work[2 * n_max:3 * n_max]
+    props = _props_view(work, n_max)
+    n_size = 2 * n_max
     number_scale = params[P.NUMBER_SCALE]
     mass_scale = params[P.MASS_SCALE]
     u0 = cell[P.COLLISION_VELOCITY]
     code = config[P.KERNEL]
-    n_size = 2 * n_max
-    _fill_binomial(binomial, n_size)
-    d43 = 0.0
-    if code == 4:
-        d43 = _d43(nodes, weights, n, mass_scale, params[P.DENSITY])
-    factor = kernel_cell_factor(code, cell[P.ALPHA], cell[P.THETA], d43, params)
+    num43 = 0.0
+    den43 = 0.0
     for a in range(n):
-        b = min(max(binder[a], 0.0), nodes[a])
-        particle_properties(nodes[a] * mass_scale, b * mass_scale, params, config, props, a)
-        _fill_powers(powers, a, nodes[a], n_size)
-    # granule-granule aggregation, each unordered pair once
+        x = nodes[a]
+        b = min(max(binder[a], 0.0), x)
+        particle_properties(x * mass_scale, b * mass_scale, params, config, props, a)
+        if code == 4:
+            wx = weights[a] * x
+            num43 += wx * props[a, DIAMETER]
+            den43 += wx
+    d43 = num43 / den43 if den43 > 0.0 else 0.0
+    factor = kernel_cell_factor(code, cell[P.ALPHA], cell[P.THETA], d43, params)
+    # granule-granule aggregation, each unordered pair once. Gains by recurrences in k with
+    # non-negative terms only (s = x_a + x_c):
+    #   G_k = s^k - x_a^k - x_c^k:  G_1 = 0, G_k = s G_(k-1) + x_c x_a^(k-1) + x_a x_c^(k-1)
+    #   H_k = s^k - x_a^k:          H_0 = 0, H_k = s H_(k-1) + x_c x_a^(k-1)
+    # so the number loses exactly the pair and the mass moment (k = 1) gets exactly nothing.
     if factor != 0.0:
         for a in range(n):
+            xa = nodes[a]
+            ba = binder[a]
             for c in range(a, n):
                 rate = number_scale * pair_rate(props, a, c, factor, u0, params, config)
                 if rate == 0.0:
@@ -253,12 +251,28 @@ def qmom_rhs(state, out, cell, aux, params, config, work):
                 if a == c:
                     pair *= 0.5
                 out[0] -= pair
+                xc = nodes[c]
+                s = xa + xc
+                g = 0.0
+                pa = xa
+                pc = xc
                 for k in range(2, n_size):
-                    out[k] += pair * _gain(powers, binomial, a, c, k, 1)
+                    g = s * g + xc * pa + xa * pc
+                    pa *= xa
+                    pc *= xc
+                    out[k] += pair * g
                 if bivariate:
+                    bc = binder[c]
+                    ha = 0.0
+                    hc = 0.0
+                    pa = 1.0
+                    pc = 1.0
                     for k in range(1, n_max):
-                        out[n_size + k] += pair * (binder[a] * _gain(powers, binomial, a, c, k, 0)
-                                                   + binder[c] * _gain(powers, binomial, c, a, k, 0))
+                        ha = s * ha + xc * pa
+                        hc = s * hc + xa * pc
+                        pa *= xa
+                        pc *= xc
+                        out[n_size + k] += pair * (ba * ha + bc * hc)
     inj = cell[P.INJECTION] / number_scale
     pd = params[P.DROPLET_MASS]
     xd = pd / mass_scale
@@ -266,22 +280,32 @@ def qmom_rhs(state, out, cell, aux, params, config, work):
         nd = state[n_state - 1]
         if nd > 0.0 and factor != 0.0 and n > 0:
             particle_properties(pd, pd, params, config, props, n_max)
-            _fill_powers(powers, n_max, xd, n_size)
             captured = 0.0
+            droplet_factor = number_scale * params[P.DROPLET_FACTOR]
             for a in range(n):
-                rate = number_scale * params[P.DROPLET_FACTOR] * pair_rate(
-                    props, a, n_max, factor, u0, params, config)
+                rate = droplet_factor * pair_rate(props, a, n_max, factor, u0, params, config)
                 flux = nd * weights[a] * rate
                 captured += flux
+                xa = nodes[a]
+                s = xa + xd
+                # H_k = (x_a + x_d)^k - x_a^k
+                h = 0.0
+                pa = 1.0
                 for k in range(1, n_size):
-                    out[k] += flux * _gain(powers, binomial, a, n_max, k, 0)
+                    h = s * h + xd * pa
+                    pa *= xa
+                    out[k] += flux * h
                 if bivariate:
+                    ba = binder[a]
+                    h = 0.0
+                    pa = 1.0
                     total = 1.0     # (x + xd)^k, built up from k = 0
                     for k in range(n_max):
-                        # (x+xd)^k (b + xd) - x^k b
-                        out[n_size + k] += flux * (binder[a] * _gain(powers, binomial, a, n_max,
-                                                                     k, 0) + xd * total)
-                        total *= nodes[a] + xd
+                        # (x+xd)^k (b + xd) - x^k b = b H_k + xd (x + xd)^k
+                        out[n_size + k] += flux * (ba * h + xd * total)
+                        h = s * h + xd * pa
+                        pa *= xa
+                        total *= s
             out[n_state - 1] -= captured
         out[n_state - 1] += inj
     elif inj != 0.0:
@@ -293,26 +317,27 @@ def qmom_rhs(state, out, cell, aux, params, config, work):
             value *= xd
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _project_into(state, target, config, nodes, weights, binder, n):
     """Moments of the quadrature (nodes, weights, binder; n nodes) into target."""
     n_max = config[P.ORDER]
     for k in range(2 * n_max):
-        acc = 0.0
-        for a in range(n):
-            acc += weights[a] * nodes[a] ** k
-        target[k] = acc
+        target[k] = 0.0
     if config[P.BIVARIATE] == 1:
         for k in range(n_max):
-            acc = 0.0
-            for a in range(n):
-                acc += weights[a] * nodes[a] ** k * binder[a]
-            target[2 * n_max + k] = acc
+            target[2 * n_max + k] = 0.0
+    for a in range(n):
+        power = weights[a]
+        for k in range(2 * n_max):
+            target[k] += power
+            if k < n_max and config[P.BIVARIATE] == 1:
+                target[2 * n_max + k] += power * binder[a]
+            power *= nodes[a]
     if config[P.SEPARATE_DROPLETS] == 1:
         target[config[P.N_STATE] - 1] = state[config[P.N_STATE] - 1]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def qmom_realizable(state, aux, params, config, work):
     """True if the cell's state is a realizable moment set (within PROJECTION_TOLERANCE).
 
@@ -337,8 +362,11 @@ def qmom_realizable(state, aux, params, config, work):
         return True
     if state[0] < 0.0:
         return False
-    nodes, weights, binder, wheeler, _, target, _, _ = _split_work(work, n_max)
-    n = invert(state, config, nodes, weights, binder, wheeler)
+    n = _invert_work(state, config, work)
+    nodes = work[0:n_max]
+    weights = work[n_max:2 * n_max]
+    binder = work[2 * n_max:3 * n_max]
+    target = work[_off_target(n_max):_off_target(n_max) + 3 * n_max + 2]
     if n == 0:
         return False
     if n < n_max:
@@ -359,7 +387,7 @@ def qmom_realizable(state, aux, params, config, work):
     return True
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def qmom_project(state, aux, params, config, work):
     """Re-project an accepted state onto its quadrature, in place: where nodes were lost, every
     moment but M00, M10 and M01 becomes that of the reduced quadrature; the binder moments
@@ -369,8 +397,11 @@ def qmom_project(state, aux, params, config, work):
     n_max = config[P.ORDER]
     if state[0] <= 0.0:
         return
-    nodes, weights, binder, wheeler, _, target, _, _ = _split_work(work, n_max)
-    n = invert(state, config, nodes, weights, binder, wheeler)
+    n = _invert_work(state, config, work)
+    nodes = work[0:n_max]
+    weights = work[n_max:2 * n_max]
+    binder = work[2 * n_max:3 * n_max]
+    target = work[_off_target(n_max):_off_target(n_max) + 3 * n_max + 2]
     if n == 0:
         return
     _project_into(state, target, config, nodes, weights, binder, n)
