@@ -55,7 +55,7 @@ def state_names(nodes, bivariate, separate_droplets):
 @nb.njit(cache=True)
 def work_size(n_max):
     """Length of the float work array the QMOM functions need for n_max nodes."""
-    return _off_target(n_max) + 3 * n_max + 2
+    return _off_cache(n_max) + _CACHE_HEADER + 3 * n_max + 1
 
 
 # ---- work layout (flat offsets; no reshape in the per-call path) -----------------------------
@@ -64,6 +64,8 @@ def work_size(n_max):
 #                          W = (2n + 1)^2 + 4n
 # then (n + 1) * N_PROPS   property rows of the nodes and the droplet (row n)
 # then 3n + 2              moments of the quadrature (re-projection target)
+# then 5 + n_state         inversion memo: tag, key, node count, checksum of the first 3n
+#                          entries, and the state they are the quadrature of (see _invert_work)
 @nb.njit(cache=True, inline="always")
 def _off_scratch(n_max):
     return 3 * n_max
@@ -77,6 +79,16 @@ def _off_props(n_max):
 @nb.njit(cache=True, inline="always")
 def _off_target(n_max):
     return _off_props(n_max) + (n_max + 1) * N_PROPS
+
+
+@nb.njit(cache=True, inline="always")
+def _off_cache(n_max):
+    return _off_target(n_max) + 3 * n_max + 2
+
+
+#: marks a valid inversion memo in the work array (an arbitrary, unlikely bit pattern)
+_CACHE_TAG = -7.291038457712983e-217
+_CACHE_HEADER = 4
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -178,13 +190,46 @@ def invert(state, config, nodes, weights, binder, work):
     return n_eff
 
 
+@nb.njit(cache=True, inline="always")
+def _checksum(work, count):
+    total = 0.0
+    for i in range(count):
+        total += work[i] * (i + 1.5)
+    return total
+
+
 @nb.njit(cache=True, error_model="numpy")
 def _invert_work(state, config, work):
-    """``invert`` into the fixed slots of ``work`` (nodes, weights, binder at the front)."""
+    """``invert`` into the fixed slots of ``work`` (nodes, weights, binder at the front),
+    remembered: the integrator checks a stage for realizability and then evaluates its RHS, two
+    inversions of the same state. The memo after the last inversion into ``work`` holds the
+    configuration key, the node count, a checksum of the 3 n_max result entries and a copy of
+    the state; a call with a bit-identical state and key whose result entries still match the
+    checksum reuses them (any other call inverts and overwrites the memo). The check makes
+    reuse safe whatever ``work`` held before (it is allocated uninitialised)."""
     n_max = config[P.ORDER]
+    n_state = config[P.N_STATE]
+    key = float(n_state * 1000 + n_max * 10 + config[P.BIVARIATE])
+    c = _off_cache(n_max)
+    s0 = c + _CACHE_HEADER
+    if work[c] == _CACHE_TAG and work[c + 1] == key:
+        same = True
+        for k in range(n_state):
+            if work[s0 + k] != state[k]:
+                same = False
+                break
+        if same and work[c + 3] == _checksum(work, 3 * n_max):
+            return int(work[c + 2])
     o = _off_scratch(n_max)
-    return invert(state, config, work[0:n_max], work[n_max:2 * n_max],
-                  work[2 * n_max:3 * n_max], work[o:_off_props(n_max)])
+    n = invert(state, config, work[0:n_max], work[n_max:2 * n_max],
+               work[2 * n_max:3 * n_max], work[o:_off_props(n_max)])
+    work[c] = _CACHE_TAG
+    work[c + 1] = key
+    work[c + 2] = n
+    work[c + 3] = _checksum(work, 3 * n_max)
+    for k in range(n_state):
+        work[s0 + k] = state[k]
+    return n
 
 
 @nb.njit(cache=True, inline="always")
