@@ -91,6 +91,48 @@ _CACHE_TAG = -7.291038457712983e-217
 _CACHE_HEADER = 4
 
 
+@nb.njit(cache=True, inline="always")
+def _binder_unbounded(state, n_max, n, nodes, weights, binder, mean):
+    """The first pass of ``_solve_binder`` for n <= 3 free nodes in scalars (the same
+    arithmetic as ``solve_vandermonde``'s closed forms): if every node's binder lies within
+    [0, p_a], store it and return True; otherwise store nothing and return False."""
+    i0 = 2 * n_max
+    if n == 1:
+        v0 = state[i0] / weights[0]
+        if v0 < 0.0 or v0 > nodes[0]:
+            return False
+        binder[0] = v0
+        return True
+    x0 = nodes[0] / mean
+    x1 = nodes[1] / mean
+    r0 = state[i0]
+    r1 = state[i0 + 1] / mean
+    if n == 2:
+        if x0 == x1:
+            return False
+        v0 = (r1 - x1 * r0) / (x0 - x1) / weights[0]
+        v1 = (r1 - x0 * r0) / (x1 - x0) / weights[1]
+        if v0 < 0.0 or v0 > nodes[0] or v1 < 0.0 or v1 > nodes[1]:
+            return False
+        binder[0] = v0
+        binder[1] = v1
+        return True
+    x2 = nodes[2] / mean
+    r2 = state[i0 + 2] / (mean * mean)
+    if x0 == x1 or x0 == x2 or x1 == x2:
+        return False
+    v0 = (r2 - (x1 + x2) * r1 + x1 * x2 * r0) / ((x0 - x1) * (x0 - x2)) / weights[0]
+    v1 = (r2 - (x0 + x2) * r1 + x0 * x2 * r0) / ((x1 - x0) * (x1 - x2)) / weights[1]
+    v2 = (r2 - (x0 + x1) * r1 + x0 * x1 * r0) / ((x2 - x0) * (x2 - x1)) / weights[2]
+    if (v0 < 0.0 or v0 > nodes[0] or v1 < 0.0 or v1 > nodes[1] or v2 < 0.0
+            or v2 > nodes[2]):
+        return False
+    binder[0] = v0
+    binder[1] = v1
+    binder[2] = v2
+    return True
+
+
 @nb.njit(cache=True, error_model="numpy")
 def _solve_binder(state, n_max, n, nodes, weights, binder, work):
     """Binder per node from the conditional moments M_k1 with 0 <= b_a <= p_a enforced.
@@ -102,13 +144,15 @@ def _solve_binder(state, n_max, n, nodes, weights, binder, work):
     consistent with the size moments (a pure-binder population stays pure binder).
     Returns the number of bounded nodes.
     """
+    mean = state[1] / state[0]
+    if n <= 3 and _binder_unbounded(state, n_max, n, nodes, weights, binder, mean):
+        return 0
     fixed = work[0:n_max]
     rhs = work[n_max:2 * n_max]
     sol = work[2 * n_max:3 * n_max]
     scaled = work[3 * n_max:4 * n_max]
     index = work[4 * n_max:5 * n_max]
     solve_work = work[5 * n_max:]
-    mean = state[1] / state[0]
     for a in range(n):
         fixed[a] = 0.0
         binder[a] = 0.0

@@ -12,7 +12,7 @@ the discarded moments were consistent with the reduced quadrature.
 
 Speed (the QMOM right-hand side inverts every call): the Jacobi matrices of 2 and 3 nodes are
 solved in closed form -- 2 x 2 by the quadratic formula, 3 x 3 by the trigonometric cubic
-formula polished by two Newton steps on the characteristic polynomial (the three-term
+formula polished by Newton steps on the characteristic polynomial (the three-term
 recurrence), the weights (squared first eigenvector components) from the best-conditioned
 cross product of two rows of J - lambda I. Any doubt (non-finite, unordered, or weights not
 summing to 1 within CLOSED_FORM_CHECK) falls back to the implicit QL iteration, which also
@@ -152,9 +152,11 @@ def jacobi2(a0, a1, b1, nodes, weights):
 
 
 @nb.njit(cache=True, inline="always")
-def _newton3(lam, a0, a1, a2, b1, b2):
-    """Two Newton steps on det(lam I - J) of the 3 x 3 Jacobi matrix (three-term recurrence)."""
-    for _ in range(2):
+def _newton3(lam, a0, a1, a2, b1, b2, scale):
+    """Newton steps on det(lam I - J) of the 3 x 3 Jacobi matrix (three-term recurrence): a
+    second step only where the first moved lam by more than 1e-9 of ``scale`` (the spread of
+    the eigenvalues; the trigonometric formula loses digits only for near-double roots)."""
+    for it in range(2):
         p1 = lam - a0
         p2 = (lam - a1) * p1 - b1
         p3 = (lam - a2) * p2 - b2 * p1
@@ -162,7 +164,10 @@ def _newton3(lam, a0, a1, a2, b1, b2):
         d3 = p2 + (lam - a2) * d2 - b2
         if d3 == 0.0 or p3 == 0.0:
             break
-        lam -= p3 / d3
+        step = p3 / d3
+        lam -= step
+        if abs(step) <= 1.0e-9 * scale:
+            break
     return lam
 
 
@@ -218,9 +223,9 @@ def jacobi3(a0, a1, a2, b1, b2, nodes, weights):
     l0 = q + 2.0 * p * math.cos(phi)
     l2 = q + 2.0 * p * math.cos(phi + _THIRD_TURN)
     l1 = 3.0 * q - l0 - l2
-    l0 = _newton3(l0, a0, a1, a2, b1, b2)
-    l1 = _newton3(l1, a0, a1, a2, b1, b2)
-    l2 = _newton3(l2, a0, a1, a2, b1, b2)
+    l0 = _newton3(l0, a0, a1, a2, b1, b2, p)
+    l1 = _newton3(l1, a0, a1, a2, b1, b2, p)
+    l2 = _newton3(l2, a0, a1, a2, b1, b2, p)
     if not (l0 > l1 and l1 > l2) or not math.isfinite(l0) or not math.isfinite(l2):
         return False
     w0 = _first_weight3(l0, a0, a1, a2, e1, e2)
