@@ -21,8 +21,8 @@ from . import integrate, model
 from .physics import parameters as P
 from .population import mean_diameters
 from .scene import Scene, SceneError
-from .simulate import (SimulationError, check_physics, method_aux, moment_outputs,
-                       output_times, population_of)
+from .simulate import (SimulationError, check_physics, failure_hint, method_aux,
+                       moment_outputs, output_times, population_of)
 
 BUNDLED_PREFIX = "bundled:"
 #: alpha is kept this far (relative) below alpha_max so that g0 stays finite; cells moved are
@@ -274,7 +274,8 @@ def _advance(states, rows, aux, arrays, method, t0, t1, steps, stats, status, re
         raise SimulationError(
             f"{scene.source}: cell {int(idx[c])} (alpha {rows[c, P.ALPHA]:.4g}, Theta "
             f"{rows[c, P.THETA]:.3g} m2/s2) stopped at t = {reached[c]:.6g} s: "
-            f"{integrate.STATUS_TEXT[int(status[c])]}; {bad.size} cell(s) affected")
+            f"{integrate.STATUS_TEXT[int(status[c])]}; {bad.size} cell(s) affected"
+            + failure_hint(scene, arrays, states[c], aux))
 
 
 def _outputs(scene, arrays, aux, cells, rows, active, spray, idx, times, history):

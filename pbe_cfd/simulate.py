@@ -111,6 +111,12 @@ def failure_hint(scene: Scene, arrays: model.Arrays, state, aux) -> str:
     if scene.method.name != "laguerre":
         return ""
     from .methods import laguerre_tensor
+    m10 = state[int(arrays.config[P.ORDER])]
+    if state[1] <= 1e-6 * max(m10, 0.0):
+        return ("; the Laguerre ROM cannot take a binder-free population that starts receiving "
+                "binder (its reconstruction spreads the first binder over the b-weight, and the "
+                "binder moments turn negative): start with initial.binder_fraction > 0 or "
+                "initial droplets, or use qmom")
     share, _ = laguerre_tensor.escaped_share_report(np.atleast_2d(state), aux, arrays)
     return (f"; {share:.1%} of the granule mass had left the Laguerre support (p_max = "
             f"{scene.method.support_mass:g} kg, b_max = {scene.method.support_binder:g} kg): "
