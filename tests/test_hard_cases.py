@@ -377,25 +377,11 @@ def test_laguerre_population_leaving_its_support_is_reported(tmp_path):
     assert any("beyond the integration support" in w for w in summary["warnings"])
 
 
-def test_dry_population_keeps_zero_binder_moments_in_the_laguerre_rom():
-    """No binder anywhere: aggregation cannot create binder moments (the signed reconstruction
-    alone would), so every M_ij with j >= 1 stays exactly 0."""
-    scene = make_scene(scene={"end_time": 5.0, "output_interval": 1.0},
-                       material={"accessible_binder_slope": 35.1,
-                                 "accessible_binder_centre": 0.129},
-                       initial={"binder_fraction": 0.0},
-                       aggregation={"kernel": "constant", "rate": 1e-10},
-                       method={**LAGUERRE})
-    res = run_well_mixed(scene)
-    for name in ("M01", "M11", "M02"):
-        assert np.all(res.columns[name] == 0.0), name
-    assert res.columns["M00"][-1] < res.columns["M00"][0]
-
-
 def test_laguerre_binder_arriving_in_a_dry_population_is_a_clear_error():
-    """A known limit of the ROM: binder captured by a dry population is spread by the
-    reconstruction over the b-weight and the binder moments turn negative at once; the run
-    must stop with a message that says so and what to do."""
+    """A known limit of the ROM: binder captured by a dry population with no droplets at the
+    start is spread by the reconstruction over the b-weight and the binder moments turn
+    negative at once; the run must stop with a message that says so and what to do. (With
+    droplets present at t = 0, as in the seed scenario, the ROM runs.)"""
     scene = load_scene("study-ktgf")
     scene = dataclasses.replace(scene, end_time=2.0, output_interval=1.0,
                                 initial=dataclasses.replace(scene.initial,

@@ -147,13 +147,6 @@ def laguerre_rhs(state, out, cell, aux, params, config, work=None):
                     for a in range(K):
                         out[a] += prod * aux[pos + a]
                 pos += K
-        if state[1] <= 0.0:
-            # no binder mass at all (M01 = 0, b >= 0): b = 0 everywhere and aggregation cannot
-            # create binder moments; the signed reconstruction would (its gamma weight in b puts
-            # mass at b > 0), so those sources are exactly zero here
-            for i in range(m):
-                for j in range(1, m):
-                    out[i * m + j] = 0.0
     inj = cell[P.INJECTION]
     if config[P.SEPARATE_DROPLETS] == 1:
         nd = state[K]
