@@ -16,14 +16,14 @@ from .properties import (ACCESSIBLE_BINDER, BINDER, DIAMETER, LAYER_CBRT, MASS, 
                          all_properties_config, particle_properties)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def geometric_efficiency(props, a, c, u0, params):
     """Geometric factor psi_g = 1 - (1 - eta1)(1 - eta2) [-], eta = 1/(1 + exp(-b_s (y - c_s))):
     the chance that at least one of the two contact points is wet."""
     return 1.0 - (1.0 - props[a, ACCESSIBLE_BINDER]) * (1.0 - props[c, ACCESSIBLE_BINDER])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def stokes_number(props, a, c, u0, params):
     """Viscous Stokes number of a pair [-]: St = 4 rho u0 d1 d2 (d1+d2)^2 / (9 mu (d1^3+d2^3)),
     collision velocity u0 [m/s], rho the particle density, mu the binder viscosity."""
@@ -33,7 +33,7 @@ def stokes_number(props, a, c, u0, params):
             / (9.0 * params[P.BINDER_VISCOSITY] * (d1 * d1 * d1 + d2 * d2 * d2)))
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def critical_stokes_number(props, a, c, params):
     """Critical Stokes number St* = 2 ln(lambda / h_a) [-] (0 if the layer is thinner than h_a);
     lambda = r_g (phi1^(1/3) + phi2^(1/3)) [m], phi = exp(f (y - g))."""
@@ -44,7 +44,7 @@ def critical_stokes_number(props, a, c, params):
     return 2.0 * math.log(ratio)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def physical_efficiency(props, a, c, u0, params):
     """Viscous Stokes criterion psi_p [-]: 1 if St <= St*, else 0.
 
@@ -59,7 +59,7 @@ def physical_efficiency(props, a, c, u0, params):
     return 0.5 * (1.0 - math.tanh((st - st_crit) / (width * st_crit)))
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def saturation_efficiency(props, a, c, u0, params):
     """Liquid-saturation factor psi_s = min(1, S / S_max) [-] (seed 001 eq. 6.4.1-6.4.2).
 
@@ -87,7 +87,7 @@ EFFICIENCIES = {
 }
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def pair_success_probability(props, a, c, u0, params, config):
     """Product of the efficiency factors switched on in ``config`` [-], 1 if none."""
     psi = 1.0

@@ -22,7 +22,7 @@ def particle_diameter(p, density):
     return (6.0 * p / (math.pi * density)) ** (1.0 / 3.0)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def radial_distribution(alpha, alpha_max):
     """Sinclair-Jackson radial distribution g0 = 1/(1 - (alpha/alpha_max)^(1/3)) [-].
 
@@ -36,25 +36,25 @@ def radial_distribution(alpha, alpha_max):
     return 1.0 / (1.0 - ratio ** (1.0 / 3.0))
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def constant_kernel(props, a, c, cell_factor, params):
     """beta = k0 [m3/s]; cell_factor = k0 in m3/s."""
     return cell_factor
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def sum_kernel(props, a, c, cell_factor, params):
     """beta = k0 (p1 + p2) [m3/s]; masses in kg, k0 in m3/(kg s)."""
     return cell_factor * (props[a, MASS] + props[c, MASS])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def product_kernel(props, a, c, cell_factor, params):
     """beta = k0 p1 p2 [m3/s]; masses in kg, k0 in m3/(kg2 s)."""
     return cell_factor * props[a, MASS] * props[c, MASS]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def eke_kernel(props, a, c, cell_factor, params):
     """Equipartition of kinetic energy (Hounslow 1998) [m3/s].
 
@@ -65,7 +65,7 @@ def eke_kernel(props, a, c, cell_factor, params):
     return cell_factor * s * s * math.sqrt(props[a, EKE_INV] + props[c, EKE_INV])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def ktgf_kernel(props, a, c, cell_factor, params):
     """Kinetic-theory kernel (seed 001 eq. 5.3.5) [m3/s].
 
@@ -89,7 +89,7 @@ KERNELS = {
 KERNEL_USES_CELL = {"ktgf": ("solids_fraction", "granular_temperature", "d43")}
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def kernel_cell_factor(code, alpha, theta, d43, params):
     """The part of the kernel shared by every pair of a cell: k0, or for ktgf
     k0 g0(alpha) sqrt(Theta) d43^(3/2) (alpha [-], Theta [m2/s2], d43 [m]).
@@ -106,7 +106,7 @@ def kernel_cell_factor(code, alpha, theta, d43, params):
     return params[P.RATE]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def pair_collision_frequency(code, props, a, c, cell_factor, params):
     """Collision frequency [m3/s] of property rows a, c for the kernel with code ``code``."""
     if code == 0:

@@ -15,7 +15,7 @@ from .kernels import kernel_cell_factor, pair_collision_frequency
 from .properties import N_PROPS, particle_properties
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def pair_rate(props, a, c, cell_factor, u0, params, config):
     """Aggregation rate beta * psi [m3/s] of property rows a and c (see physics.properties);
     cell_factor from ``kernel_cell_factor``, u0 the collision velocity [m/s]."""
