@@ -164,7 +164,7 @@ def product_gel_time(scene: Scene) -> float | None:
     agg = scene.aggregation
     if agg is None or agg.kernel != "product":
         return None
-    m20 = size_moment(scene, 2) + scene.initial.droplet_number_density * 0.0
+    m20 = size_moment(scene, 2)
     if m20 <= 0.0:
         return None
     return 1.0 / (agg.rate * m20)

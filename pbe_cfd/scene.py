@@ -514,8 +514,6 @@ def _cross_checks(path, scene: Scene):
             and scene.binder_injection is None):
         raise SceneError(path, "initial.number_density",
                          "expected a positive number density (or a binder injection)")
-    if scene.binder_injection is not None and scene.binder_injection.zone is not None:
-        pass
     if scene.method.name == "cnmc" and scene.domain.type != "well-mixed":
         raise SceneError(path, "method.name",
                          "the cnmc reference runs well-mixed scenes: expected qmom or laguerre "
