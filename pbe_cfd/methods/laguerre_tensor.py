@@ -278,7 +278,8 @@ def _source_digest():
     phys = os.path.join(os.path.dirname(here), "physics")
     h = hashlib.sha256()
     for path in (os.path.join(phys, "kernels.py"), os.path.join(phys, "efficiency.py"),
-                 os.path.join(phys, "rates.py"), os.path.abspath(__file__)):
+                 os.path.join(phys, "rates.py"), os.path.join(phys, "properties.py"),
+                 os.path.join(phys, "parameters.py"), os.path.abspath(__file__)):
         with open(path, "rb") as fh:
             h.update(fh.read())
     return h.hexdigest()
