@@ -1,6 +1,8 @@
 """Run a well-mixed (one-cell) scene with any method and collect SI output columns."""
 from __future__ import annotations
 
+import dataclasses
+
 import math
 import time as _time
 from dataclasses import dataclass, field
@@ -180,10 +182,7 @@ def _run_cnmc(scene: Scene, progress) -> RunResult:
     arrays = model.pack(scene)
     times = output_times(scene)
     cells = model.well_mixed_cell(scene)
-    init = scene.initial
-    initial = {"distribution": init.distribution, "number_density": init.number_density,
-               "mean_mass": init.mean_mass, "binder_fraction": init.binder_fraction,
-               "droplet_number_density": init.droplet_number_density}
+    initial = dataclasses.asdict(scene.initial)     # the keys simulate_ensemble reads
     m = scene.method
     cb = (lambda f: progress(f, "")) if progress is not None else None
     res = cnmc.simulate_ensemble(arrays.params, arrays.config, cells[0], initial, times,

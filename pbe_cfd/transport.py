@@ -534,9 +534,9 @@ def _qmom_repair(scene, alpha_active):
 
 
 @nb.njit(cache=True)
-def _repair_cells_work(states, aux, params, config, changed, work, fix):
-    """Count the cells whose state is not realizable (method functions taking a work array)
-    and, if ``fix``, re-project them; ``changed[c]`` the largest relative change of an entry."""
+def _repair_cells(states, aux, params, config, changed, work, fix):
+    """Count the cells whose state is not realizable and, if ``fix``, re-project them;
+    ``changed[c]`` the largest relative change of an entry."""
     count = 0
     n_state = states.shape[1]
     before = np.empty(n_state)
@@ -557,41 +557,14 @@ def _repair_cells_work(states, aux, params, config, changed, work, fix):
     return count
 
 
-@nb.njit(cache=True)
-def _repair_cells_plain(states, aux, params, config, changed, fix):
-    """As ``_repair_cells_work`` for method functions without a work array."""
-    count = 0
-    n_state = states.shape[1]
-    before = np.empty(n_state)
-    for c in range(states.shape[0]):
-        if method_realizable(states[c], aux, params, config):
-            continue
-        count += 1
-        if not fix:
-            continue
-        before[:] = states[c]
-        method_project(states[c], aux, params, config)
-        worst = 0.0
-        for k in range(n_state):
-            scale = abs(before[k])
-            if scale > 0.0:
-                worst = max(worst, abs(states[c, k] - before[k]) / scale)
-        changed[c] = worst
-    return count
-
-
 def unrealizable_cells(states, aux, params, config, fix=False):
     """Number of rows of ``states`` (scaled moment states) that the method's realizability
     check rejects; with ``fix`` they are re-projected in place by the method's projection.
     Returns (count, largest relative change of any entry of a re-projected cell)."""
-    from .methods import dispatch
+    from .methods.dispatch import WORK_SIZE
     states = np.asarray(states)
     changed = np.zeros(states.shape[0])
-    size = getattr(dispatch, "WORK_SIZE", None)
-    if size is None:
-        n = _repair_cells_plain(states, aux, params, config, changed, fix)
-    else:
-        n = _repair_cells_work(states, aux, params, config, changed, np.empty(int(size)), fix)
+    n = _repair_cells(states, aux, params, config, changed, np.empty(WORK_SIZE), fix)
     return int(n), float(changed.max()) if changed.size else 0.0
 
 

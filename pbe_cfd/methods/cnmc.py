@@ -741,15 +741,14 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
 def seed_scenario_setup():
     """params, config, cell, initial of the seed 000 Wurster scenario (tables I-II), SI, taken
     from the bundled ``seed-wurster-cnmc`` scene (the one place those values are written)."""
+    import dataclasses
+
     from .. import model
     from ..scene import load_scene
 
     scene = load_scene("seed-wurster-cnmc")
     arrays = model.pack(scene)
-    init = scene.initial
-    initial = {"distribution": init.distribution, "number_density": init.number_density,
-               "mean_mass": init.mean_mass, "binder_fraction": init.binder_fraction,
-               "droplet_number_density": init.droplet_number_density}
+    initial = dataclasses.asdict(scene.initial)     # the keys simulate_ensemble reads
     return arrays.params, arrays.config, model.well_mixed_cell(scene)[0], initial
 
 
