@@ -146,16 +146,17 @@ def cell_number_densities(scene: Scene, alpha: np.ndarray) -> tuple[np.ndarray, 
 
 def initial_states(scene: Scene, arrays: model.Arrays, alpha: np.ndarray) -> np.ndarray:
     """Scaled initial states (n_cells, n_state): the scene's initial distribution with the
-    number density of each cell (``cell_number_densities``)."""
+    number density of each cell (``cell_number_densities``). The state is linear in the
+    granule and droplet densities, so it is built from two unit states."""
     granules, droplets = cell_number_densities(scene, alpha)
-    n_ref = arrays.number_scale
-    states = np.zeros((len(alpha), len(arrays.state_names)))
-    for c in range(len(alpha)):
+
+    def unit(n_granules, n_droplets):
         local = dataclasses.replace(
-            scene, initial=dataclasses.replace(scene.initial, number_density=granules[c],
-                                               droplet_number_density=droplets[c]))
-        states[c] = model.initial_moments(local, arrays, arrays.state_names)
-    return states
+            scene, initial=dataclasses.replace(scene.initial, number_density=n_granules,
+                                               droplet_number_density=n_droplets))
+        return model.initial_moments(local, arrays, arrays.state_names)
+
+    return granules[:, None] * unit(1.0, 0.0) + droplets[:, None] * unit(0.0, 1.0)
 
 
 def coupled_scales(scene: Scene, alpha_active: np.ndarray) -> Scene:
