@@ -22,7 +22,7 @@ from .physics import parameters as P
 from .population import mean_diameters
 from .scene import Scene, SceneError
 from .simulate import (SimulationError, check_physics, failure_hint, method_aux,
-                       moment_outputs, output_times, population_of)
+                       moment_outputs, output_times)
 
 BUNDLED_PREFIX = "bundled:"
 #: alpha is kept this far (relative) below alpha_max so that g0 stays finite; cells moved are
@@ -289,7 +289,8 @@ def _outputs(scene, arrays, aux, cells, rows, active, spray, idx, times, history
     rho = scene.material.density
     pd = arrays.droplet_mass
     for k, states in enumerate(history):
-        cols = moment_outputs(scene, arrays, states, aux)
+        populations = []
+        cols = moment_outputs(scene, arrays, states, aux, populations=populations)
         fields = {"alpha": np.asarray(cells.alpha, dtype=float),
                   "Theta": np.asarray(cells.theta, dtype=float),
                   "active": active.astype(float), "spray_zone": spray.astype(float)}
@@ -303,11 +304,8 @@ def _outputs(scene, arrays, aux, cells, rows, active, spray, idx, times, history
                 bed.setdefault(name, np.zeros(len(times)))[k] = float(
                     np.sum(values * v_active) / bed_volume)
         # bed d32/d43 from every cell's population, weighted by cell volume
-        ws, ps = [], []
-        for c in range(states.shape[0]):
-            w, p, _ = population_of(scene, arrays, states[c], aux)
-            ws.append(np.asarray(w) * v_active[c])
-            ps.append(np.asarray(p))
+        ws = [np.asarray(w) * v_active[c] for c, (w, _, _) in enumerate(populations)]
+        ps = [np.asarray(p) for _, p, _ in populations]
         if scene.separate_droplets and "droplet_number_density" in cols:
             ws.append(np.array([np.sum(cols["droplet_number_density"] * v_active)]))
             ps.append(np.array([pd]))

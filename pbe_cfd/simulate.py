@@ -57,9 +57,11 @@ def method_aux(scene: Scene, arrays: model.Arrays, theta_grid=None) -> tuple[np.
     return np.zeros(1), []
 
 
-def moment_outputs(scene: Scene, arrays: model.Arrays, states: np.ndarray, aux) -> dict:
+def moment_outputs(scene: Scene, arrays: model.Arrays, states: np.ndarray, aux,
+                   populations: list | None = None) -> dict:
     """SI output columns (moments, droplets, d32, d43, binder fraction) of scaled states
-    (one row per time or per cell)."""
+    (one row per time or per cell). If a list is passed as ``populations``, each row's
+    weighted particles (w [1/m3], p [kg], b [kg], from ``population_of``) are appended to it."""
     names = arrays.state_names
     bivariate = scene.bivariate
     cols = moment_columns(names, bivariate)
@@ -76,6 +78,8 @@ def moment_outputs(scene: Scene, arrays: model.Arrays, states: np.ndarray, aux) 
     for r in range(n_rows):
         state = states[r]
         w, p, b = population_of(scene, arrays, state, aux)
+        if populations is not None:
+            populations.append((w, p, b))
         nd = state[-1] * n_ref if separate else 0.0
         estimated = columns_from_particles(w, p, b, cols)
         for c in cols:
