@@ -660,24 +660,11 @@ def plot_pareto(path, result):
 
 def _write_accuracy(out_dir, result):
     from . import output
-    with output.atomic_directory(out_dir) if not out_dir.exists() else _in_place(out_dir) as d:
+    with output.add_to_directory(out_dir, kind="bench") as d:
         _write_csv(d / "accuracy.csv", _accuracy_csv_rows(result))
         (d / "accuracy.md").write_text(accuracy_markdown(result))
         plot_pareto(d / "pareto.png", result)
         output.write_json(d / "accuracy.json", result)
-
-
-class _in_place:
-    """Write into an existing directory (several studies may share one --out)."""
-
-    def __init__(self, path):
-        self.path = Path(path)
-
-    def __enter__(self):
-        return self.path
-
-    def __exit__(self, *exc):
-        return False
 
 
 # ============================================================================ throughput kernels
@@ -1351,7 +1338,7 @@ def _write_throughput(out_dir, result):
         lines.append(["numpy-scipy-qmom", base["order"], base["cells"], 1, base["rhs_per_s"],
                       base["rhs_per_s"], base["cell_steps_per_s"],
                       base["nfev"] / max(base["steps"], 1), "", "", "", "", ""])
-    with output.atomic_directory(out_dir) if not out_dir.exists() else _in_place(out_dir) as d:
+    with output.add_to_directory(out_dir, kind="bench") as d:
         _write_csv(d / "throughput.csv", lines)
         (d / "throughput.md").write_text(throughput_markdown(result))
         plot_throughput(d / "throughput.png", result)
@@ -1489,7 +1476,7 @@ def couple_study(out_dir="bench-out", quick=False, quiet=False) -> dict:
                 rows.append({"method": mlabel, "domain": dlabel, "threads": 0,
                              "active_cells": 0, "wall_s": float("nan"), "accepted_steps": 0,
                              "cell_steps_per_s": float("nan"), "rhs_calls": 0,
-                             "status": f"failed: {exc}".splitlines()[0][:200]})
+                             "status": "failed: " + " ".join(str(exc).split())})
                 _say(quiet, f"  couple {mlabel} {dlabel}: failed: {exc}")
                 continue
             for th in (1, 2):
@@ -1512,8 +1499,8 @@ def couple_study(out_dir="bench-out", quick=False, quiet=False) -> dict:
              "RHS calls/s |", "|---|---|---|---|---|---|---|"]
     for r in rows:
         if r["status"] != "ok":
-            lines.append(f"| {r['method']} | {r['domain']} | - | - | - | {r['status'][:90]} "
-                         "| - |")
+            lines.append(f"| {r['method']} | {r['domain']} | - | - | - | "
+                         f"{r['status'].replace('|', '/')} | - |")
             continue
         lines.append(f"| {r['method']} | {r['domain']} | {r['active_cells']} | {r['threads']} | "
                      f"{r['wall_s']:.3g} | {r['cell_steps_per_s']:.3g} | "
@@ -1528,18 +1515,30 @@ def _write_simple(out_dir, name, rows, markdown, result):
     from . import output
     keys = list(rows[0]) if rows else []
     lines = [keys] + [[r.get(k) for k in keys] for r in rows]
-    with output.atomic_directory(out_dir) if not out_dir.exists() else _in_place(out_dir) as d:
+    with output.add_to_directory(out_dir, kind="bench") as d:
         _write_csv(d / f"{name}.csv", lines)
         (d / f"{name}.md").write_text(markdown)
         output.write_json(d / f"{name}.json", result)
 
 
 # ============================================================================ CLI
+#: The files each study writes into --out (several studies may share one directory).
+STUDY_FILES = {
+    "accuracy": ["accuracy.csv", "accuracy.md", "pareto.png", "accuracy.json"],
+    "throughput": ["throughput.csv", "throughput.md", "throughput.png", "throughput.json",
+                   "machine.json"],
+    **{name: [f"{name}.csv", f"{name}.md", f"{name}.json"]
+       for name in ("cnmc", "laguerre", "couple")},
+}
+
+
 def bench_command(args) -> int:
     """``pbe-cfd bench STUDY [SCENE] --out DIR [--quick]``."""
+    from . import output
     out = Path(args.out)
     quick = bool(getattr(args, "quick", False))
     study = args.study
+    output.prepare_directory(out, getattr(args, "overwrite", False), names=STUDY_FILES[study])
     start = time.perf_counter()
     if study == "accuracy":
         res = accuracy_study(args.scene, out, quick=quick)

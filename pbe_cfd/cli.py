@@ -45,6 +45,11 @@ def _positive_int(text):
     return value
 
 
+def _add_overwrite(p, what="the files an earlier pbe-cfd run wrote there"):
+    p.add_argument("--overwrite", action="store_true",
+                   help=f"replace {what} (files pbe-cfd did not write are never replaced)")
+
+
 def _fail(message, code=2):
     print(f"pbe-cfd: error: {message}", file=sys.stderr)
     return code
@@ -58,7 +63,7 @@ def cmd_run(args):
     scene = load_scene(args.scene or DEFAULT_WELL_MIXED)
     if scene.domain.type != "well-mixed":
         return _fail(f"{scene.source}: [domain] type is \"openfoam\"; use `pbe-cfd couple`")
-    out = Path(args.out)
+    out = output.prepare_directory(args.out, args.overwrite)   # refuse before any work
     progress = _Progress(f"{scene.name} ({scene.method.name})")
     try:
         result = run_well_mixed(scene, progress=progress)
@@ -66,14 +71,15 @@ def cmd_run(args):
         progress.close()
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
-    with output.atomic_directory(out) as tmp:
+    with output.atomic_directory(out, args.overwrite, kind="run") as tmp:
         output.write_columns_csv(tmp / "moments.csv", result.columns)
         output.write_json(tmp / "summary.json", {
             "scene": describe(scene), "method": scene.method.name,
             "wall_time_s": result.wall_time_s, "stats": result.stats,
             "warnings": result.warnings})
         plotting.plot_trajectories(tmp / "moments.png", [(scene.method.name, result.columns)],
-                                   title=f"{scene.name}: {scene.method.name}")
+                                   title=f"{scene.name}: {scene.method.name}",
+                                   metadata=output.figure_metadata("png", "run"))
     print(f"{scene.name}: {scene.method.name} to t = {scene.end_time:g} s in "
           f"{result.wall_time_s:.2f} s; wrote {out}/moments.csv, summary.json, moments.png")
     return 0
@@ -101,24 +107,8 @@ def cmd_scenes(args):
 
 
 def cmd_compare(args):
-    from . import plotting
-    from .output import read_columns_csv
-
-    runs = []
-    for d in args.results:
-        path = Path(d)
-        csv_path = path / "moments.csv" if path.is_dir() else path
-        if not csv_path.exists():
-            return _fail(f"{csv_path}: no such results file (expected a run directory with "
-                         "moments.csv)")
-        label = path.name if path.is_dir() else path.stem
-        runs.append((label, read_columns_csv(csv_path)))
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    plotting.plot_trajectories(out, runs, title=" vs ".join(label for label, _ in runs),
-                               common_only=True)
-    print(f"wrote {out}")
-    return 0
+    from .results import compare_runs
+    return compare_runs(args.results, args.out, args.overwrite)
 
 
 def cmd_couple(args):
@@ -152,6 +142,7 @@ def build_parser():
     p = sub.add_parser("run", help="run a well-mixed scene (default: the bundled seed-wurster)")
     p.add_argument("scene", nargs="?", help="scene TOML file or bundled scene name")
     p.add_argument("--out", default="out", help="output directory (default: out)")
+    _add_overwrite(p)
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("plan", help="print what a scene computes, without running it")
@@ -164,6 +155,7 @@ def build_parser():
     p = sub.add_parser("compare", help="overlay the moment trajectories of results")
     p.add_argument("results", nargs="+", help="run directories (or moments.csv files)")
     p.add_argument("--out", default="compare.png", help="figure path (default: compare.png)")
+    _add_overwrite(p, "a figure an earlier pbe-cfd compare wrote")
     p.set_defaults(func=cmd_compare)
 
     p = sub.add_parser("couple", help="solve the population balance in every cell of an "
@@ -176,6 +168,7 @@ def build_parser():
     p.add_argument("--threads", type=int, default=None, help="numba threads (default: all)")
     p.add_argument("--foam-fields", action="store_true",
                    help="also write the fields as OpenFOAM volScalarFields into the case")
+    _add_overwrite(p, "the files of an earlier pbe-cfd output, case (--run-case) or fields (--foam-fields)")
     g = p.add_argument_group(
         "cluster (dask.distributed; pip install \"pbe_cfd[dask]\")",
         "Solve the cells on a Dask cluster. Finished chunks are kept in DIR.chunks/ next to "
@@ -203,6 +196,7 @@ def build_parser():
     p.add_argument("action", choices=("run",))
     p.add_argument("--mesh", default="small", choices=("small", "full"))
     p.add_argument("--dir", default="fluid-bed-case", help="where to copy and run the case")
+    _add_overwrite(p, "the files of an earlier case pbe-cfd made there")
     p.set_defaults(func=cmd_case)
 
     p = sub.add_parser("render", help="render PNGs of a coupled run's VTK series")
@@ -211,6 +205,7 @@ def build_parser():
                    help="fields to draw (default: alpha, Theta, M00, d43_m, binder_fraction)")
     p.add_argument("--times", nargs="*", type=float, default=None,
                    help="output times in s (nearest written; default: first and last)")
+    _add_overwrite(p, "PNGs an earlier pbe-cfd run or render wrote")
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")
@@ -218,11 +213,13 @@ def build_parser():
     p.add_argument("scene", nargs="?", help="scene for the accuracy study")
     p.add_argument("--out", default="bench-out")
     p.add_argument("--quick", action="store_true", help="a tiny configuration (plumbing check)")
+    _add_overwrite(p, "the files of this study an earlier pbe-cfd bench wrote")
     p.set_defaults(func=cmd_bench)
     return parser
 
 
 def main(argv=None):
+    from .output import UsageError
     from .scene import SceneError
     from .simulate import SimulationError
 
@@ -230,7 +227,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except SceneError as exc:
+    except (SceneError, UsageError) as exc:
         return _fail(str(exc), 2)
     except SimulationError as exc:
         return _fail(str(exc), 1)

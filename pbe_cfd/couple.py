@@ -331,14 +331,17 @@ def couple_command(args) -> int:
     from .scene import describe, load_scene
 
     prepare_args(args)  # --resume DIR: the output directory and the scene of the first run
+    out = output.prepare_directory(args.out, args.overwrite)   # refuse before any work
     scene = load_scene(args.scene or DEFAULT_COUPLED)
     if scene.domain.type != "openfoam":
         raise SceneError(scene.source, "domain.type",
                          "`pbe-cfd couple` needs type = \"openfoam\"; use `pbe-cfd run` for "
                          "well-mixed scenes")
     if args.run_case:
-        scene = _fresh_case(scene, args.mesh)
+        scene = _fresh_case(scene, args.mesh, args.overwrite)
     domain = load_domain(scene, need_flux=scene.transport is not None)
+    if args.foam_fields:
+        _check_foam(scene, domain, args.overwrite)
     executor = executor_from_args(args, scene, domain)  # --workers/--scheduler, or None
     progress = _Progress(f"{scene.name} ({domain.cells.n_cells} cells)")
     try:
@@ -350,18 +353,17 @@ def couple_command(args) -> int:
             executor.close()
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
-    out = Path(args.out)
-    with output.atomic_directory(out) as tmp:
+    with output.atomic_directory(out, args.overwrite, kind="couple") as tmp:
         write_coupled(tmp, scene, domain, result)
-        if args.foam_fields and not scene.domain.case.startswith(BUNDLED_PREFIX):
-            written = _write_foam(scene, domain, result)
+        if args.foam_fields:
+            written = _write_foam(scene, domain, result, args.overwrite)
             if executor is not None:  # a decomposed case: the same fields per processor
-                executor.mirror_to_processors(written)
+                executor.mirror_to_processors(written, args.overwrite)
     if executor is not None:
         executor.finish()  # the output is complete: drop the chunk store DIR.chunks/
     print(f"{scene.name}: {result.stats['active_cells']} of {result.stats['cells']} cells to "
           f"t = {scene.end_time:g} s in {result.wall_time_s:.2f} s "
-          f"({result.stats['cell_steps_per_second']:.3g} cell-steps/s); wrote {out}/")
+          f"({result.stats['cell_steps_per_second']:.3g} cell-steps/s); wrote {args.out}/")
     return 0
 
 
@@ -383,10 +385,32 @@ def write_coupled(out_dir: Path, scene: Scene, domain: Domain, result: CoupledRe
         from .cfd.render import plot_bed_moments, render_series
         png = out_dir / "png"
         render_series(out_dir / "vtk", times=[result.times[0], result.times[-1]], png_dir=png)
-        plot_bed_moments(out_dir / "bed_moments.csv", png / "bed_moments.png")
+        plot_bed_moments(out_dir / "bed_moments.csv", png / "bed_moments.png",
+                         title=scene.name)
 
 
-def _write_foam(scene, domain, result):
+def _foam_names(scene):
+    names = ["M00", "M10", "M01", "M20", "M11", "M02", "d32_m", "d43_m",
+             "droplet_number_density", "binder_fraction"]
+    return [f"pbe.{k}" for k in names]
+
+
+def _check_foam(scene, domain, overwrite):
+    """--foam-fields: refuse before the run when there is no case time directory to write
+    into, or when it holds fields pbe-cfd may not replace."""
+    from .cfd import openfoam as of
+    case = Path(scene.domain.case)
+    if scene.domain.case.startswith(BUNDLED_PREFIX) or not case.is_dir():
+        raise SceneError(scene.source, "domain.case",
+                         f"--foam-fields: {scene.domain.case!r} is a snapshot, which has no "
+                         "OpenFOAM case time directory to write fields into; point [domain] "
+                         "case at a case directory (`pbe-cfd case run --dir DIR`) or drop "
+                         "--foam-fields")
+    of.check_foam_fields(case, of.time_name(case, domain.cells.time), _foam_names(scene),
+                         overwrite)
+
+
+def _write_foam(scene, domain, result, overwrite=False):
     """Write the final moment fields as volScalarFields into the case's time directory of the
     CFD fields they were computed from (ParaView's OpenFOAM reader lists numeric times only)."""
     from .cfd import openfoam as of
@@ -401,29 +425,28 @@ def _write_foam(scene, domain, result):
               if k in units or k == "binder_fraction"}
     dims = {f"pbe.{k}": u for k, u in units.items()}
     return of.write_foam_fields(case, of.time_name(case, domain.cells.time), fields,
-                                dimensions=dims)
+                                dimensions=dims, overwrite=overwrite)
 
 
-def _fresh_case(scene: Scene, mesh: str) -> Scene:
-    from .cfd import openfoam as of
+def _fresh_case(scene: Scene, mesh: str, overwrite: bool = False) -> Scene:
+    from .cfd import cases, openfoam as of
     target = Path("fluid-bed-case")
-    if target.exists() and any(target.iterdir()):
-        raise SceneError(scene.source, "domain.case",
-                         f"--run-case: {target.resolve()} exists; remove it or run "
-                         "`pbe-cfd case run --dir NEW` and point [domain] case at it")
-    of.copy_case(of.default_case_dir(), target)
-    of.run_case(target, mesh=mesh, log=lambda line: print(line, file=sys.stderr))
+    try:
+        cases.copy_and_run(target, mesh, overwrite, flag="--run-case: fluid-bed-case",
+                           log=lambda line: print(line, file=sys.stderr))
+    except of.OpenFOAMError as exc:
+        raise SimulationError(f"--run-case: {exc}") from None
     return dataclasses.replace(scene, domain=dataclasses.replace(
         scene.domain, case=str(target.resolve()), time="latest"))
 
 
 def case_command(args) -> int:
     """``pbe-cfd case run --mesh small --dir DIR``: copy and run the fluid-bed case."""
-    from .cfd import openfoam as of
+    from .cfd import cases, openfoam as of
     target = Path(args.dir)
     try:
-        of.copy_case(of.default_case_dir(), target)
-        res = of.run_case(target, mesh=args.mesh, log=lambda line: print(line, file=sys.stderr))
+        res = cases.copy_and_run(target, args.mesh, args.overwrite, flag="--dir",
+                                 log=lambda line: print(line, file=sys.stderr))
     except of.OpenFOAMError as exc:
         print(f"pbe-cfd: error: {exc}", file=sys.stderr)
         return 1
@@ -434,13 +457,8 @@ def case_command(args) -> int:
 
 def render_command(args) -> int:
     """``pbe-cfd render DIR``: PNGs of a coupled run's VTK series."""
-    from .cfd.render import plot_bed_moments, render_series
-    out = Path(args.dir)
-    vtk_dir = out / "vtk" if (out / "vtk").is_dir() else out
-    paths = render_series(vtk_dir, fields=args.fields, times=args.times, png_dir=out / "png")
-    if (out / "bed_moments.csv").is_file():
-        paths.append(plot_bed_moments(out / "bed_moments.csv", out / "png" / "bed_moments.png"))
-    for p in paths:
+    from .results import render_run
+    for p in render_run(args.dir, args.fields, args.times, args.overwrite):
         print(p)
     return 0
 from .transport import transport_plan_lines  # noqa: E402

@@ -47,7 +47,6 @@ import hashlib
 import json
 import math
 import os
-import shutil
 import statistics
 import threading
 import time as _time
@@ -58,6 +57,7 @@ import numpy as np
 
 from . import integrate
 from .physics import parameters as P
+from .output import remove_matching
 from .scene import SceneError
 from .simulate import SimulationError
 
@@ -68,6 +68,9 @@ FAULT_ENV = "PBE_CFD_FAULT"
 
 #: Name of the chunk store next to an output directory DIR: DIR.chunks/.
 STORE_SUFFIX = ".chunks"
+#: The files a chunk store writes (nothing else in DIR.chunks/ is ever removed).
+STORE_FILES = ("manifest.json", "chunk_*.npz", "step_*.npz", ".manifest.json.*.tmp",
+               ".chunk_*.tmp", ".step_*.tmp")
 MANIFEST = "manifest.json"
 STORE_VERSION = 1
 
@@ -189,12 +192,15 @@ def decompose_case(case_dir, n_subdomains: int = 2, time: float | str | None = N
         m = re.search(r"^\s*numberOfSubdomains\s+(\d+)\s*;", own.read_text(), flags=re.M)
     if m is None or int(m.group(1)) != int(n_subdomains):
         alt = case / "system" / "decomposeParDict.pbe"
+        if alt.exists() and "pbe_cfd.distributed" not in alt.read_text(errors="replace"):
+            raise of.OpenFOAMError(f"{alt} exists and was not written by pbe-cfd; move it "
+                                   "away to let --decompose write its own")
         alt.write_text(decomposition_dict(int(n_subdomains)))
         args += ["-decomposeParDict", str(alt)]
     if time is not None:
         t = of.pick_time(case, time)
         args += ["-time", of.time_name(case, t)]
-    log = case / "log.decomposePar"
+    log = case / "log.pbe-cfd-decomposePar"     # never a log of the user's decomposePar
     with open(log, "w") as fh:
         r = subprocess.run(args, cwd=case, env=install.env(), stdout=fh,
                            stderr=subprocess.STDOUT)
@@ -238,7 +244,8 @@ def read_decomposition(case_dir, n_cells: int | None = None) -> list:
 
 
 def write_processor_fields(case_dir, decomposition: list, time_name: str,
-                           fields: dict, dimensions: dict | None = None) -> list:
+                           fields: dict, dimensions: dict | None = None,
+                           overwrite: bool = False) -> list:
     """Write cell fields (name -> (n_cells,) global values, SI) back per processor: each
     ``processorN/<time_name>/`` gets the values of its local cells (cellProcAddressing order)
     via ``openfoam.write_foam_fields`` (``dimensions``: name -> SI exponents, default
@@ -249,7 +256,8 @@ def write_processor_fields(case_dir, decomposition: list, time_name: str,
     written = []
     for d, addr in zip(processor_dirs(case_dir), decomposition):
         local = {k: np.asarray(v, dtype=float)[addr] for k, v in fields.items()}
-        written += write_foam_fields(d, time_name, local, dimensions=dimensions)
+        written += write_foam_fields(d, time_name, local, dimensions=dimensions,
+                                     overwrite=overwrite)
     return written
 
 
@@ -310,8 +318,12 @@ class ChunkStore:
                     "partition or method data differ); rerun without --resume to start over")
             return self
         if self.path.exists():
-            shutil.rmtree(self.path)
-        self.path.mkdir(parents=True)
+            if manifest is None:
+                raise ChunkStoreError(self.path, "exists and is not a chunk store written by "
+                                      "pbe-cfd; nothing was changed: choose another --out "
+                                      "or move it away yourself")
+            remove_matching(self.path, STORE_FILES)   # only the store's own files
+        self.path.mkdir(parents=True, exist_ok=True)
         _atomic_write_text(self.path / MANIFEST, json.dumps(
             {"version": STORE_VERSION, "fingerprint": fingerprint, **meta}, indent=1))
         return self
@@ -361,8 +373,9 @@ class ChunkStore:
             return {name: z[name] for name in z.files}
 
     def remove(self):
-        """Delete the store (after the output was written)."""
-        shutil.rmtree(self.path, ignore_errors=True)
+        """Delete the store's own files, and the directory when that empties it (after the
+        output was written)."""
+        remove_matching(self.path, STORE_FILES)
 
 
 def fingerprint(*arrays, extra: str = "") -> str:
@@ -619,7 +632,7 @@ class ClusterExecutor:
         if self.store is not None:
             self.store.remove()
 
-    def mirror_to_processors(self, written) -> list:
+    def mirror_to_processors(self, written, overwrite: bool = False) -> list:
         """For a decomposed case: copy fields written into the case root (paths
         ``CASE/<time>/<name>``, as ``couple._write_foam`` returns them) into every
         ``processorN/<time>/<name>`` with the processor's local cells (cellProcAddressing),
@@ -642,7 +655,7 @@ class ClusterExecutor:
         out = []
         for tname, (fields, units) in by_time.items():
             out += write_processor_fields(self.case_dir, self.decomposition, tname, fields,
-                                          dimensions=units)
+                                          dimensions=units, overwrite=overwrite)
         return out
 
     # -- pieces ------------------------------------------------------------------------
@@ -858,6 +871,12 @@ def prepare_args(args):
     recorded in ``DIR.chunks/manifest.json``. Call before the scene is loaded."""
     resume = getattr(args, "resume", None)
     if not resume:
+        store = store_path(args.out)
+        cluster = wants_cluster(args) or getattr(args, "decompose", None)
+        if cluster and store.exists() and not getattr(args, "overwrite", False):
+            raise ChunkStoreError(store, f"holds chunks of an earlier cluster run; "
+                                  f"`--resume {args.out}` completes that run, --overwrite "
+                                  "starts over (only the store's own files are removed)")
         return args
     args.out = resume
     manifest = ChunkStore.read_manifest(store_path(resume))
@@ -888,6 +907,11 @@ def executor_from_args(args, scene, domain):
         case_dir = Path(case).resolve()
         if getattr(args, "decompose", None):
             from .cfd.openfoam import OpenFOAMError
+            if any(case_dir.glob("processor*")):  # decomposePar -force would delete them
+                raise SceneError(scene.source, "domain.case", f"--decompose: {case_dir} is "
+                                 "already decomposed (processor* directories, which "
+                                 "decomposePar -force would delete); drop --decompose to use "
+                                 "that decomposition")
             try:
                 decompose_case(case_dir, args.decompose, time=domain.cells.time)
             except OpenFOAMError as exc:

@@ -50,6 +50,7 @@ __all__ = [
     "default_snapshot_path",
     "default_flux_path",
     "write_foam_fields",
+    "check_foam_fields",
     "cell_volumes_and_centres",
 ]
 
@@ -142,26 +143,20 @@ def have_openfoam() -> bool:
 
 
 def default_case_dir() -> Path:
-    """The fluid-bed case template ``openfoam_case/`` of the source repository.
-
-    Looked up in $PBE_CFD_CASE, then above this module (source checkouts, editable installs),
-    then in the current directory and its parents.
-    """
+    """The fluid-bed case template: $PBE_CFD_CASE when set, else the one shipped with the
+    package (``pbe_cfd/data/openfoam_case``; ``openfoam_case/`` at the repository root links to
+    it), so an installed package finds it from any directory."""
     env = os.environ.get("PBE_CFD_CASE")
     if env:
         if (Path(env) / "Allrun").is_file():
             return Path(env).resolve()
         raise OpenFOAMError(f"PBE_CFD_CASE={env} is not a case template (no Allrun)")
-    here = Path(__file__).resolve()
-    cwd = Path.cwd().resolve()
-    for parent in [*here.parents, cwd, *cwd.parents]:
-        cand = parent / "openfoam_case"
-        if (cand / "Allrun").is_file():
-            return cand
+    shipped = Path(str(resources.files("pbe_cfd") / "data" / "openfoam_case"))
+    if (shipped / "Allrun").is_file():
+        return shipped
     raise OpenFOAMError(
-        f"openfoam_case/ not found above {here.parent} or {cwd}; it ships with the source "
-        "repository, not the installed package: run from a checkout, set PBE_CFD_CASE, or "
-        "pass the case directory explicitly")
+        f"the case template {shipped} is missing from this installation (reinstall pbe_cfd, "
+        "or set PBE_CFD_CASE to a copy of openfoam_case/ from the source repository)")
 
 
 def copy_case(src: str | os.PathLike, dest: str | os.PathLike) -> Path:
@@ -938,9 +933,33 @@ _CONSTRAINT_TYPES = {"empty", "symmetry", "symmetryPlane", "wedge", "cyclic", "c
                      "processor"}
 
 
+def check_foam_fields(case_dir: str | os.PathLike, time_name: str, names,
+                      overwrite: bool = False, flag: str = "--foam-fields") -> None:
+    """Refuse (``output.OutputRefused``) to write fields ``names`` into ``case_dir/time_name``
+    (and every ``processor*/time_name``) where a file of that name exists that pbe-cfd did
+    not write (its header lacks the mark), or one it wrote earlier and ``overwrite`` is off."""
+    from ..output import OutputRefused, file_is_marked
+    case_dir = Path(case_dir)
+    dirs = [case_dir / str(time_name)] + sorted(
+        p / str(time_name) for p in case_dir.glob("processor*") if p.is_dir())
+    foreign, ours = [], []
+    for d in dirs:
+        for name in names:
+            p = d / name
+            if p.exists() or p.is_symlink():
+                (ours if p.is_file() and file_is_marked(p) else foreign).append(p)
+    if foreign:
+        raise OutputRefused(f"{flag}: {foreign[0]} exists and was not written by pbe-cfd; "
+                            "nothing was changed: move it away yourself to write the fields")
+    if ours and not overwrite:
+        raise OutputRefused(f"{flag}: {ours[0]} was written by an earlier pbe-cfd run; add "
+                            "--overwrite to replace the pbe.* fields of that time")
+
+
 def write_foam_fields(case_dir: str | os.PathLike, time_name: str,
                       fields: Mapping[str, np.ndarray],
-                      dimensions: Mapping[str, str | tuple] | None = None) -> list[Path]:
+                      dimensions: Mapping[str, str | tuple] | None = None,
+                      overwrite: bool = False) -> list[Path]:
     """Write cell values as OpenFOAM volScalarFields into ``case_dir/time_name/``.
 
     ``fields``: name -> (n_cells,) values in OpenFOAM cell order, SI units. Boundaries are
@@ -948,9 +967,13 @@ def write_foam_fields(case_dir: str | os.PathLike, time_name: str,
     SI exponents "[kg m s K mol A cd]" (e.g. "[0 -3 0 0 0 0 0]" for 1/m3), default
     dimensionless. Plain ASCII. ParaView's OpenFOAM reader lists only numeric time
     directories: use the CFD time (e.g. "1.5", next to alpha and Theta) or the PBE time in s
-    (e.g. "600"); other names work but warn. Returns the files.
+    (e.g. "600"); other names work but warn. Each file's header says it was written by
+    pbe-cfd; a file of the same name that pbe-cfd did not write is never replaced, one it wrote
+    only with ``overwrite`` (``check_foam_fields``, ``output.OutputRefused``). Returns the files.
     """
     from foamlib import FoamFile
+
+    from ..output import MARK
 
     case_dir = Path(case_dir)
     time_name = str(time_name)
@@ -971,6 +994,10 @@ def write_foam_fields(case_dir: str | os.PathLike, time_name: str,
     if n_cells is None:
         n_cells = int(np.asarray(FoamFile(mesh_dir / "owner")[None]).max()) + 1
     out_dir = case_dir / time_name
+    for name in fields:
+        p = out_dir / name
+        if p.exists() or p.is_symlink():
+            check_foam_fields(case_dir, time_name, [name], overwrite, flag="write_foam_fields")
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for name, values in fields.items():
@@ -986,6 +1013,8 @@ def write_foam_fields(case_dir: str | os.PathLike, time_name: str,
         if not isinstance(dim, str):
             dim = "[" + " ".join(str(int(x)) for x in dim) + "]"
         lines = [
+            f"// {name}: {MARK} (population balance moments; any other file of this name",
+            "// is never replaced by pbe-cfd)",
             "FoamFile", "{", "    version     2.0;", "    format      ascii;",
             "    class       volScalarField;", f'    location    "{time_name}";',
             f"    object      {name};", "}", "",
