@@ -1441,6 +1441,11 @@ def replicated_domain(domain, copies):
     return Domain(cells=big, flux=None, description=f"{domain.description} x {copies}")
 
 
+def failure_status(exc) -> str:
+    """The whole reason a variant failed, on one line (a table cell)."""
+    return "failed: " + " ".join(str(exc).split())
+
+
 def couple_study(out_dir="bench-out", quick=False, quiet=False) -> dict:
     """Cell-steps per second of ``run_coupled`` on the bundled small bed (900 cells) and on its
     cells replicated 4 times (3600 cells, standing in for the full mesh, whose snapshot is not
@@ -1476,7 +1481,7 @@ def couple_study(out_dir="bench-out", quick=False, quiet=False) -> dict:
                 rows.append({"method": mlabel, "domain": dlabel, "threads": 0,
                              "active_cells": 0, "wall_s": float("nan"), "accepted_steps": 0,
                              "cell_steps_per_s": float("nan"), "rhs_calls": 0,
-                             "status": "failed: " + " ".join(str(exc).split())})
+                             "status": failure_status(exc)})
                 _say(quiet, f"  couple {mlabel} {dlabel}: failed: {exc}")
                 continue
             for th in (1, 2):

@@ -201,9 +201,9 @@ def build_parser():
 
     p = sub.add_parser("render", help="render PNGs of a coupled run's VTK series")
     p.add_argument("dir", help="output directory of `pbe-cfd couple`")
-    p.add_argument("--fields", nargs="*", default=None,
+    p.add_argument("--fields", nargs="+", default=None,
                    help="fields to draw (default: alpha, Theta, M00, d43_m, binder_fraction)")
-    p.add_argument("--times", nargs="*", type=float, default=None,
+    p.add_argument("--times", nargs="+", type=float, default=None,
                    help="output times in s (nearest written; default: first and last)")
     _add_overwrite(p, "PNGs an earlier pbe-cfd run or render wrote")
     p.set_defaults(func=cmd_render)

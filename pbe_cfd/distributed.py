@@ -317,7 +317,7 @@ class ChunkStore:
                     self.path, "--resume: made by a different problem (scene, case, "
                     "partition or method data differ); rerun without --resume to start over")
             return self
-        if self.path.exists():
+        if self.path.exists() and any(self.path.iterdir()):
             if manifest is None:
                 raise ChunkStoreError(self.path, "exists and is not a chunk store written by "
                                       "pbe-cfd; nothing was changed: choose another --out "

@@ -141,11 +141,12 @@ def _draw_quantity(ax, dev, name, runs, ref, colours):
     if name + "_lo" in rcols:
         lo = _deviation_percent(t_ref, mean, t_ref, rcols[name + "_lo"])
         hi = _deviation_percent(t_ref, mean, t_ref, rcols[name + "_hi"])
-        dev.fill_between(t_ref, lo, hi, color=colours[runs.index(ref) % len(colours)],
+        k = next(i for i, (_, c) in enumerate(runs) if c is rcols)
+        dev.fill_between(t_ref, lo, hi, color=colours[k % len(colours)],
                          alpha=BAND_ALPHA, lw=0.6, zorder=2)
     dev.axhline(0.0, color="k", lw=0.9, zorder=4)
     for r, (label, cols) in enumerate(runs):
-        if (label, cols) is ref or name not in cols:
+        if cols is rcols or name not in cols:
             continue
         dev.plot(t_ref, _deviation_percent(t_ref, mean, cols["time_s"], cols[name]),
                  color=colours[r % len(colours)], lw=1.4, zorder=3)

@@ -138,3 +138,94 @@ def test_failed_run_leaves_no_partial_directory(tmp_path, capsys):
 def test_scenes_lists_bundled(capsys):
     assert main(["scenes"]) == 0
     assert "seed-wurster" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------------------- bad input
+@pytest.fixture(scope="module")
+def coupled_run(tmp_path_factory):
+    """A 2 s coupled run of the bundled bed (outputs at 0, 1, 2 s)."""
+    from test_data_safety import tiny_couple_text
+    root = tmp_path_factory.mktemp("coupled")
+    (root / "tiny-couple.toml").write_text(tiny_couple_text())
+    assert main(["couple", str(root / "tiny-couple.toml"), "--out", str(root / "c")]) == 0
+    return root / "c"
+
+
+def test_render_draws_the_nearest_written_time_and_says_which(coupled_run, capsys):
+    capsys.readouterr()
+    assert main(["render", str(coupled_run), "--fields", "M00", "--times", "7"]) == 2
+    err = capsys.readouterr().err                # t = 2 s was drawn by couple: --overwrite
+    assert "t = 7 s is not an output time; drawing the nearest written one, t = 2 s" in err
+    assert main(["render", str(coupled_run), "--fields", "M00", "--times", "0.6"]) == 0
+    out, err = capsys.readouterr()
+    assert "nearest written one, t = 1 s" in err
+    assert out.strip().endswith("M00_t1s.png")
+    assert (coupled_run / "png" / "M00_t1s.png").is_file()
+
+
+@pytest.mark.parametrize("argv,phrase", [
+    (["render", "{c}", "--fields", "nosuchfield"], "no field nosuchfield in"),
+    (["render", "{c}", "--times", "nan"], "--times nan: expected a time in s"),
+    (["render", "{c}/vtk/pbe_00000.vtu"], "no such directory"),
+    (["compare", "{c}", "--out", "{tmp}/x.txt"], "expected a figure file ending in .png"),
+    (["compare", "{c}/summary.json", "--out", "{tmp}/x.png"], "not a table of numbers"),
+    (["compare", "{tmp}", "--out", "{tmp}/x.png"], "neither moments.csv"),
+    (["couple", "--foam-fields", "--out", "{tmp}/o"], "a snapshot, which has no OpenFOAM case"),
+])
+def test_bad_command_input_is_one_line_exit_2(coupled_run, tmp_path, capsys, argv, phrase):
+    argv = [a.format(c=coupled_run, tmp=tmp_path) for a in argv]
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("pbe-cfd: error: ") and len(err.strip().splitlines()) == 1, err
+    assert phrase in err, err
+    assert not (tmp_path / "o").exists() and not (tmp_path / "x.png").exists()
+
+
+def test_case_run_into_a_non_empty_directory_is_refused(tmp_path, capsys):
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("mine")
+    assert main(["case", "run", "--dir", str(tmp_path / "mine")]) == 2
+    err = capsys.readouterr().err
+    assert "not written by pbe-cfd" in err and len(err.strip().splitlines()) == 1
+    assert [p.name for p in (tmp_path / "mine").iterdir()] == ["notes.txt"]
+
+
+def test_compare_of_a_coupled_run_uses_its_bed_moments(coupled_run, tmp_path, capsys):
+    assert main(["run", "--out", str(tmp_path / "r")]) == 0
+    assert main(["compare", str(tmp_path / "r"), str(coupled_run),
+                 "--out", str(tmp_path / "cmp.png")]) == 0
+    assert (tmp_path / "cmp.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_compare_draws_the_cnmc_band_under_its_mean_and_a_deviation_panel():
+    from matplotlib.collections import PolyCollection
+
+    from pbe_cfd.plotting import BAND_ALPHA, trajectories_figure
+    t = np.linspace(0, 600, 61)
+    mean = 3.3e10 * np.exp(-t / 800)
+    cnmc = {"time_s": t, "M00": mean, "M00_lo": mean * 0.996, "M00_hi": mean * 1.004}
+    qmom = {"time_s": t, "M00": mean * (1 + 0.05 * np.sin(t / 200))}
+    fig = trajectories_figure([("cnmc", cnmc), ("qmom", qmom)], common_only=True)
+    top, dev = fig.axes[0], fig.axes[1]
+    (band,) = [c for c in top.collections if isinstance(c, PolyCollection)]
+    assert band.get_alpha() == BAND_ALPHA
+    mean_line = [ln for ln in top.get_lines() if ln.get_label() == "cnmc mean"][0]
+    assert mean_line.get_zorder() > band.get_zorder()        # the mean is drawn on top
+    # below: deviation from the cNMC mean in %, the band +-0.4 % around zero
+    (dev_band,) = [c for c in dev.collections if isinstance(c, PolyCollection)]
+    ys = dev_band.get_paths()[0].vertices[:, 1]
+    assert np.nanmax(ys) == pytest.approx(0.4) and np.nanmin(ys) == pytest.approx(-0.4)
+    (q,) = [ln for ln in dev.get_lines() if np.size(ln.get_xdata()) == t.size]
+    np.testing.assert_allclose(q.get_ydata(), 5 * np.sin(t / 200), atol=1e-9)
+    assert "%" in dev.get_ylabel()
+
+
+def test_bench_failure_status_keeps_the_whole_reason():
+    from pbe_cfd.bench import failure_status
+    path = "/a/long/path/to/scenes/" + "x" * 200 + "/fluid-bed.toml"
+    exc = RuntimeError(f"{path}: cell 12 (alpha 0.5) stopped at t = 1 s:\n  the population "
+                       "left the support; 3 cell(s) affected")
+    text = failure_status(exc)
+    assert text.startswith("failed: " + path) and text.endswith("3 cell(s) affected")
+    assert "\n" not in text and "left the support" in text

@@ -373,6 +373,10 @@ def plan_render(out_dir, fields: Sequence[str] | None = None,
     entries = read_pvd(pvd)
     notes: list[str] = []
     idx = pick_times([t for t, _ in entries], times, notes)
+    if not idx:
+        raise ValueError("--times: name at least one output time in s")
+    if fields is not None and not fields:
+        raise ValueError("--fields: name at least one field")
     try:
         first = pv.read(entries[idx[0]][1])
     except Exception as exc:  # noqa: BLE001 - VTK raises plain errors for unreadable files
