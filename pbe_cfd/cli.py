@@ -1,5 +1,8 @@
 """The ``pbe-cfd`` command line: run | plan | scenes | compare | couple | case | render | bench.
 
+Argument parsing and one ``*_command`` function per verb, nothing else: each command reads its
+arguments, calls the runs, studies and writers below, and prints what it wrote.
+
 Exit codes: 0 success, 2 bad input (scene, arguments, files), 1 a run that failed.
 """
 from __future__ import annotations
@@ -10,29 +13,6 @@ from pathlib import Path
 
 DEFAULT_WELL_MIXED = "seed-wurster"
 DEFAULT_COUPLED = "fluid-bed"
-
-
-class _Progress:
-    """tqdm progress bar on a terminal; silent otherwise."""
-
-    def __init__(self, label):
-        from tqdm import tqdm
-        self.bar = tqdm(total=1000, desc=label, unit="‰", disable=None, file=sys.stderr,
-                        bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining} {postfix}")
-        self.last = 0
-
-    def __call__(self, fraction, text=""):
-        if self.bar.disable:
-            return
-        pos = int(round(1000 * min(max(fraction, 0.0), 1.0)))
-        if pos > self.last:
-            self.bar.update(pos - self.last)
-            self.last = pos
-        if text:
-            self.bar.set_postfix_str(text)
-
-    def close(self):
-        self.bar.close()
 
 
 def _positive_int(text):
@@ -55,8 +35,10 @@ def _fail(message, code=2):
     return code
 
 
-def cmd_run(args):
+def run_command(args):
+    """``pbe-cfd run [SCENE] --out DIR``: a well-mixed run."""
     from . import output, plotting
+    from .progress import Progress
     from .scene import describe, load_scene
     from .simulate import run_well_mixed
 
@@ -64,7 +46,7 @@ def cmd_run(args):
     if scene.domain.type != "well-mixed":
         return _fail(f"{scene.source}: [domain] type is \"openfoam\"; use `pbe-cfd couple`")
     out = output.prepare_directory(args.out, args.overwrite)   # refuse before any work
-    progress = _Progress(f"{scene.name} ({scene.method.name})")
+    progress = Progress(f"{scene.name} ({scene.method.name})")
     try:
         result = run_well_mixed(scene, progress=progress)
     finally:
@@ -85,7 +67,8 @@ def cmd_run(args):
     return 0
 
 
-def cmd_plan(args):
+def plan_command(args):
+    """``pbe-cfd plan SCENE``: what a scene computes."""
     from .plan import describe_plan
     from .scene import load_scene
 
@@ -94,7 +77,8 @@ def cmd_plan(args):
     return 0
 
 
-def cmd_scenes(args):
+def scenes_command(args):
+    """``pbe-cfd scenes``: the bundled scenes."""
     from .scene import bundled_scenes, load_scene
 
     for name, path in sorted(bundled_scenes().items()):
@@ -106,29 +90,149 @@ def cmd_scenes(args):
     return 0
 
 
-def cmd_compare(args):
+def compare_command(args):
+    """``pbe-cfd compare A B --out F.png``: overlay moment trajectories (a coupled run: its
+    bed averages)."""
     from .results import compare_runs
     return compare_runs(args.results, args.out, args.overwrite)
 
 
-def cmd_couple(args):
-    from .couple import couple_command
-    return couple_command(args)
+def _cluster_wanted(args) -> bool:
+    return bool(args.scheduler or args.workers or args.resume or args.decompose)
 
 
-def cmd_case(args):
-    from .couple import case_command
-    return case_command(args)
+def _apply_resume(args):
+    """``--resume DIR``: ``--out DIR`` and, when not given, SCENE and ``--chunks`` as the
+    earlier run recorded them."""
+    from .distributed import resume_manifest
+    args.out = args.resume
+    manifest = resume_manifest(args.resume)
+    if not args.scene and manifest.get("scene"):
+        args.scene = manifest["scene"]
+    if args.chunks is None and manifest.get("partition") == "blocks":
+        args.chunks = manifest.get("chunks")      # the same blocks as the first run
 
 
-def cmd_render(args):
-    from .couple import render_command
-    return render_command(args)
+def _fresh_case(scene, mesh: str, overwrite: bool = False):
+    """--run-case: run the bundled OpenFOAM case in ./fluid-bed-case and point the scene at
+    it (an earlier case pbe-cfd made there is replaced only with --overwrite)."""
+    import dataclasses
+
+    from .batch import SimulationError
+    from .cfd import cases, openfoam as of
+    target = Path("fluid-bed-case")
+    try:
+        cases.copy_and_run(target, mesh, overwrite, flag="--run-case: fluid-bed-case",
+                           log=lambda line: print(line, file=sys.stderr))
+    except of.OpenFOAMError as exc:
+        raise SimulationError(f"--run-case: {exc}") from None
+    return dataclasses.replace(scene, domain=dataclasses.replace(
+        scene.domain, case=str(target.resolve()), time="latest"))
 
 
-def cmd_bench(args):
-    from .bench import bench_command
-    return bench_command(args)
+def couple_command(args):
+    """``pbe-cfd couple [SCENE] --out DIR``: the per-cell run over an OpenFOAM bed."""
+    from . import output
+    from .couple import check_foam_fields, run_coupled, write_coupled, write_foam_fields
+    from .domain import load_domain
+    from .executor import SerialExecutor
+    from .progress import Progress
+    from .scene import SceneError, load_scene
+
+    if args.resume:
+        _apply_resume(args)
+    out = output.prepare_directory(args.out, args.overwrite)   # refuse before any work
+    if _cluster_wanted(args) and not args.resume:
+        from .distributed import check_store
+        check_store(args.out, args.overwrite)
+    scene = load_scene(args.scene or DEFAULT_COUPLED)
+    if scene.domain.type != "openfoam":
+        raise SceneError(scene.source, "domain.type",
+                         "`pbe-cfd couple` needs type = \"openfoam\"; use `pbe-cfd run` for "
+                         "well-mixed scenes")
+    if args.run_case:
+        scene = _fresh_case(scene, args.mesh, args.overwrite)
+    domain = load_domain(scene, need_flux=scene.transport is not None)
+    if args.foam_fields:
+        check_foam_fields(scene, domain, args.overwrite)
+    executor = SerialExecutor()
+    if _cluster_wanted(args):
+        from .distributed import make_executor
+        executor = make_executor(scene, domain, args.out, scene_arg=args.scene,
+                                 scheduler=args.scheduler, workers=args.workers,
+                                 chunks=args.chunks, decompose=args.decompose,
+                                 resume=bool(args.resume))
+    progress = Progress(f"{scene.name} ({domain.cells.n_cells} cells)")
+    try:
+        result = run_coupled(scene, domain, progress=progress, threads=args.threads,
+                             executor=executor)
+    finally:
+        progress.close()
+        executor.close()
+    for w in result.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    with output.atomic_directory(out, args.overwrite, kind="couple") as tmp:
+        write_coupled(tmp, scene, domain, result)
+        if args.foam_fields:
+            written = write_foam_fields(scene, domain, result, args.overwrite)
+            executor.mirror_to_processors(written, args.overwrite)  # per processor too
+    executor.finish()  # the output is complete: drop what was kept for a resume
+    print(f"{scene.name}: {result.stats['active_cells']} of {result.stats['cells']} cells to "
+          f"t = {scene.end_time:g} s in {result.wall_time_s:.2f} s "
+          f"({result.stats['cell_steps_per_second']:.3g} cell-steps/s); wrote {args.out}/")
+    return 0
+
+
+def case_command(args):
+    """``pbe-cfd case run --mesh small --dir DIR``: copy and run the fluid-bed case."""
+    from .cfd import cases, openfoam as of
+    target = Path(args.dir)
+    try:
+        res = cases.copy_and_run(target, args.mesh, args.overwrite, flag="--dir",
+                                 log=lambda line: print(line, file=sys.stderr))
+    except of.OpenFOAMError as exc:
+        print(f"pbe-cfd: error: {exc}", file=sys.stderr)
+        return 1
+    print(f"case {target} ({args.mesh}) ran to t = {res.latest_time:g} s; "
+          + ", ".join(f"{k} {v:.1f} s" for k, v in res.wall_times.items()))
+    return 0
+
+
+def render_command(args):
+    """``pbe-cfd render DIR``: PNGs of a coupled run's VTK series."""
+    from .results import render_run
+    for p in render_run(args.dir, args.fields, args.times, args.overwrite):
+        print(p)
+    return 0
+
+
+def bench_command(args):
+    """``pbe-cfd bench STUDY [SCENE] --out DIR [--quick]``."""
+    import time
+
+    from . import bench, output
+    out = Path(args.out)
+    quick = bool(args.quick)
+    study = args.study
+    output.prepare_directory(out, args.overwrite, names=bench.STUDY_FILES[study])
+    start = time.perf_counter()
+    if study == "accuracy":
+        res = bench.accuracy_study(args.scene, out, quick=quick)
+        files = "accuracy.csv, accuracy.md, pareto.png"
+        print(bench.accuracy_markdown(res))
+    elif study == "throughput":
+        res = bench.throughput_study(out, quick=quick,
+                                     scene_name=args.scene or bench.DEFAULT_THROUGHPUT_SCENE)
+        files = "throughput.csv, throughput.md, throughput.png, machine.json"
+        print(bench.throughput_markdown(res))
+    else:
+        study_of = {"cnmc": bench.cnmc_study, "laguerre": bench.laguerre_study,
+                    "couple": bench.couple_study}
+        study_of[study](out, quick=quick)
+        files = f"{study}.csv, {study}.md"
+        print((out / f"{study}.md").read_text())
+    print(f"bench {study}: {time.perf_counter() - start:.1f} s; wrote {out}/{{{files}}}")
+    return 0
 
 
 def build_parser():
@@ -143,20 +247,20 @@ def build_parser():
     p.add_argument("scene", nargs="?", help="scene TOML file or bundled scene name")
     p.add_argument("--out", default="out", help="output directory (default: out)")
     _add_overwrite(p)
-    p.set_defaults(func=cmd_run)
+    p.set_defaults(func=run_command)
 
     p = sub.add_parser("plan", help="print what a scene computes, without running it")
     p.add_argument("scene", help="scene TOML file or bundled scene name")
-    p.set_defaults(func=cmd_plan)
+    p.set_defaults(func=plan_command)
 
     p = sub.add_parser("scenes", help="list the bundled scenes")
-    p.set_defaults(func=cmd_scenes)
+    p.set_defaults(func=scenes_command)
 
     p = sub.add_parser("compare", help="overlay the moment trajectories of results")
     p.add_argument("results", nargs="+", help="run directories (or moments.csv files)")
     p.add_argument("--out", default="compare.png", help="figure path (default: compare.png)")
     _add_overwrite(p, "a figure an earlier pbe-cfd compare wrote")
-    p.set_defaults(func=cmd_compare)
+    p.set_defaults(func=compare_command)
 
     p = sub.add_parser("couple", help="solve the population balance in every cell of an "
                                       "OpenFOAM fluid bed (default: bundled fluid-bed scene)")
@@ -168,7 +272,8 @@ def build_parser():
     p.add_argument("--threads", type=int, default=None, help="numba threads (default: all)")
     p.add_argument("--foam-fields", action="store_true",
                    help="also write the fields as OpenFOAM volScalarFields into the case")
-    _add_overwrite(p, "the files of an earlier pbe-cfd output, case (--run-case) or fields (--foam-fields)")
+    _add_overwrite(p, "the files of an earlier pbe-cfd output, case (--run-case) or fields "
+                   "(--foam-fields)")
     g = p.add_argument_group(
         "cluster (dask.distributed; pip install \"pbe_cfd[dask]\")",
         "Solve the cells on a Dask cluster. Finished chunks are kept in DIR.chunks/ next to "
@@ -190,14 +295,14 @@ def build_parser():
                    help="complete the failed or missing chunks of an earlier cluster run "
                         "whose output directory was DIR (implies --out DIR; SCENE defaults "
                         "to that run's)")
-    p.set_defaults(func=cmd_couple)
+    p.set_defaults(func=couple_command)
 
     p = sub.add_parser("case", help="run the bundled OpenFOAM fluid-bed case")
     p.add_argument("action", choices=("run",))
     p.add_argument("--mesh", default="small", choices=("small", "full"))
     p.add_argument("--dir", default="fluid-bed-case", help="where to copy and run the case")
     _add_overwrite(p, "the files of an earlier case pbe-cfd made there")
-    p.set_defaults(func=cmd_case)
+    p.set_defaults(func=case_command)
 
     p = sub.add_parser("render", help="render PNGs of a coupled run's VTK series")
     p.add_argument("dir", help="output directory of `pbe-cfd couple`")
@@ -206,7 +311,7 @@ def build_parser():
     p.add_argument("--times", nargs="+", type=float, default=None,
                    help="output times in s (nearest written; default: first and last)")
     _add_overwrite(p, "PNGs an earlier pbe-cfd run or render wrote")
-    p.set_defaults(func=cmd_render)
+    p.set_defaults(func=render_command)
 
     p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")
     p.add_argument("study", choices=("accuracy", "throughput", "cnmc", "laguerre", "couple"))
@@ -214,14 +319,14 @@ def build_parser():
     p.add_argument("--out", default="bench-out")
     p.add_argument("--quick", action="store_true", help="a tiny configuration (plumbing check)")
     _add_overwrite(p, "the files of this study an earlier pbe-cfd bench wrote")
-    p.set_defaults(func=cmd_bench)
+    p.set_defaults(func=bench_command)
     return parser
 
 
 def main(argv=None):
+    from .batch import SimulationError
     from .output import UsageError
     from .scene import SceneError
-    from .simulate import SimulationError
 
     parser = build_parser()
     args = parser.parse_args(argv)

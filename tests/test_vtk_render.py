@@ -184,7 +184,10 @@ def test_field_figure_axes_in_metres_log_bar_named_and_no_empty_canvas(series_di
     assert bed.get_aspect() == 1.0                 # drawn to scale
     assert bar.get_ylabel() == "M20 [kg2/m3], log scale"
     lin = field_figure([(polys, data, "d43")], "d43_m")
-    assert lin.axes[1].get_ylabel() == "d43 [m]"
+    assert lin.axes[1].get_ylabel() == "d43 [1e-4 m]"     # the power of ten in the unit
+    lin.canvas.draw()
+    ticks = [float(t.get_text()) for t in lin.axes[1].get_yticklabels() if t.get_text()]
+    assert ticks and all(1.0 <= v <= 10.0 for v in ticks), ticks
     # no half-empty canvas: no white band wider than 10 % of the picture
     import matplotlib.image as mpimg
     for png in render_series(series_dir, times=[0.0, 600.0], png_dir=tmp_path):
