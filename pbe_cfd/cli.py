@@ -30,6 +30,15 @@ def _add_overwrite(p, what="the files an earlier pbe-cfd run wrote there"):
                    help=f"replace {what} (files pbe-cfd did not write are never replaced)")
 
 
+def _compile_text(result):
+    """The compile time apart from the run time in the printed summary."""
+    if result.kernels_compiled:
+        return f" (+ {result.compile_time_s:.1f} s compiling kernels, first run only)"
+    if result.compile_time_s > 0:
+        return f" (+ {result.compile_time_s:.2f} s loading compiled kernels)"
+    return ""
+
+
 def _fail(message, code=2):
     print(f"pbe-cfd: error: {message}", file=sys.stderr)
     return code
@@ -57,13 +66,15 @@ def run_command(args):
         output.write_columns_csv(tmp / "moments.csv", result.columns)
         output.write_json(tmp / "summary.json", {
             "scene": describe(scene), "method": scene.method.name,
-            "wall_time_s": result.wall_time_s, "stats": result.stats,
+            "wall_time_s": result.wall_time_s, "compile_time_s": result.compile_time_s,
+            "kernels_compiled": result.kernels_compiled, "stats": result.stats,
             "warnings": result.warnings})
         plotting.plot_trajectories(tmp / "moments.png", [(scene.method.name, result.columns)],
                                    title=f"{scene.name}: {scene.method.name}",
                                    metadata=output.figure_metadata("png", "run"))
     print(f"{scene.name}: {scene.method.name} to t = {scene.end_time:g} s in "
-          f"{result.wall_time_s:.2f} s; wrote {out}/moments.csv, summary.json, moments.png")
+          f"{result.wall_time_s:.2f} s{_compile_text(result)}; wrote "
+          f"{args.out}/moments.csv, summary.json, moments.png")
     return 0
 
 
@@ -179,7 +190,8 @@ def couple_command(args):
     executor.finish()  # the output is complete: drop what was kept for a resume
     print(f"{scene.name}: {result.stats['active_cells']} of {result.stats['cells']} cells to "
           f"t = {scene.end_time:g} s in {result.wall_time_s:.2f} s "
-          f"({result.stats['cell_steps_per_second']:.3g} cell-steps/s); wrote {args.out}/")
+          f"({result.stats['cell_steps_per_second']:.3g} cell-steps/s)"
+          f"{_compile_text(result)}; wrote {args.out}/")
     return 0
 
 

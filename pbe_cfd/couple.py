@@ -23,6 +23,7 @@ from .executor import SerialExecutor
 from .methods.registry import MOMENT_METHODS, method_of
 from .physics import parameters as P
 from .population import mean_diameters
+from .progress import notice_if_slow
 from .scene import SceneError
 
 __all__ = ["CoupledResult", "run_coupled", "write_coupled", "check_foam_fields",
@@ -38,6 +39,8 @@ class CoupledResult:
     stats: dict
     wall_time_s: float
     warnings: list = field(default_factory=list)
+    compile_time_s: float = 0.0     # compiling (or loading) the kernels, not in wall_time_s
+    kernels_compiled: bool = False  # True: numba compiled them (a first run), else loaded
 
 
 def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None,
@@ -78,6 +81,9 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
         from .transport import build_transport
         transport = build_transport(scene, domain, active, rows, arrays=arrays, aux=aux)
         warnings.extend(transport.warnings)
+    with notice_if_slow(progress):
+        compile_s = batch.compile()
+    start += compile_s                      # the run time excludes the compile
     history = executor.run(batch, times, transport, progress=progress)
     wall = _time.perf_counter() - start
     cell_fields, bed = _outputs(scene, arrays, aux, cells, active, spray, idx, times, history)
@@ -96,7 +102,8 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     warnings.extend(notes_method)
     warnings.extend(_domain_warnings(scene, spray, notes))
     return CoupledResult(times=times, cell_fields=cell_fields, bed_columns=bed, stats=run_stats,
-                         wall_time_s=wall, warnings=warnings)
+                         wall_time_s=wall, warnings=warnings, compile_time_s=compile_s,
+                         kernels_compiled=batch.compiled_now)
 
 
 def _domain_warnings(scene, spray, notes) -> list:
@@ -172,7 +179,9 @@ def write_coupled(out_dir: Path, scene, domain: Domain, result: CoupledResult,
     output.write_columns_csv(out_dir / "bed_moments.csv", result.bed_columns)
     output.write_json(out_dir / "summary.json", {
         "scene": describe(scene), "method": scene.method.name, "domain": domain.description,
-        "wall_time_s": result.wall_time_s, "stats": result.stats, "warnings": result.warnings})
+        "wall_time_s": result.wall_time_s, "compile_time_s": result.compile_time_s,
+        "kernels_compiled": result.kernels_compiled, "stats": result.stats,
+        "warnings": result.warnings})
     if render:
         from .cfd.render import plot_bed_moments, render_series
         png = out_dir / "png"

@@ -5,7 +5,12 @@ a short status text); ``Progress`` is that callable for the command line.
 """
 from __future__ import annotations
 
+import contextlib
 import sys
+import threading
+
+#: Said while numba compiles the kernels a run needs (a first run; later runs load them).
+COMPILING = "compiling kernels (first run only)"
 
 
 class Progress:
@@ -14,6 +19,7 @@ class Progress:
 
     def __init__(self, label):
         from tqdm import tqdm
+        self.label = label
         self.bar = tqdm(total=1000, desc=label, unit="‰", disable=None, file=sys.stderr,
                         bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining} {postfix}")
         self.last = 0
@@ -28,6 +34,32 @@ class Progress:
         if text:
             self.bar.set_postfix_str(text)
 
+    def notice(self, text):
+        """Say ``text`` now: in the bar on a terminal, as a line on stderr otherwise."""
+        if self.bar.disable:
+            print(f"{self.label}: {text}", file=sys.stderr, flush=True)
+        else:
+            self.bar.set_postfix_str(text)
+            self.bar.refresh()
+
     def close(self):
         """End the bar (leaves the terminal line as it is)."""
         self.bar.close()
+
+
+@contextlib.contextmanager
+def notice_if_slow(progress, text=COMPILING, after_s=0.5):
+    """Run the ``with`` body; if it takes longer than ``after_s`` [s], tell ``progress``
+    ``text`` while it runs (``progress.notice(text)``, or ``progress(0, text)`` for a plain
+    callable, nothing for None): a compile says so, a cache load stays silent."""
+    if progress is None:
+        yield
+        return
+    say = getattr(progress, "notice", None) or (lambda t: progress(0.0, t))
+    timer = threading.Timer(after_s, say, args=(text,))
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()

@@ -229,3 +229,75 @@ def test_bench_failure_status_keeps_the_whole_reason():
     text = failure_status(exc)
     assert text.startswith("failed: " + path) and text.endswith("3 cell(s) affected")
     assert "\n" not in text and "left the support" in text
+
+
+# ---------------------------------------------------------------------------- first run
+def test_the_compile_is_said_while_it_runs_and_reported_apart(tmp_path, capsys, monkeypatch):
+    """A slow kernel compile (a first run) is announced while it runs, and its time is kept
+    out of the run time in the printed summary and in summary.json."""
+    import time
+
+    from pbe_cfd import simulate
+    from pbe_cfd.batch import CellBatch
+    from pbe_cfd.progress import COMPILING
+    original = CellBatch.compile
+    clock = {"offset": 0.0}                   # the run's clock; a compile moves it 1000 s on
+
+    class Clock:
+        @staticmethod
+        def perf_counter():
+            return time.perf_counter() + clock["offset"]
+
+    def slow_compile(self):
+        seconds = original(self)
+        time.sleep(0.8)                       # long enough to be announced
+        clock["offset"] += 1000.0             # stands in for numba compiling for 1000 s
+        self.compiled_now = True
+        return seconds + 0.8 + 1000.0
+
+    monkeypatch.setattr(CellBatch, "compile", slow_compile)
+    monkeypatch.setattr(simulate, "_time", Clock)
+    path = tmp_path / "tiny.toml"
+    path.write_text(GOOD)
+    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 0
+    out, err = capsys.readouterr()
+    assert COMPILING in err                   # said while compiling (stderr: not a terminal)
+    assert "s compiling kernels, first run only" in out
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["compile_time_s"] >= 1000.0 and summary["kernels_compiled"] is True
+    assert summary["wall_time_s"] < 100.0     # the run alone, without the compile
+
+
+def test_a_warm_run_says_nothing_and_compile_leaves_nothing_to_compile(tmp_path, capsys):
+    """After ``CellBatch.compile`` the run itself compiles nothing (so the run time holds no
+    compile), and a run whose kernels are cached is not announced as compiling."""
+    from pbe_cfd import integrate, model
+    from pbe_cfd.batch import CellBatch
+    from pbe_cfd.methods.registry import method_of
+    from pbe_cfd.progress import COMPILING
+    path = tmp_path / "tiny.toml"
+    path.write_text(GOOD)
+    scene = load_scene(path)
+    arrays = model.pack(scene)
+    aux = method_of(scene).aux(scene, arrays, None)
+    state = model.initial_moments(scene, arrays, arrays.state_names)
+    batch = CellBatch.for_scene(scene, arrays, aux, model.well_mixed_cell(scene),
+                                state[None, :].copy())
+    batch.compile()
+    before = dict(integrate.integrate_cells.overloads)
+    batch.step(0.0, 1.0)
+    assert dict(integrate.integrate_cells.overloads) == before
+    assert batch.stats()["accepted_steps"] > 0
+    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 0
+    out, err = capsys.readouterr()
+    assert COMPILING not in err and "first run only" not in out
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["kernels_compiled"] is False and summary["compile_time_s"] < 0.5
+
+
+def test_coupled_summary_keeps_compile_and_run_apart(coupled_run):
+    summary = json.loads((coupled_run / "summary.json").read_text())
+    assert summary["compile_time_s"] >= 0 and isinstance(summary["kernels_compiled"], bool)
+    st = summary["stats"]
+    assert st["cell_steps_per_second"] == pytest.approx(st["accepted_steps"]
+                                                         / summary["wall_time_s"])
