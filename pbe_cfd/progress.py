@@ -11,6 +11,9 @@ import threading
 
 #: Said while numba compiles the kernels a run needs (a first run; later runs load them).
 COMPILING = "compiling kernels (first run only)"
+#: Said only when the compile takes longer than this [s]: a first-run compile takes 20-60 s,
+#: loading cached kernels well under a second (2-3 s on a heavily loaded machine).
+NOTICE_AFTER_S = 3.0
 
 
 class Progress:
@@ -48,15 +51,16 @@ class Progress:
 
 
 @contextlib.contextmanager
-def notice_if_slow(progress, text=COMPILING, after_s=0.5):
-    """Run the ``with`` body; if it takes longer than ``after_s`` [s], tell ``progress``
+def notice_if_slow(progress, text=COMPILING, after_s=None):
+    """Run the ``with`` body; if it takes longer than ``after_s`` [s] (default
+    NOTICE_AFTER_S), tell ``progress``
     ``text`` while it runs (``progress.notice(text)``, or ``progress(0, text)`` for a plain
     callable, nothing for None): a compile says so, a cache load stays silent."""
     if progress is None:
         yield
         return
     say = getattr(progress, "notice", None) or (lambda t: progress(0.0, t))
-    timer = threading.Timer(after_s, say, args=(text,))
+    timer = threading.Timer(NOTICE_AFTER_S if after_s is None else after_s, say, args=(text,))
     timer.daemon = True
     timer.start()
     try:

@@ -257,6 +257,7 @@ def test_the_compile_is_said_while_it_runs_and_reported_apart(tmp_path, capsys, 
 
     monkeypatch.setattr(CellBatch, "compile", slow_compile)
     monkeypatch.setattr(simulate, "_time", Clock)
+    monkeypatch.setattr("pbe_cfd.progress.NOTICE_AFTER_S", 0.3)
     path = tmp_path / "tiny.toml"
     path.write_text(GOOD)
     assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 0
