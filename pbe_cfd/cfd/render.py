@@ -477,7 +477,43 @@ BED_PANELS = (
     ("free droplets", ("droplet_number_density",), "1/m3"),
     ("mean diameters", ("d32_m", "d43_m"), "m"),
     ("binder fraction", ("binder_fraction",), "-"),
+    ("granule and binder mass in the whole bed", ("bed_mass_kg", "bed_binder_mass_kg"), "kg"),
 )
+
+
+def _bed_panels(header) -> list:
+    """(title, columns, unit) of every panel for the columns of ``header``: the fixed
+    panels, then one per order of any other moment M_ij (i + j >= 3), then one per other
+    column (its unit from its name)."""
+    have = set(header)
+    panels = [(t, [c for c in cols if c in have], u) for t, cols, u in BED_PANELS]
+    panels = [p for p in panels if p[1]]
+    known = {c for _, cols, _ in panels for c in cols} | {"time_s"}
+    orders: dict = {}
+    for h in header:
+        m = re.fullmatch(r"M(\d)(\d)", h)
+        if h not in known and m:
+            orders.setdefault(int(m.group(1)) + int(m.group(2)), []).append(h)
+            known.add(h)
+    for k in sorted(orders):
+        panels.append((f"moments of order {k}", orders[k], f"kg{k}/m3"))
+    for h in header:
+        if h not in known:
+            panels.append((h, [h], field_label(h).split("[")[1].rstrip("]")))
+    return panels
+
+
+def _scaled_axis(ax, unit: str):
+    """A power of ten of a linear axis goes into its unit ("[1e-4 m]"), not above the axis."""
+    lo, hi = ax.get_ylim()
+    big = max(abs(lo), abs(hi))
+    exp = int(np.floor(np.log10(big))) if big > 0 else 0
+    if -3 < exp < 4:
+        ax.set_ylabel(f"[{unit}]", fontsize=9)
+        return
+    from matplotlib.ticker import FuncFormatter
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v / 10.0 ** exp:.4g}"))
+    ax.set_ylabel(f"[1e{exp} {unit}]" if unit != "-" else f"[1e{exp}]", fontsize=9)
 
 
 def plot_bed_moments(csv_path: str | os.PathLike, png_path: str | os.PathLike,
@@ -502,14 +538,9 @@ def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
     header, data = _read_csv(csv_path)
     t = data[:, 0]
     col = {h: data[:, i] for i, h in enumerate(header)}
-    panels = [(name, [c for c in cols if c in col], unit) for name, cols, unit in BED_PANELS]
-    panels = [p for p in panels if p[1]]
-    known = {c for _, cols, _ in panels for c in cols} | {"time_s"}
-    extra = [h for h in header if h not in known]
-    if not panels and not extra:
+    panels = _bed_panels(header)
+    if not panels:
         raise ValueError(f"{csv_path}: no columns to plot besides time_s")
-    if extra:
-        panels.append(("other columns", extra, "SI"))
     ncol = min(3, len(panels))
     nrow = -(-len(panels) // ncol)
     fig, axes = plt.subplots(nrow, ncol, figsize=(4.3 * ncol, 3.1 * nrow + 0.6),
@@ -520,12 +551,15 @@ def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
             ax.plot(t, y, lw=1.6, label=_LABELS.get(c, (c,))[0] if c.endswith("_m") else c)
         ys = np.concatenate([col[c] for c in cols])
         pos = ys[np.isfinite(ys) & (ys > 0)]
-        if pos.size > 1 and pos.max() / pos.min() > 100 and np.all(ys[np.isfinite(ys)] >= 0):
+        log = pos.size > 1 and pos.max() / pos.min() > 100 and np.all(ys[np.isfinite(ys)] >= 0)
+        if log:
             ax.set_yscale("log")
             name += " (log scale)"
+            ax.set_ylabel(f"[{unit}]", fontsize=9)
+        else:
+            _scaled_axis(ax, unit)
         ax.set_title(name, fontsize=10)
         ax.set_xlabel("time [s]", fontsize=9)
-        ax.set_ylabel(f"[{unit}]", fontsize=9)
         ax.grid(True, alpha=0.3)
         ax.tick_params(labelsize=8)
         if len(cols) > 1:
@@ -536,8 +570,8 @@ def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
         info = _run_info(csv_path.parent)
         title = info.get("name")
     head = f"{title}: " if title else ""
-    fig.suptitle(f"{head}bed averages over the fluid bed (per m3 of bed, the units of the VTK "
-                 "cell fields)", fontsize=10)
+    fig.suptitle(f"{head}bed averages (per m3 of bed, the units of the VTK cell fields; "
+                 "time in s)", fontsize=10)
     return fig
 
 
