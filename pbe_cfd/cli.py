@@ -25,6 +25,20 @@ def _positive_int(text):
     return value
 
 
+def _add_overwrite(p, what="the files an earlier pbe-cfd run wrote there"):
+    p.add_argument("--overwrite", action="store_true",
+                   help=f"replace {what} (files pbe-cfd did not write are never replaced)")
+
+
+def _compile_text(result):
+    """The compile time apart from the run time in the printed summary."""
+    if result.kernels_compiled:
+        return f" (+ {result.compile_time_s:.1f} s compiling kernels, first run only)"
+    if result.compile_time_s > 0:
+        return f" (+ {result.compile_time_s:.2f} s loading compiled kernels)"
+    return ""
+
+
 def _fail(message, code=2):
     print(f"pbe-cfd: error: {message}", file=sys.stderr)
     return code
@@ -40,7 +54,7 @@ def run_command(args):
     scene = load_scene(args.scene or DEFAULT_WELL_MIXED)
     if scene.domain.type != "well-mixed":
         return _fail(f"{scene.source}: [domain] type is \"openfoam\"; use `pbe-cfd couple`")
-    out = Path(args.out)
+    out = output.prepare_directory(args.out, args.overwrite)   # refuse before any work
     progress = Progress(f"{scene.name} ({scene.method.name})")
     try:
         result = run_well_mixed(scene, progress=progress)
@@ -48,16 +62,19 @@ def run_command(args):
         progress.close()
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
-    with output.atomic_directory(out) as tmp:
+    with output.atomic_directory(out, args.overwrite, kind="run") as tmp:
         output.write_columns_csv(tmp / "moments.csv", result.columns)
         output.write_json(tmp / "summary.json", {
             "scene": describe(scene), "method": scene.method.name,
-            "wall_time_s": result.wall_time_s, "stats": result.stats,
+            "wall_time_s": result.wall_time_s, "compile_time_s": result.compile_time_s,
+            "kernels_compiled": result.kernels_compiled, "stats": result.stats,
             "warnings": result.warnings})
         plotting.plot_trajectories(tmp / "moments.png", [(scene.method.name, result.columns)],
-                                   title=f"{scene.name}: {scene.method.name}")
+                                   title=f"{scene.name}: {scene.method.name}",
+                                   metadata=output.figure_metadata("png", "run"))
     print(f"{scene.name}: {scene.method.name} to t = {scene.end_time:g} s in "
-          f"{result.wall_time_s:.2f} s; wrote {out}/moments.csv, summary.json, moments.png")
+          f"{result.wall_time_s:.2f} s{_compile_text(result)}; wrote "
+          f"{args.out}/moments.csv, summary.json, moments.png")
     return 0
 
 
@@ -85,25 +102,10 @@ def scenes_command(args):
 
 
 def compare_command(args):
-    """``pbe-cfd compare A B --out F.png``: overlay moment trajectories."""
-    from . import plotting
-    from .output import read_columns_csv
-
-    runs = []
-    for d in args.results:
-        path = Path(d)
-        csv_path = path / "moments.csv" if path.is_dir() else path
-        if not csv_path.exists():
-            return _fail(f"{csv_path}: no such results file (expected a run directory with "
-                         "moments.csv)")
-        label = path.name if path.is_dir() else path.stem
-        runs.append((label, read_columns_csv(csv_path)))
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    plotting.plot_trajectories(out, runs, title=" vs ".join(label for label, _ in runs),
-                               common_only=True)
-    print(f"wrote {out}")
-    return 0
+    """``pbe-cfd compare A B --out F.png``: overlay moment trajectories (a coupled run: its
+    bed averages)."""
+    from .results import compare_runs
+    return compare_runs(args.results, args.out, args.overwrite)
 
 
 def _cluster_wanted(args) -> bool:
@@ -122,20 +124,19 @@ def _apply_resume(args):
         args.chunks = manifest.get("chunks")      # the same blocks as the first run
 
 
-def _fresh_case(scene, mesh: str):
+def _fresh_case(scene, mesh: str, overwrite: bool = False):
     """--run-case: run the bundled OpenFOAM case in ./fluid-bed-case and point the scene at
-    it."""
+    it (an earlier case pbe-cfd made there is replaced only with --overwrite)."""
     import dataclasses
 
-    from .cfd import openfoam as of
-    from .scene import SceneError
+    from .batch import SimulationError
+    from .cfd import cases, openfoam as of
     target = Path("fluid-bed-case")
-    if target.exists() and any(target.iterdir()):
-        raise SceneError(scene.source, "domain.case",
-                         f"--run-case: {target.resolve()} exists; remove it or run "
-                         "`pbe-cfd case run --dir NEW` and point [domain] case at it")
-    of.copy_case(of.default_case_dir(), target)
-    of.run_case(target, mesh=mesh, log=lambda line: print(line, file=sys.stderr))
+    try:
+        cases.copy_and_run(target, mesh, overwrite, flag="--run-case: fluid-bed-case",
+                           log=lambda line: print(line, file=sys.stderr))
+    except of.OpenFOAMError as exc:
+        raise SimulationError(f"--run-case: {exc}") from None
     return dataclasses.replace(scene, domain=dataclasses.replace(
         scene.domain, case=str(target.resolve()), time="latest"))
 
@@ -143,22 +144,28 @@ def _fresh_case(scene, mesh: str):
 def couple_command(args):
     """``pbe-cfd couple [SCENE] --out DIR``: the per-cell run over an OpenFOAM bed."""
     from . import output
-    from .couple import run_coupled, write_coupled, write_foam_fields
-    from .domain import BUNDLED_PREFIX, load_domain
+    from .couple import check_foam_fields, run_coupled, write_coupled, write_foam_fields
+    from .domain import load_domain
     from .executor import SerialExecutor
     from .progress import Progress
     from .scene import SceneError, load_scene
 
     if args.resume:
         _apply_resume(args)
+    out = output.prepare_directory(args.out, args.overwrite)   # refuse before any work
+    if _cluster_wanted(args) and not args.resume:
+        from .distributed import check_store
+        check_store(args.out, args.overwrite)
     scene = load_scene(args.scene or DEFAULT_COUPLED)
     if scene.domain.type != "openfoam":
         raise SceneError(scene.source, "domain.type",
                          "`pbe-cfd couple` needs type = \"openfoam\"; use `pbe-cfd run` for "
                          "well-mixed scenes")
     if args.run_case:
-        scene = _fresh_case(scene, args.mesh)
+        scene = _fresh_case(scene, args.mesh, args.overwrite)
     domain = load_domain(scene, need_flux=scene.transport is not None)
+    if args.foam_fields:
+        check_foam_fields(scene, domain, args.overwrite)
     executor = SerialExecutor()
     if _cluster_wanted(args):
         from .distributed import make_executor
@@ -175,26 +182,26 @@ def couple_command(args):
         executor.close()
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
-    out = Path(args.out)
-    with output.atomic_directory(out) as tmp:
+    with output.atomic_directory(out, args.overwrite, kind="couple") as tmp:
         write_coupled(tmp, scene, domain, result)
-        if args.foam_fields and not scene.domain.case.startswith(BUNDLED_PREFIX):
-            written = write_foam_fields(scene, domain, result)
-            executor.mirror_to_processors(written)  # a decomposed case: per processor too
+        if args.foam_fields:
+            written = write_foam_fields(scene, domain, result, args.overwrite)
+            executor.mirror_to_processors(written, args.overwrite)  # per processor too
     executor.finish()  # the output is complete: drop what was kept for a resume
     print(f"{scene.name}: {result.stats['active_cells']} of {result.stats['cells']} cells to "
           f"t = {scene.end_time:g} s in {result.wall_time_s:.2f} s "
-          f"({result.stats['cell_steps_per_second']:.3g} cell-steps/s); wrote {out}/")
+          f"({result.stats['cell_steps_per_second']:.3g} cell-steps/s)"
+          f"{_compile_text(result)}; wrote {args.out}/")
     return 0
 
 
 def case_command(args):
     """``pbe-cfd case run --mesh small --dir DIR``: copy and run the fluid-bed case."""
-    from .cfd import openfoam as of
+    from .cfd import cases, openfoam as of
     target = Path(args.dir)
     try:
-        of.copy_case(of.default_case_dir(), target)
-        res = of.run_case(target, mesh=args.mesh, log=lambda line: print(line, file=sys.stderr))
+        res = cases.copy_and_run(target, args.mesh, args.overwrite, flag="--dir",
+                                 log=lambda line: print(line, file=sys.stderr))
     except of.OpenFOAMError as exc:
         print(f"pbe-cfd: error: {exc}", file=sys.stderr)
         return 1
@@ -205,13 +212,8 @@ def case_command(args):
 
 def render_command(args):
     """``pbe-cfd render DIR``: PNGs of a coupled run's VTK series."""
-    from .cfd.render import plot_bed_moments, render_series
-    out = Path(args.dir)
-    vtk_dir = out / "vtk" if (out / "vtk").is_dir() else out
-    paths = render_series(vtk_dir, fields=args.fields, times=args.times, png_dir=out / "png")
-    if (out / "bed_moments.csv").is_file():
-        paths.append(plot_bed_moments(out / "bed_moments.csv", out / "png" / "bed_moments.png"))
-    for p in paths:
+    from .results import render_run
+    for p in render_run(args.dir, args.fields, args.times, args.overwrite):
         print(p)
     return 0
 
@@ -220,10 +222,11 @@ def bench_command(args):
     """``pbe-cfd bench STUDY [SCENE] --out DIR [--quick]``."""
     import time
 
-    from . import bench
+    from . import bench, output
     out = Path(args.out)
     quick = bool(args.quick)
     study = args.study
+    output.prepare_directory(out, args.overwrite, names=bench.STUDY_FILES[study])
     start = time.perf_counter()
     if study == "accuracy":
         res = bench.accuracy_study(args.scene, out, quick=quick)
@@ -255,6 +258,7 @@ def build_parser():
     p = sub.add_parser("run", help="run a well-mixed scene (default: the bundled seed-wurster)")
     p.add_argument("scene", nargs="?", help="scene TOML file or bundled scene name")
     p.add_argument("--out", default="out", help="output directory (default: out)")
+    _add_overwrite(p)
     p.set_defaults(func=run_command)
 
     p = sub.add_parser("plan", help="print what a scene computes, without running it")
@@ -267,6 +271,7 @@ def build_parser():
     p = sub.add_parser("compare", help="overlay the moment trajectories of results")
     p.add_argument("results", nargs="+", help="run directories (or moments.csv files)")
     p.add_argument("--out", default="compare.png", help="figure path (default: compare.png)")
+    _add_overwrite(p, "a figure an earlier pbe-cfd compare wrote")
     p.set_defaults(func=compare_command)
 
     p = sub.add_parser("couple", help="solve the population balance in every cell of an "
@@ -279,6 +284,8 @@ def build_parser():
     p.add_argument("--threads", type=int, default=None, help="numba threads (default: all)")
     p.add_argument("--foam-fields", action="store_true",
                    help="also write the fields as OpenFOAM volScalarFields into the case")
+    _add_overwrite(p, "the files of an earlier pbe-cfd output, case (--run-case) or fields "
+                   "(--foam-fields)")
     g = p.add_argument_group(
         "cluster (dask.distributed; pip install \"pbe_cfd[dask]\")",
         "Solve the cells on a Dask cluster. Finished chunks are kept in DIR.chunks/ next to "
@@ -306,14 +313,16 @@ def build_parser():
     p.add_argument("action", choices=("run",))
     p.add_argument("--mesh", default="small", choices=("small", "full"))
     p.add_argument("--dir", default="fluid-bed-case", help="where to copy and run the case")
+    _add_overwrite(p, "the files of an earlier case pbe-cfd made there")
     p.set_defaults(func=case_command)
 
     p = sub.add_parser("render", help="render PNGs of a coupled run's VTK series")
     p.add_argument("dir", help="output directory of `pbe-cfd couple`")
-    p.add_argument("--fields", nargs="*", default=None,
+    p.add_argument("--fields", nargs="+", default=None,
                    help="fields to draw (default: alpha, Theta, M00, d43_m, binder_fraction)")
-    p.add_argument("--times", nargs="*", type=float, default=None,
+    p.add_argument("--times", nargs="+", type=float, default=None,
                    help="output times in s (nearest written; default: first and last)")
+    _add_overwrite(p, "PNGs an earlier pbe-cfd run or render wrote")
     p.set_defaults(func=render_command)
 
     p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")
@@ -321,19 +330,21 @@ def build_parser():
     p.add_argument("scene", nargs="?", help="scene for the accuracy study")
     p.add_argument("--out", default="bench-out")
     p.add_argument("--quick", action="store_true", help="a tiny configuration (plumbing check)")
+    _add_overwrite(p, "the files of this study an earlier pbe-cfd bench wrote")
     p.set_defaults(func=bench_command)
     return parser
 
 
 def main(argv=None):
     from .batch import SimulationError
+    from .output import UsageError
     from .scene import SceneError
 
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except SceneError as exc:
+    except (SceneError, UsageError) as exc:
         return _fail(str(exc), 2)
     except SimulationError as exc:
         return _fail(str(exc), 1)

@@ -23,9 +23,11 @@ from .executor import SerialExecutor
 from .methods.registry import MOMENT_METHODS, method_of
 from .physics import parameters as P
 from .population import mean_diameters
+from .progress import notice_if_slow
 from .scene import SceneError
 
-__all__ = ["CoupledResult", "run_coupled", "write_coupled", "write_foam_fields"]
+__all__ = ["CoupledResult", "run_coupled", "write_coupled", "check_foam_fields",
+           "write_foam_fields"]
 
 
 @dataclass
@@ -37,6 +39,8 @@ class CoupledResult:
     stats: dict
     wall_time_s: float
     warnings: list = field(default_factory=list)
+    compile_time_s: float = 0.0     # compiling (or loading) the kernels, not in wall_time_s
+    kernels_compiled: bool = False  # True: numba compiled them (a first run), else loaded
 
 
 def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None,
@@ -77,6 +81,9 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
         from .transport import build_transport
         transport = build_transport(scene, domain, active, rows, arrays=arrays, aux=aux)
         warnings.extend(transport.warnings)
+    with notice_if_slow(progress):
+        compile_s = batch.compile()
+    start += compile_s                      # the run time excludes the compile
     history = executor.run(batch, times, transport, progress=progress)
     wall = _time.perf_counter() - start
     cell_fields, bed = _outputs(scene, arrays, aux, cells, active, spray, idx, times, history)
@@ -95,7 +102,8 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     warnings.extend(notes_method)
     warnings.extend(_domain_warnings(scene, spray, notes))
     return CoupledResult(times=times, cell_fields=cell_fields, bed_columns=bed, stats=run_stats,
-                         wall_time_s=wall, warnings=warnings)
+                         wall_time_s=wall, warnings=warnings, compile_time_s=compile_s,
+                         kernels_compiled=batch.compiled_now)
 
 
 def _domain_warnings(scene, spray, notes) -> list:
@@ -171,12 +179,15 @@ def write_coupled(out_dir: Path, scene, domain: Domain, result: CoupledResult,
     output.write_columns_csv(out_dir / "bed_moments.csv", result.bed_columns)
     output.write_json(out_dir / "summary.json", {
         "scene": describe(scene), "method": scene.method.name, "domain": domain.description,
-        "wall_time_s": result.wall_time_s, "stats": result.stats, "warnings": result.warnings})
+        "wall_time_s": result.wall_time_s, "compile_time_s": result.compile_time_s,
+        "kernels_compiled": result.kernels_compiled, "stats": result.stats,
+        "warnings": result.warnings})
     if render:
         from .cfd.render import plot_bed_moments, render_series
         png = out_dir / "png"
         render_series(out_dir / "vtk", times=[result.times[0], result.times[-1]], png_dir=png)
-        plot_bed_moments(out_dir / "bed_moments.csv", png / "bed_moments.png")
+        plot_bed_moments(out_dir / "bed_moments.csv", png / "bed_moments.png",
+                         title=scene.name)
 
 
 #: OpenFOAM dimensions of the fields written back into a case
@@ -186,7 +197,25 @@ FOAM_UNITS = {"M00": "[0 -3 0 0 0 0 0]", "M10": "[1 -3 0 0 0 0 0]", "M01": "[1 -
               "droplet_number_density": "[0 -3 0 0 0 0 0]"}
 
 
-def write_foam_fields(scene, domain: Domain, result: CoupledResult) -> list:
+def check_foam_fields(scene, domain: Domain, overwrite: bool = False):
+    """Before a run with --foam-fields: refuse (SceneError or output.OutputRefused, exit 2)
+    when the domain has no case time directory to write into (a snapshot), or when that
+    directory holds ``pbe.*`` fields pbe-cfd may not replace."""
+    from .cfd import openfoam as of
+    from .domain import BUNDLED_PREFIX
+    case = Path(scene.domain.case)
+    if scene.domain.case.startswith(BUNDLED_PREFIX) or not case.is_dir():
+        raise SceneError(scene.source, "domain.case",
+                         f"--foam-fields: {scene.domain.case!r} is a snapshot, which has no "
+                         "OpenFOAM case time directory to write fields into; point [domain] "
+                         "case at a case directory (`pbe-cfd case run --dir DIR`) or drop "
+                         "--foam-fields")
+    names = [f"pbe.{k}" for k in (*FOAM_UNITS, "binder_fraction")]
+    of.check_foam_fields(case, of.time_name(case, domain.cells.time), names, overwrite)
+
+
+def write_foam_fields(scene, domain: Domain, result: CoupledResult,
+                      overwrite: bool = False) -> list:
     """Write the final moment fields as volScalarFields ``pbe.<name>`` (SI) into the case's
     time directory of the CFD fields they were computed from (ParaView's OpenFOAM reader lists
     numeric times only). Returns the files written ([] for a snapshot domain)."""
@@ -198,4 +227,4 @@ def write_foam_fields(scene, domain: Domain, result: CoupledResult) -> list:
               if k in FOAM_UNITS or k == "binder_fraction"}
     dims = {f"pbe.{k}": u for k, u in FOAM_UNITS.items()}
     return of.write_foam_fields(case, of.time_name(case, domain.cells.time), fields,
-                                dimensions=dims)
+                                dimensions=dims, overwrite=overwrite)

@@ -39,7 +39,7 @@ class SerialExecutor:
         """Nothing to report for a serial run."""
         return None
 
-    def mirror_to_processors(self, written) -> list:
+    def mirror_to_processors(self, written, overwrite: bool = False) -> list:
         """No decomposed case: nothing to mirror."""
         return []
 

@@ -5,7 +5,15 @@ a short status text); ``Progress`` is that callable for the command line.
 """
 from __future__ import annotations
 
+import contextlib
 import sys
+import threading
+
+#: Said while numba compiles the kernels a run needs (a first run; later runs load them).
+COMPILING = "compiling kernels (first run only)"
+#: Said only when the compile takes longer than this [s]: a first-run compile takes 20-60 s,
+#: loading cached kernels well under a second (2-3 s on a heavily loaded machine).
+NOTICE_AFTER_S = 3.0
 
 
 class Progress:
@@ -14,6 +22,7 @@ class Progress:
 
     def __init__(self, label):
         from tqdm import tqdm
+        self.label = label
         self.bar = tqdm(total=1000, desc=label, unit="‰", disable=None, file=sys.stderr,
                         bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining} {postfix}")
         self.last = 0
@@ -28,6 +37,33 @@ class Progress:
         if text:
             self.bar.set_postfix_str(text)
 
+    def notice(self, text):
+        """Say ``text`` now: in the bar on a terminal, as a line on stderr otherwise."""
+        if self.bar.disable:
+            print(f"{self.label}: {text}", file=sys.stderr, flush=True)
+        else:
+            self.bar.set_postfix_str(text)
+            self.bar.refresh()
+
     def close(self):
         """End the bar (leaves the terminal line as it is)."""
         self.bar.close()
+
+
+@contextlib.contextmanager
+def notice_if_slow(progress, text=COMPILING, after_s=None):
+    """Run the ``with`` body; if it takes longer than ``after_s`` [s] (default
+    NOTICE_AFTER_S), tell ``progress``
+    ``text`` while it runs (``progress.notice(text)``, or ``progress(0, text)`` for a plain
+    callable, nothing for None): a compile says so, a cache load stays silent."""
+    if progress is None:
+        yield
+        return
+    say = getattr(progress, "notice", None) or (lambda t: progress(0.0, t))
+    timer = threading.Timer(NOTICE_AFTER_S if after_s is None else after_s, say, args=(text,))
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()

@@ -9,6 +9,7 @@ import numpy as np
 from . import model
 from .batch import CellBatch, SimulationError, check_physics, output_times
 from .methods.registry import method_of
+from .progress import notice_if_slow
 
 __all__ = ["RunResult", "SimulationError", "run_well_mixed", "output_times", "check_physics"]
 
@@ -21,11 +22,15 @@ class RunResult:
     stats: dict
     wall_time_s: float
     warnings: list = field(default_factory=list)
+    compile_time_s: float = 0.0     # compiling (or loading) the kernels, not in wall_time_s
+    kernels_compiled: bool = False  # True: numba compiled them (a first run), else loaded
 
 
 def run_well_mixed(scene, progress=None) -> RunResult:
     """Run a well-mixed scene to its end time. ``progress(fraction, text)`` is called after each
-    output interval. Raises SimulationError on a stall or an unrealizable start."""
+    output interval (and told when the kernels compile). ``wall_time_s`` is the run,
+    ``compile_time_s`` compiling or loading the integration kernel [s]. Raises SimulationError
+    on a stall or an unrealizable start."""
     check_physics(scene)
     method = method_of(scene)
     if not method.integrated:
@@ -40,6 +45,9 @@ def run_well_mixed(scene, progress=None) -> RunResult:
     states[0] = state
     batch = CellBatch.for_scene(scene, arrays, aux, model.well_mixed_cell(scene),
                                 state[None, :].copy())
+    with notice_if_slow(progress):
+        compile_s = batch.compile()
+    start += compile_s                      # the run time excludes the compile
     for k in range(1, len(times)):
         batch.step(times[k - 1], times[k])
         states[k] = batch.states[0]
@@ -53,7 +61,8 @@ def run_well_mixed(scene, progress=None) -> RunResult:
     run_stats.update(extra)
     warnings.extend(notes)
     return RunResult(scene=scene, columns=columns, stats=run_stats, wall_time_s=wall,
-                     warnings=warnings)
+                     warnings=warnings, compile_time_s=compile_s,
+                     kernels_compiled=batch.compiled_now)
 
 
 def _run_ensemble(scene, progress) -> RunResult:

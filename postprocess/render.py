@@ -1,11 +1,12 @@
-"""Render a pbe_cfd VTK series (off-screen pyvista PNGs) and plot bed_moments.csv.
+"""Render a pbe_cfd VTK series and plot bed_moments.csv (the same as `pbe-cfd render`).
 
     python postprocess/render.py OUT_DIR [--fields alpha Theta M00 d43_m binder_fraction]
-                                         [--times 0 600] [--png-dir DIR]
+                                         [--times 0 600] [--overwrite]
 
 OUT_DIR is a `pbe-cfd couple` output directory (its vtk/ subdirectory holds the .pvd) or a
-directory holding a .pvd directly. The code lives in pbe_cfd.cfd.render (also behind
-`pbe-cfd render`).
+directory holding a .pvd directly; the PNGs go to OUT_DIR/png/ under the same rules as the
+command (a picture pbe-cfd drew earlier is replaced only with --overwrite, any other file
+never). The code lives in pbe_cfd.results and pbe_cfd.cfd.render.
 """
 
 from __future__ import annotations
@@ -14,7 +15,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from pbe_cfd.cfd.render import plot_bed_moments, render_series
+from pbe_cfd.output import UsageError
+from pbe_cfd.results import render_run
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -22,19 +24,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("out_dir", type=Path)
     ap.add_argument("--fields", nargs="+", default=None, help="cell fields to draw")
     ap.add_argument("--times", nargs="+", type=float, default=None,
-                    help="output times in s (default: first and last)")
-    ap.add_argument("--png-dir", type=Path, default=None)
+                    help="output times in s (nearest written; default: first and last)")
+    ap.add_argument("--overwrite", action="store_true",
+                    help="replace pictures pbe-cfd drew earlier")
     args = ap.parse_args(argv)
-    out = args.out_dir
-    vtk_dir = out / "vtk" if (out / "vtk").is_dir() else out
-    png_dir = args.png_dir or out / "png"
     try:
-        paths = render_series(vtk_dir, fields=args.fields, times=args.times, png_dir=png_dir)
-        if (out / "bed_moments.csv").is_file():
-            paths.append(plot_bed_moments(out / "bed_moments.csv", png_dir / "bed_moments.png"))
-    except (FileNotFoundError, ValueError) as exc:
+        paths = render_run(args.out_dir, args.fields, args.times, args.overwrite)
+    except UsageError as exc:
         print(f"render: error: {exc}", file=sys.stderr)
-        return 1
+        return 2
     for p in paths:
         print(p)
     return 0

@@ -138,3 +138,167 @@ def test_failed_run_leaves_no_partial_directory(tmp_path, capsys):
 def test_scenes_lists_bundled(capsys):
     assert main(["scenes"]) == 0
     assert "seed-wurster" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------------------- bad input
+@pytest.fixture(scope="module")
+def coupled_run(tmp_path_factory):
+    """A 2 s coupled run of the bundled bed (outputs at 0, 1, 2 s)."""
+    from test_data_safety import tiny_couple_text
+    root = tmp_path_factory.mktemp("coupled")
+    (root / "tiny-couple.toml").write_text(tiny_couple_text())
+    assert main(["couple", str(root / "tiny-couple.toml"), "--out", str(root / "c")]) == 0
+    return root / "c"
+
+
+def test_render_draws_the_nearest_written_time_and_says_which(coupled_run, capsys):
+    capsys.readouterr()
+    assert main(["render", str(coupled_run), "--fields", "M00", "--times", "7"]) == 2
+    err = capsys.readouterr().err                # t = 2 s was drawn by couple: --overwrite
+    assert "t = 7 s is not an output time; drawing the nearest written one, t = 2 s" in err
+    assert main(["render", str(coupled_run), "--fields", "M00", "--times", "0.6"]) == 0
+    out, err = capsys.readouterr()
+    assert "nearest written one, t = 1 s" in err
+    assert out.strip().endswith("M00_t1s.png")
+    assert (coupled_run / "png" / "M00_t1s.png").is_file()
+
+
+@pytest.mark.parametrize("argv,phrase", [
+    (["render", "{c}", "--fields", "nosuchfield"], "no field nosuchfield in"),
+    (["render", "{c}", "--times", "nan"], "--times nan: expected a time in s"),
+    (["render", "{c}/vtk/pbe_00000.vtu"], "no such directory"),
+    (["compare", "{c}", "--out", "{tmp}/x.txt"], "expected a figure file ending in .png"),
+    (["compare", "{c}/summary.json", "--out", "{tmp}/x.png"], "not a table of numbers"),
+    (["compare", "{tmp}", "--out", "{tmp}/x.png"], "neither moments.csv"),
+    (["couple", "--foam-fields", "--out", "{tmp}/o"], "a snapshot, which has no OpenFOAM case"),
+])
+def test_bad_command_input_is_one_line_exit_2(coupled_run, tmp_path, capsys, argv, phrase):
+    argv = [a.format(c=coupled_run, tmp=tmp_path) for a in argv]
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("pbe-cfd: error: ") and len(err.strip().splitlines()) == 1, err
+    assert phrase in err, err
+    assert not (tmp_path / "o").exists() and not (tmp_path / "x.png").exists()
+
+
+def test_case_run_into_a_non_empty_directory_is_refused(tmp_path, capsys):
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("mine")
+    assert main(["case", "run", "--dir", str(tmp_path / "mine")]) == 2
+    err = capsys.readouterr().err
+    assert "not written by pbe-cfd" in err and len(err.strip().splitlines()) == 1
+    assert [p.name for p in (tmp_path / "mine").iterdir()] == ["notes.txt"]
+
+
+def test_compare_of_a_coupled_run_uses_its_bed_moments(coupled_run, tmp_path, capsys):
+    assert main(["run", "--out", str(tmp_path / "r")]) == 0
+    assert main(["compare", str(tmp_path / "r"), str(coupled_run),
+                 "--out", str(tmp_path / "cmp.png")]) == 0
+    assert (tmp_path / "cmp.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_compare_draws_the_cnmc_band_under_its_mean_and_a_deviation_panel():
+    from matplotlib.collections import PolyCollection
+
+    from pbe_cfd.plotting import BAND_ALPHA, trajectories_figure
+    t = np.linspace(0, 600, 61)
+    mean = 3.3e10 * np.exp(-t / 800)
+    cnmc = {"time_s": t, "M00": mean, "M00_lo": mean * 0.996, "M00_hi": mean * 1.004}
+    qmom = {"time_s": t, "M00": mean * (1 + 0.05 * np.sin(t / 200))}
+    fig = trajectories_figure([("cnmc", cnmc), ("qmom", qmom)], common_only=True)
+    top, dev = fig.axes[0], fig.axes[1]
+    (band,) = [c for c in top.collections if isinstance(c, PolyCollection)]
+    assert band.get_alpha() == BAND_ALPHA
+    mean_line = [ln for ln in top.get_lines() if ln.get_label() == "cnmc mean"][0]
+    assert mean_line.get_zorder() > band.get_zorder()        # the mean is drawn on top
+    # below: deviation from the cNMC mean in %, the band +-0.4 % around zero
+    (dev_band,) = [c for c in dev.collections if isinstance(c, PolyCollection)]
+    ys = dev_band.get_paths()[0].vertices[:, 1]
+    assert np.nanmax(ys) == pytest.approx(0.4) and np.nanmin(ys) == pytest.approx(-0.4)
+    (q,) = [ln for ln in dev.get_lines() if np.size(ln.get_xdata()) == t.size]
+    np.testing.assert_allclose(q.get_ydata(), 5 * np.sin(t / 200), atol=1e-9)
+    assert "%" in dev.get_ylabel()
+
+
+def test_bench_failure_status_keeps_the_whole_reason():
+    from pbe_cfd.bench import failure_status
+    path = "/a/long/path/to/scenes/" + "x" * 200 + "/fluid-bed.toml"
+    exc = RuntimeError(f"{path}: cell 12 (alpha 0.5) stopped at t = 1 s:\n  the population "
+                       "left the support; 3 cell(s) affected")
+    text = failure_status(exc)
+    assert text.startswith("failed: " + path) and text.endswith("3 cell(s) affected")
+    assert "\n" not in text and "left the support" in text
+
+
+# ---------------------------------------------------------------------------- first run
+def test_the_compile_is_said_while_it_runs_and_reported_apart(tmp_path, capsys, monkeypatch):
+    """A slow kernel compile (a first run) is announced while it runs, and its time is kept
+    out of the run time in the printed summary and in summary.json."""
+    import time
+
+    from pbe_cfd import simulate
+    from pbe_cfd.batch import CellBatch
+    from pbe_cfd.progress import COMPILING
+    original = CellBatch.compile
+    clock = {"offset": 0.0}                   # the run's clock; a compile moves it 1000 s on
+
+    class Clock:
+        @staticmethod
+        def perf_counter():
+            return time.perf_counter() + clock["offset"]
+
+    def slow_compile(self):
+        seconds = original(self)
+        time.sleep(0.8)                       # long enough to be announced
+        clock["offset"] += 1000.0             # stands in for numba compiling for 1000 s
+        self.compiled_now = True
+        return seconds + 0.8 + 1000.0
+
+    monkeypatch.setattr(CellBatch, "compile", slow_compile)
+    monkeypatch.setattr(simulate, "_time", Clock)
+    monkeypatch.setattr("pbe_cfd.progress.NOTICE_AFTER_S", 0.3)
+    path = tmp_path / "tiny.toml"
+    path.write_text(GOOD)
+    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 0
+    out, err = capsys.readouterr()
+    assert COMPILING in err                   # said while compiling (stderr: not a terminal)
+    assert "s compiling kernels, first run only" in out
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["compile_time_s"] >= 1000.0 and summary["kernels_compiled"] is True
+    assert summary["wall_time_s"] < 100.0     # the run alone, without the compile
+
+
+def test_a_warm_run_says_nothing_and_compile_leaves_nothing_to_compile(tmp_path, capsys):
+    """After ``CellBatch.compile`` the run itself compiles nothing (so the run time holds no
+    compile), and a run whose kernels are cached is not announced as compiling."""
+    from pbe_cfd import integrate, model
+    from pbe_cfd.batch import CellBatch
+    from pbe_cfd.methods.registry import method_of
+    from pbe_cfd.progress import COMPILING
+    path = tmp_path / "tiny.toml"
+    path.write_text(GOOD)
+    scene = load_scene(path)
+    arrays = model.pack(scene)
+    aux = method_of(scene).aux(scene, arrays, None)
+    state = model.initial_moments(scene, arrays, arrays.state_names)
+    batch = CellBatch.for_scene(scene, arrays, aux, model.well_mixed_cell(scene),
+                                state[None, :].copy())
+    batch.compile()
+    before = dict(integrate.integrate_cells.overloads)
+    batch.step(0.0, 1.0)
+    assert dict(integrate.integrate_cells.overloads) == before
+    assert batch.stats()["accepted_steps"] > 0
+    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 0
+    out, err = capsys.readouterr()
+    assert COMPILING not in err and "first run only" not in out
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["kernels_compiled"] is False and summary["compile_time_s"] < 0.5
+
+
+def test_coupled_summary_keeps_compile_and_run_apart(coupled_run):
+    summary = json.loads((coupled_run / "summary.json").read_text())
+    assert summary["compile_time_s"] >= 0 and isinstance(summary["kernels_compiled"], bool)
+    st = summary["stats"]
+    assert st["cell_steps_per_second"] == pytest.approx(st["accepted_steps"]
+                                                         / summary["wall_time_s"])

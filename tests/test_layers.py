@@ -9,7 +9,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "pbe_cfd"
 #: layers from the bottom up; a module may import its own layer and the ones below
 LAYERS = [
     ("utilities", ("pbe_cfd", "pbe_cfd.progress", "pbe_cfd.output", "pbe_cfd.plotting",
-                   "pbe_cfd.population", "pbe_cfd.cfd")),
+                   "pbe_cfd.population", "pbe_cfd.cfd", "pbe_cfd.results")),
     ("physics", ("pbe_cfd.physics",)),
     ("methods", ("pbe_cfd.methods", "pbe_cfd.integrate")),
     ("scene", ("pbe_cfd.scene",)),

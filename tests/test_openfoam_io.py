@@ -16,7 +16,7 @@ from pbe_cfd.cfd import openfoam as of
 
 BED_WIDTH, BED_HEIGHT, BED_DEPTH = 0.15, 0.6, 0.02  # m
 ALPHA_MAX = 0.62  # packing limit of the case (constant/phaseProperties)
-CASE = Path(__file__).resolve().parents[1] / "openfoam_case"   # the repository's template
+CASE = (Path(__file__).resolve().parents[1] / "openfoam_case").resolve()   # the template
 
 needs_openfoam = pytest.mark.skipif(shutil.which("blockMesh") is None,
                                     reason="OpenFOAM (blockMesh) not installed")
@@ -164,8 +164,13 @@ def test_instantaneous_fallback_warns(tmp_path, snap):
     cells, _ = snap
     case = _fake_case(tmp_path, cells.mesh, {"alpha.particles": [cells.alpha],
                                              "Theta.particles": [cells.theta]})
-    with pytest.warns(UserWarning, match="alpha.particlesMean"):
+    with pytest.warns(UserWarning) as caught:
         got = of.read_cell_fields(case, 1.5)
+    # one warning per field that falls back: alpha and Theta, and no other
+    texts = [str(w.message) for w in caught]
+    assert len(texts) == 2, texts
+    for field in ("alpha", "Theta"):
+        assert sum(f"no time-averaged '{field}.particlesMean'" in t for t in texts) == 1
     assert not got.averaged
     assert got.source["alpha_field"] == "alpha.particles"
 

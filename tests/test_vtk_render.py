@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import meshio
 import numpy as np
@@ -20,14 +21,18 @@ def cells():
     return of.load_snapshot()
 
 
+ALPHA_MIN = 0.05   # cells leaner than this hold no granules (as a coupled run writes them)
+
+
 def _fields(cells, t):
-    bed = cells.alpha > 1e-3
+    bed = cells.alpha >= ALPHA_MIN
     y = cells.cell_centre[:, 1]
     m00 = np.where(bed, 3.3e10 * cells.alpha / 0.55 * (1 - 0.5 * t / 600), 0.0)   # 1/m3
     return {
         "M00": m00,
         "d43_m": np.where(bed, 100.4e-6 * (1 + t / 600 * y / 0.3), 0.0),
         "binder_fraction": np.where(bed, 0.1 * t / 600 * np.exp(-(y - 0.3) ** 2 / 0.01), 0.0),
+        "active": bed.astype(float),
     }
 
 
@@ -130,12 +135,68 @@ def test_render_series_non_blank(series_dir):
 
 
 def test_render_series_errors(series_dir):
-    with pytest.raises(ValueError, match="not an output time"):
-        render_series(series_dir, fields=["M00"], times=[123.0])
-    with pytest.raises(ValueError, match=r"fields \['nope'\] not in"):
+    notes = []
+    pngs = render_series(series_dir, fields=["M00"], times=[123.0], notes=notes)
+    assert [p.name for p in pngs] == ["M00_t0s.png"]          # nearest written time
+    assert "t = 123 s is not an output time" in notes[0] and "t = 0 s" in notes[0]
+    with pytest.raises(ValueError, match="no field nope in"):
         render_series(series_dir, fields=["nope"])
-    with pytest.raises(FileNotFoundError, match="no .pvd"):
+    with pytest.raises(FileNotFoundError, match=r"no VTK series \(.pvd\)"):
         render_series(series_dir / "png")
+
+
+def _count(png, rgb):
+    import matplotlib.image as mpimg
+    img = np.round(mpimg.imread(str(png))[..., :3] * 255)
+    return int(np.count_nonzero(np.all(np.abs(img - rgb) <= 1, axis=2)))
+
+
+def test_empty_cells_look_the_same_in_every_field(series_dir, cells, tmp_path):
+    """Cells holding no granules (the freeboard) are drawn in one grey in every field, never
+    in the colour of zero (which would make an empty freeboard look like a dry bed)."""
+    from matplotlib.colors import to_rgb
+
+    from pbe_cfd.cfd.render import EMPTY_COLOUR
+    grey = np.array(to_rgb(EMPTY_COLOUR)) * 255
+    pngs = render_series(series_dir, times=[0.0], png_dir=tmp_path)
+    counts = {p.stem: _count(p, grey) for p in pngs}
+    empty_share = np.mean(cells.alpha < ALPHA_MIN)
+    assert empty_share > 0.2                   # the freeboard is a good part of the bed
+    ref = counts["M00_t0s"]
+    import matplotlib.image as mpimg
+    pixels = mpimg.imread(str(pngs[0])).shape[0] * mpimg.imread(str(pngs[0])).shape[1]
+    assert ref > 0.1 * empty_share * pixels      # the freeboard is grey (axes ~1/4 of image)
+    for name, n in counts.items():
+        assert abs(n - ref) <= 0.01 * ref, (name, counts)      # the same cells, every field
+
+
+def test_field_figure_axes_in_metres_log_bar_named_and_no_empty_canvas(series_dir, tmp_path):
+    import pyvista as pv
+
+    from pbe_cfd.cfd.render import field_figure, section
+    from pbe_cfd.cfd.vtk import read_pvd
+    polys, data, axes, note = section(pv.read(read_pvd(series_dir / "pbe.pvd")[-1][1]))
+    assert note == ""                              # one cell thick: the section is the mesh
+    spread = dict(data)                            # M20 over four decades in the bed
+    spread["M20"] = np.where(data["active"] > 0, np.logspace(-16, -12, len(polys)), 0.0)
+    fig = field_figure([(polys, spread, "M20")], "M20")
+    bed, bar = fig.axes[0], fig.axes[1]
+    assert bed.get_xlabel() == "x [m]" and bed.get_ylabel() == "y [m]"
+    assert bed.get_aspect() == 1.0                 # drawn to scale
+    assert bar.get_ylabel() == "M20 [kg2/m3], log scale"
+    lin = field_figure([(polys, data, "d43")], "d43_m")
+    assert lin.axes[1].get_ylabel() == "d43 [1e-4 m]"     # the power of ten in the unit
+    lin.canvas.draw()
+    ticks = [float(t.get_text()) for t in lin.axes[1].get_yticklabels() if t.get_text()]
+    assert ticks and all(1.0 <= v <= 10.0 for v in ticks), ticks
+    # no half-empty canvas: no white band wider than 10 % of the picture
+    import matplotlib.image as mpimg
+    for png in render_series(series_dir, times=[0.0, 600.0], png_dir=tmp_path):
+        nonwhite = np.any(mpimg.imread(str(png))[..., :3] < 0.97, axis=2)
+        for axis in (0, 1):
+            used = nonwhite.any(axis=axis)
+            gaps = np.diff(np.flatnonzero(np.r_[True, used, True])) - 1
+            assert gaps.max() < 0.1 * used.size, (png.name, axis, gaps.max() / used.size)
 
 
 def test_plot_bed_moments(tmp_path):
@@ -148,9 +209,27 @@ def test_plot_bed_moments(tmp_path):
     csv = tmp_path / "bed_moments.csv"
     csv.write_text(",".join(cols) + "\n" + "\n".join(
         ",".join(repr(float(cols[k][i])) for k in cols) for i in range(len(t))) + "\n")
-    png = plot_bed_moments(csv, tmp_path / "png" / "bed.png")
+    png = plot_bed_moments(csv, tmp_path / "png" / "bed.png", title="my-bed")
     var, colours = image_stats(png)
     assert var > 0 and colours > 10
+    # a real title; each panel in the units of the VTK cell field of the same name
+    from pbe_cfd.cfd.render import bed_moments_figure, field_label
+    fig = bed_moments_figure(csv, title="my-bed")
+    assert fig._suptitle.get_text().startswith("my-bed: bed averages")
+    assert "per m3 of bed" in fig._suptitle.get_text()
+    seen = set()
+    for ax in fig.axes:
+        for line in ax.get_lines():
+            name = {"d43": "d43_m"}.get(line.get_label(), line.get_label())
+            if name in cols:
+                unit = field_label(name).split("[")[1].rstrip("]")
+                # the unit of the VTK field, a power of ten in front where the axis needs one
+                assert re.fullmatch(r"\[(1e-?\d+ )?" + re.escape(unit) + r"\]",
+                                    ax.get_ylabel()), (name, ax.get_ylabel())
+                seen.add(name)
+    assert seen == set(cols) - {"time_s"}
+    d43_axis = [ax for ax in fig.axes if "d43" in [ln.get_label() for ln in ax.get_lines()]][0]
+    assert d43_axis.get_ylabel() == "[1e-4 m]"
     bad = tmp_path / "bad.csv"
     bad.write_text("t,M00\n0,1\n")
     with pytest.raises(ValueError, match="first column must be 'time_s'"):

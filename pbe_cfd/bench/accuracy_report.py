@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 
-from .common import _in_place, _machine_line, _write_csv
+from .common import _machine_line, _write_csv
 
 #: quantities compared by the accuracy study (columns of RunResult)
 QUANTITIES = ("M00", "M20", "M11", "M02", "d43_m", "binder_fraction")
@@ -158,7 +158,7 @@ def plot_pareto(path, result):
 def write_accuracy(out_dir, result):
     """Write accuracy.csv, accuracy.md, pareto.png and accuracy.json into out_dir."""
     from .. import output
-    with output.atomic_directory(out_dir) if not out_dir.exists() else _in_place(out_dir) as d:
+    with output.add_to_directory(out_dir, kind="bench") as d:
         _write_csv(d / "accuracy.csv", _accuracy_csv_rows(result))
         (d / "accuracy.md").write_text(accuracy_markdown(result))
         plot_pareto(d / "pareto.png", result)

@@ -76,24 +76,26 @@ def _write_csv(path, lines):
             w.writerow([_csv_value(v) for v in rec])
 
 
-class _in_place:
-    """Write into an existing directory (several studies may share one --out)."""
-
-    def __init__(self, path):
-        self.path = Path(path)
-
-    def __enter__(self):
-        return self.path
-
-    def __exit__(self, *exc):
-        return False
-
-
 def _write_simple(out_dir, name, rows, markdown, result):
     from .. import output
     keys = list(rows[0]) if rows else []
     lines = [keys] + [[r.get(k) for k in keys] for r in rows]
-    with output.atomic_directory(out_dir) if not out_dir.exists() else _in_place(out_dir) as d:
+    with output.add_to_directory(out_dir, kind="bench") as d:
         _write_csv(d / f"{name}.csv", lines)
         (d / f"{name}.md").write_text(markdown)
         output.write_json(d / f"{name}.json", result)
+
+
+def failure_status(exc) -> str:
+    """The whole reason a variant failed, on one line (a table cell)."""
+    return "failed: " + " ".join(str(exc).split())
+
+
+#: The files each study writes into --out (several studies may share one directory).
+STUDY_FILES = {
+    "accuracy": ["accuracy.csv", "accuracy.md", "pareto.png", "accuracy.json"],
+    "throughput": ["throughput.csv", "throughput.md", "throughput.png", "throughput.json",
+                   "machine.json"],
+    **{name: [f"{name}.csv", f"{name}.md", f"{name}.json"]
+       for name in ("cnmc", "laguerre", "couple")},
+}

@@ -12,7 +12,8 @@ import numpy as np
 from ..couple import run_coupled
 from ..domain import Domain, load_domain
 from ..scene import load_scene
-from .common import _git_describe, _machine_line, _say, _write_simple, machine_info
+from .common import (_git_describe, _machine_line, _say, _write_simple, failure_status,
+                     machine_info)
 
 
 def replicated_domain(domain, copies):
@@ -60,7 +61,7 @@ def couple_study(out_dir="bench-out", quick=False, quiet=False) -> dict:
                 rows.append({"method": mlabel, "domain": dlabel, "threads": 0,
                              "active_cells": 0, "wall_s": float("nan"), "accepted_steps": 0,
                              "cell_steps_per_s": float("nan"), "rhs_calls": 0,
-                             "status": f"failed: {exc}".splitlines()[0][:200]})
+                             "status": failure_status(exc)})
                 _say(quiet, f"  couple {mlabel} {dlabel}: failed: {exc}")
                 continue
             for th in (1, 2):
@@ -83,8 +84,8 @@ def couple_study(out_dir="bench-out", quick=False, quiet=False) -> dict:
              "RHS calls/s |", "|---|---|---|---|---|---|---|"]
     for r in rows:
         if r["status"] != "ok":
-            lines.append(f"| {r['method']} | {r['domain']} | - | - | - | {r['status'][:90]} "
-                         "| - |")
+            lines.append(f"| {r['method']} | {r['domain']} | - | - | - | "
+                         f"{r['status'].replace('|', '/')} | - |")
             continue
         lines.append(f"| {r['method']} | {r['domain']} | {r['active_cells']} | {r['threads']} | "
                      f"{r['wall_s']:.3g} | {r['cell_steps_per_s']:.3g} | "

@@ -19,7 +19,7 @@ from ..physics import parameters as P
 from ..physics.kernels import collision_velocity
 from ..physics.properties import N_PROPS
 from ..scene import load_scene
-from .common import _git_describe, _in_place, _machine_line, _say, _write_csv, machine_info
+from .common import _git_describe, _machine_line, _say, _write_csv, machine_info
 from .numpy_baseline import NumpyQMOM
 from .sweeps import (laguerre_contraction_sweep, qmom_kernel_sweep, qmom_node_properties,
                      rhs_sweep)
@@ -422,7 +422,7 @@ def _write_throughput(out_dir, result):
         lines.append(["numpy-scipy-qmom", base["order"], base["cells"], 1, base["rhs_per_s"],
                       base["rhs_per_s"], base["cell_steps_per_s"],
                       base["nfev"] / max(base["steps"], 1), "", "", "", "", ""])
-    with output.atomic_directory(out_dir) if not out_dir.exists() else _in_place(out_dir) as d:
+    with output.add_to_directory(out_dir, kind="bench") as d:
         _write_csv(d / "throughput.csv", lines)
         (d / "throughput.md").write_text(throughput_markdown(result))
         plot_throughput(d / "throughput.png", result)

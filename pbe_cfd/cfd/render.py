@@ -1,27 +1,38 @@
-"""Off-screen renders of a VTK series (pyvista) and a plot of bed-integrated moments.
+"""Pictures of a coupled run: cell fields of the VTK series and the bed-averaged moments.
 
-``render_series(out_dir, fields, times)`` draws cell fields of the pseudo-2-D bed viewed
-along z, one PNG per (field, time), with a colour bar in SI units and a log scale where a
-field spans decades. ``plot_bed_moments(csv_path, png_path)`` plots ``bed_moments.csv``.
-No display is needed: VTK renders off-screen (EGL/OSMesa); Xvfb is started only if that fails.
+``render_series(out_dir, fields, times)`` draws each cell field on the mid-plane section of
+the bed (the pseudo-2-D fluid bed seen along its thin axis), one PNG per (field, time) and, for
+several times, one sequence figure sharing one colour bar. Axes are in m and equal in scale;
+the colour bar names the field, its SI unit and, where used, the log scale. Cells holding no
+granules (alpha below the scene's alpha_min: the freeboard) are drawn in one light grey in
+every field, so an empty cell never looks like a dry or small one.
+``plot_bed_moments(csv_path, png_path)`` plots ``bed_moments.csv`` in the VTK's units.
+
+VTK is used to read and cut the mesh only; figures are drawn by matplotlib (Agg), so no
+display or OpenGL is needed.
 """
 
 from __future__ import annotations
 
 import csv
+import json
 import os
 import re
-import shutil
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["render_series", "render_mesh_field", "plot_bed_moments", "field_label",
-           "image_stats", "DEFAULT_FIELDS"]
+__all__ = ["render_series", "render_mesh_field", "field_figure", "plot_bed_moments",
+           "bed_moments_figure",
+           "field_label", "image_stats", "pick_times", "section", "plan_render", "png_names",
+           "DEFAULT_FIELDS", "EMPTY_COLOUR"]
 
 #: Fields drawn by default (those present in the series).
 DEFAULT_FIELDS = ("alpha", "Theta", "M00", "d43_m", "binder_fraction")
+#: Colour of cells that hold no granules, in every field.
+EMPTY_COLOUR = "#d4d4d4"
 
 _LABELS = {
     "alpha": ("alpha", "-"),
@@ -33,7 +44,7 @@ _LABELS = {
     "d32_m": ("d32", "m"),
     "d43_m": ("d43", "m"),
     "binder_fraction": ("binder fraction", "-"),
-    "droplet_number_density": ("droplets", "1/m3"),
+    "droplet_number_density": ("free droplets", "1/m3"),
     "cell_volume": ("cell volume", "m3"),
 }
 
@@ -52,204 +63,395 @@ def field_label(name: str) -> str:
     return f"{name} [{unit}]"
 
 
-_BACKEND_READY = False
-
-
-def _pyvista():
-    """Import pyvista set up for off-screen rendering; start Xvfb only when VTK needs it."""
-    global _BACKEND_READY
-    if not os.environ.get("DISPLAY"):
-        # no X server: let VTK pick its EGL window directly instead of trying X first
-        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-    import pyvista as pv
-
-    pv.OFF_SCREEN = True
-    if not _BACKEND_READY:
-        try:
-            pl = pv.Plotter(off_screen=True, window_size=(8, 8))
-            pl.add_mesh(pv.Sphere())
-            pl.screenshot(return_img=True)
-            pl.close()
-        except Exception as exc:  # noqa: BLE001 - any render failure: try a virtual display
-            if shutil.which("Xvfb") is None or os.environ.get("DISPLAY"):
-                raise RuntimeError(f"pyvista cannot render off-screen here ({exc}) and no "
-                                   "Xvfb is available to provide a display") from exc
-            pv.start_xvfb()
-        _BACKEND_READY = True
-    return pv
-
-
 def _find_pvd(out_dir: Path) -> Path:
     if out_dir.is_file() and out_dir.suffix == ".pvd":
         return out_dir
+    if not out_dir.is_dir():
+        raise FileNotFoundError(f"{out_dir}: no such directory (expected the output directory "
+                                "of `pbe-cfd couple`)")
     pvds = sorted(out_dir.glob("*.pvd"))
     if not pvds:
-        raise FileNotFoundError(f"render_series: no .pvd collection in {out_dir}")
+        raise FileNotFoundError(f"{out_dir}: no VTK series (.pvd) here (expected the output "
+                                "directory of `pbe-cfd couple`)")
     if len(pvds) > 1:
         names = [p.name for p in pvds]
         for pref in ("fields.pvd", "pbe.pvd", "moments.pvd"):
             if pref in names:
                 return out_dir / pref
-        raise ValueError(f"render_series: several .pvd files in {out_dir} ({names}); "
-                         "pass the one to draw")
+        raise ValueError(f"{out_dir}: several .pvd files ({names}); pass the one to draw")
     return pvds[0]
 
 
-def _pick_times(available: list[float], times: Sequence[float] | None) -> list[int]:
-    """Indices of the requested output times (s); default the first and the last."""
-    if not available:
-        raise ValueError("render_series: the series has no time steps")
+def pick_times(available: Sequence[float], times: Sequence[float] | None,
+               notes: list | None = None) -> list[int]:
+    """Indices of the written output times nearest to the requested ones (s), in the order
+    asked, without repeats; default the first and the last. A request that is not a written
+    time adds a sentence to ``notes`` saying which time is drawn instead."""
+    if not len(available):
+        raise ValueError("the series has no time steps")
     if times is None:
         return sorted({0, len(available) - 1})
     arr = np.asarray(available, dtype=float)
     idx = []
     for t in times:
-        i = int(np.argmin(np.abs(arr - float(t))))
-        if abs(arr[i] - float(t)) > 1e-6 * max(1.0, abs(float(t))):
-            raise ValueError(f"render_series: t = {t} s is not an output time; the series "
-                             f"has {available}")
-        idx.append(i)
+        t = float(t)
+        if not np.isfinite(t):
+            raise ValueError(f"--times {t}: expected a time in s")
+        i = int(np.argmin(np.abs(arr - t)))
+        if abs(arr[i] - t) > 1e-6 * max(1.0, abs(t)) and notes is not None:
+            notes.append(f"t = {t:g} s is not an output time; drawing the nearest written "
+                         f"one, t = {arr[i]:g} s (written: {arr[0]:g} to {arr[-1]:g} s every "
+                         f"{_step_text(arr)})")
+        if i not in idx:
+            idx.append(i)
     return idx
+
+
+def _step_text(arr: np.ndarray) -> str:
+    if arr.size < 2:
+        return "-"
+    d = np.diff(arr)
+    return f"{d[0]:g} s" if np.allclose(d, d[0]) else "varying steps"
 
 
 #: Fractions: always a linear scale from 0.
 LINEAR_FIELDS = frozenset({"alpha", "alpha.particles", "alpha.particlesMean",
-                           "binder_fraction"})
+                           "binder_fraction", "active", "spray_zone"})
 
 
 def _colour_limits(values: list[np.ndarray], field: str = "") -> tuple[float, float, bool]:
-    """(lo, hi, log) over all arrays: log when the positive values span > 2 decades
-    (never for the fractions in LINEAR_FIELDS, which start at 0; sizes ``*_m`` range over
-    their positive values, zeros being empty cells)."""
-    v = np.concatenate([np.ravel(a) for a in values])
+    """(lo, hi, log) over the arrays (cells holding granules only): log when positive values
+    span more than 2 decades, floored at 1e-6 of the maximum (never for the fractions in
+    LINEAR_FIELDS, which start at 0)."""
+    v = np.concatenate([np.ravel(a) for a in values]) if values else np.zeros(0)
     v = v[np.isfinite(v)]
     if v.size == 0:
         return 0.0, 1.0, False
     pos = v[v > 0]
-    hi = float(v.max())
-    lo = float(v.min())
+    hi, lo = float(v.max()), float(v.min())
     if field in LINEAR_FIELDS:
         lo = min(lo, 0.0)
-    elif field.endswith("_m") and lo >= 0 and pos.size:
-        # sizes: a zero marks an empty cell (drawn grey), not a size
-        lo = float(pos.min())
-        if hi / lo > 100.0:
-            return max(lo, hi * 1e-6), hi, True
-        if hi == lo:
-            hi = lo * (1 + 1e-6)
-        return lo, hi, False
     elif lo >= 0 and pos.size and hi > 0:
         plo = float(pos.min())
         if hi / plo > 100.0:
-            # floor at 1e-6 of the maximum so a few near-empty cells do not wash out the rest
             return max(plo, hi * 1e-6), hi, True
-    if hi == lo:
+        if field.endswith("_m"):
+            lo = plo                         # a size range, not from zero
+    if hi <= lo:
         hi = lo + (abs(lo) * 1e-6 or 1.0)
     return lo, hi, False
 
 
+# ---------------------------------------------------------------------------- geometry
+def section(mesh):
+    """The mid-plane section of a VTK mesh normal to its thinnest extent: (polygons as a list
+    of (k, 2) vertex arrays in m, the cut's cell data (name -> values per polygon), the two
+    in-plane axis names, a note saying where the cut is)."""
+    b = np.asarray(mesh.bounds, dtype=float).reshape(3, 2)
+    ext = b[:, 1] - b[:, 0]
+    normal = int(np.argmin(ext))
+    axes = [a for a in range(3) if a != normal]
+    names = "xyz"
+    origin = b.mean(axis=1)
+    cut = mesh.slice(normal=names[normal], origin=origin)
+    if cut.n_cells == 0:
+        raise ValueError("the mesh has no cells to draw")
+    pts = np.asarray(cut.points)[:, axes]
+    polys = [pts[np.asarray(f)] for f in cut.irregular_faces]
+    data = {k: np.asarray(cut.cell_data[k]) for k in cut.cell_data.keys()}
+    thin = cut.n_cells == mesh.n_cells          # one cell thick: the section is the mesh
+    note = "" if thin else f"section {names[normal]} = {origin[normal]:.3g} m"
+    return polys, data, (names[axes[0]], names[axes[1]]), note
+
+
+def _empty_mask(data: dict) -> np.ndarray | None:
+    """Cells that hold no granules: ``active`` = 0 where the series has it, else M00 <= 0."""
+    if "active" in data:
+        return np.asarray(data["active"]) < 0.5
+    if "M00" in data:
+        return ~(np.asarray(data["M00"]) > 0)
+    return None
+
+
+def _values(data: dict, field: str) -> np.ndarray:
+    if field not in data:
+        raise KeyError(field)
+    v = np.asarray(data[field], dtype=float)
+    return np.linalg.norm(v, axis=1) if v.ndim > 1 else v
+
+
+# ---------------------------------------------------------------------------- drawing
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _norm(clim, log_scale):
+    from matplotlib.colors import LogNorm, Normalize
+    return LogNorm(*clim) if log_scale else Normalize(*clim)
+
+
+def _draw_section(ax, polys, values, empty, norm, cmap):
+    from matplotlib.collections import PolyCollection
+
+    full = PolyCollection(polys, cmap=cmap, norm=norm, edgecolors="face", linewidths=0.3,
+                          antialiased=False)     # no light seams between cells
+    shown = np.where(empty, np.nan, values) if empty is not None else values
+    if norm.__class__.__name__ == "LogNorm":
+        shown = np.where(shown > 0, shown, norm.vmin)     # zero in a granule cell: the floor
+    full.set_array(np.ma.masked_invalid(shown))
+    ax.add_collection(full)
+    pts = np.concatenate(polys)
+    ax.set_xlim(pts[:, 0].min(), pts[:, 0].max())
+    ax.set_ylim(pts[:, 1].min(), pts[:, 1].max())
+    ax.set_aspect("equal")
+    return full
+
+
+#: Layout of a field figure in inches: axes height, left/right/bottom/top margins, gap
+#: between panels, colour bar width and the space its labels need.
+_AX_H, _LEFT, _BOTTOM, _TOP, _GAP, _BAR_W, _BAR_LABELS = 4.6, 0.8, 0.75, 0.45, 0.25, 0.16, 1.15
+
+
+def _layout(polys, panels: int, head_lines: int):
+    """Figure size and the axes / colour-bar rectangles (figure fractions) for ``panels``
+    sections side by side, drawn to scale (equal axes) at _AX_H inches high."""
+    pts = np.concatenate(polys)
+    w = float(np.ptp(pts[:, 0])) or 1.0
+    h = float(np.ptp(pts[:, 1])) or 1.0
+    ax_h = _AX_H
+    ax_w = ax_h * w / h
+    if ax_w > 6.0:                        # a wide domain: keep the figure at most ~6 in wide
+        ax_w, ax_h = 6.0, 6.0 * h / w
+    top = _TOP + 0.2 * head_lines
+    width = _LEFT + panels * ax_w + (panels - 1) * _GAP + 0.2 + _BAR_W + _BAR_LABELS
+    height = _BOTTOM + ax_h + top
+    rects = [((_LEFT + k * (ax_w + _GAP)) / width, _BOTTOM / height, ax_w / width,
+              ax_h / height) for k in range(panels)]
+    x_bar = _LEFT + panels * ax_w + (panels - 1) * _GAP + 0.2
+    bar = (x_bar / width, _BOTTOM / height, _BAR_W / width, ax_h / height)
+    return (width, height), rects, bar
+
+
+def _colour_bar(fig, mappable, rect, field, log_scale, below):
+    cax = fig.add_axes(rect)
+    cb = fig.colorbar(mappable, cax=cax, extend="min" if below else "neither")
+    label = field_label(field)
+    if log_scale:
+        label += ", log scale"
+    else:
+        # a power of ten goes into the unit ("d43 [1e-4 m]"), not above the bar
+        big = max(abs(mappable.norm.vmin), abs(mappable.norm.vmax))
+        exp = int(np.floor(np.log10(big))) if big > 0 else 0
+        if exp <= -3 or exp >= 4:
+            from matplotlib.ticker import FuncFormatter
+            cb.formatter = FuncFormatter(lambda v, _: f"{v / 10.0 ** exp:.3g}")
+            cb.update_ticks()
+            name, unit = label.rsplit(" [", 1)
+            label = f"{name} [1e{exp} {unit}" if unit != "-]" else f"{name} [1e{exp}]"
+    cb.set_label(label, fontsize=9)
+    cb.ax.tick_params(labelsize=8)
+    return cb
+
+
+def _empty_legend(fig, empty, alpha_min):
+    from matplotlib.patches import Patch
+    if empty is None or not np.any(empty):
+        return
+    text = "no granules" + (f" (alpha < {alpha_min:g})" if alpha_min is not None else "")
+    fig.legend(handles=[Patch(facecolor=EMPTY_COLOUR, edgecolor="0.5", label=text)],
+               loc="lower right", fontsize=8, frameon=False, bbox_to_anchor=(1.0, 0.0),
+               handlelength=1.2, borderaxespad=0.1)
+
+
 def render_mesh_field(mesh, field: str, png_path: str | os.PathLike, *, title: str = "",
                       clim: tuple[float, float] | None = None, log_scale: bool | None = None,
-                      window_size: tuple[int, int] = (600, 1000), cmap: str = "viridis") -> Path:
-    """Render one cell field of a pyvista mesh (a pseudo-2-D bed, viewed along z) to a PNG.
+                      cmap: str = "viridis", alpha_min: float | None = None,
+                      subtitle: str = "") -> Path:
+    """Draw one cell field of a VTK mesh (pyvista) on its mid-plane section to a PNG.
 
-    ``clim`` and ``log_scale`` default to the field's own range (log over > 2 decades).
-    Cells below the colour range (e.g. empty cells on a log scale) are drawn light grey.
+    Axes in m; ``clim``/``log_scale`` default to the field's own range over the cells holding
+    granules (log over > 2 decades); empty cells (``active`` = 0, or M00 = 0) in EMPTY_COLOUR.
     """
-    pv = _pyvista()
-    if field not in mesh.cell_data:
-        raise KeyError(f"no cell field '{field}' (have {sorted(mesh.cell_data.keys())})")
-    values = np.asarray(mesh.cell_data[field], dtype=float)
-    if values.ndim > 1:
-        values = np.linalg.norm(values, axis=1)
+    polys, data, axes_names, note = section(mesh)
+    return _render_panels([(polys, data, title)], field, Path(png_path), clim=clim,
+                          log_scale=log_scale, cmap=cmap, alpha_min=alpha_min,
+                          suptitle=subtitle, axes_names=axes_names, note=note)
+
+
+def _render_panels(panels, field, png_path: Path, **kw) -> Path:
+    plt = _plt()
+    fig = field_figure(panels, field, **kw)
+    png_path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(png_path, dpi=110, metadata=_png_meta("render"))
+    plt.close(fig)
+    return png_path
+
+
+def field_figure(panels, field, *, clim=None, log_scale=None, cmap="viridis", alpha_min=None,
+                 suptitle="", axes_names=("x", "y"), note=""):
+    """The matplotlib Figure of one field on one or more sections side by side: ``panels`` a
+    list of (polygons, cell data, panel title) from ``section``; one colour bar (log scale
+    named in its label), axes in m drawn to scale, empty cells in EMPTY_COLOUR."""
+    plt = _plt()
+    values = [_values(d, field) for _, d, _ in panels]
+    empties = [_empty_mask(d) for _, d, _ in panels]
     if clim is None or log_scale is None:
-        lo, hi, lg = _colour_limits([values], field)
+        sel = [v[~e] if e is not None else v for v, e in zip(values, empties)]
+        lo, hi, lg = _colour_limits(sel, field)
         clim = clim or (lo, hi)
         log_scale = lg if log_scale is None else log_scale
-    grid = mesh.copy(deep=False)
-    grid.cell_data.clear()
-    grid.cell_data[field] = values
-    png_path = Path(png_path)
-    png_path.parent.mkdir(parents=True, exist_ok=True)
-    pl = pv.Plotter(off_screen=True, window_size=list(window_size))
-    pl.set_background("white")
-    big = max(abs(clim[0]), abs(clim[1]))
-    bar = dict(title=field_label(field), vertical=True, position_x=0.66, position_y=0.10,
-               width=0.10, height=0.78, color="black", title_font_size=16,
-               label_font_size=14, n_labels=5,
-               fmt="%.2e" if log_scale or big < 1e-2 or big >= 1e4 else "%.3g")
-    extra = {}
-    if np.any(values < clim[0]):
-        # e.g. empty cells under a log scale
-        extra["below_color"] = "lightgrey"
-        bar["below_label"] = "< min"
-    pl.add_mesh(grid, scalars=field, preference="cell", cmap=cmap, clim=list(clim),
-                log_scale=bool(log_scale), lighting=False, scalar_bar_args=bar,
-                show_edges=False, **extra)
-    if title:
-        pl.add_text(title, position="upper_left", font_size=12, color="black")
-    # pseudo-2-D bed seen along z, in the left ~60 % of the window (colour bar on the right)
-    pl.view_xy()
-    pl.enable_parallel_projection()
-    x0, x1, y0, y1, z0, z1 = grid.bounds
-    h = y1 - y0
-    aspect = window_size[0] / window_size[1]
-    scale = 0.55 * h                       # half the visible height
-    cx = x0 + 0.42 * (2 * scale * aspect)   # bed starts 8 % in from the left edge
-    cy = (y0 + y1) / 2 + 0.02 * h           # room for the title above
-    cam = pl.camera
-    dist = 10 * h
-    cam.focal_point = (cx, cy, (z0 + z1) / 2)
-    cam.position = (cx, cy, (z0 + z1) / 2 + dist)
-    cam.up = (0, 1, 0)
-    cam.parallel_scale = scale
-    pl.screenshot(str(png_path))
-    pl.close()
-    return png_path
+    norm = _norm(clim, log_scale)
+    cm = plt.get_cmap(cmap).with_extremes(bad=EMPTY_COLOUR)
+    head = "\n".join(x for x in (suptitle, note) if x)
+    size, rects, bar_rect = _layout(panels[0][0], len(panels), head.count("\n") + 1 if head else 0)
+    fig = plt.figure(figsize=size)
+    below = False
+    mappable = None
+    for k, ((polys, _, title), v, e) in enumerate(zip(panels, values, empties)):
+        ax = fig.add_axes(rects[k])
+        mappable = _draw_section(ax, polys, v, e, norm, cm)
+        live = v[~e] if e is not None else v
+        below = below or bool(np.any(live[np.isfinite(live)] < clim[0] * (1 - 1e-12)))
+        ax.set_title(title, fontsize=10)
+        ax.set_xlabel(f"{axes_names[0]} [m]", fontsize=9)
+        ax.tick_params(labelsize=8)
+        if k == 0:
+            ax.set_ylabel(f"{axes_names[1]} [m]", fontsize=9)
+        else:
+            ax.tick_params(labelleft=False)
+    _colour_bar(fig, mappable, bar_rect, field, log_scale, below)
+    _empty_legend(fig, next((e for e in empties if e is not None and e.any()), None),
+                  alpha_min)
+    if head:
+        fig.suptitle(head, fontsize=9, color="0.25", y=1 - 0.08 / size[1], va="top")
+    return fig
+
+
+def _png_meta(what):
+    from ..output import figure_metadata
+    return figure_metadata("png", what)
+
+
+def _run_info(*dirs: Path) -> dict:
+    """Scene name and alpha_min from the run's summary.json in the first of ``dirs`` that
+    has one."""
+    for d in dirs:
+        f = d / "summary.json"
+        if f.is_file():
+            try:
+                s = json.loads(f.read_text())
+                return {"name": s["scene"]["name"],
+                        "alpha_min": float(s["scene"]["domain"]["alpha_min"])}
+            except (OSError, ValueError, KeyError, TypeError):
+                return {}
+    return {}
+
+
+def png_names(fields: Sequence[str], times: Sequence[float], sequence: bool = False
+              ) -> list[str]:
+    """The file names ``render_series`` writes for these fields and output times (s)."""
+    out = []
+    for field in fields:
+        out += [f"{field}_t{t:g}s.png" for t in times]
+        if sequence and len(times) > 1:
+            out.append(f"{field}_sequence.png")
+    return out
+
+
+def plan_render(out_dir, fields: Sequence[str] | None = None,
+                times: Sequence[float] | None = None):
+    """What ``render_series`` would draw: (pvd, entries, chosen indices, fields, notes).
+    Raises FileNotFoundError / ValueError with a message for the user."""
+    from pbe_cfd.cfd.vtk import read_pvd
+    import pyvista as pv
+
+    pvd = _find_pvd(Path(out_dir))
+    entries = read_pvd(pvd)
+    notes: list[str] = []
+    idx = pick_times([t for t, _ in entries], times, notes)
+    if not idx:
+        raise ValueError("--times: name at least one output time in s")
+    if fields is not None and not fields:
+        raise ValueError("--fields: name at least one field")
+    try:
+        first = pv.read(entries[idx[0]][1])
+    except Exception as exc:  # noqa: BLE001 - VTK raises plain errors for unreadable files
+        raise ValueError(f"cannot read {entries[idx[0]][1]}: {exc}") from None
+    have = set(first.cell_data.keys())
+    if fields is None:
+        fields = [f for f in DEFAULT_FIELDS if f in have]
+        if not fields:
+            raise ValueError(f"{pvd}: none of {list(DEFAULT_FIELDS)} in the series; fields "
+                             f"there: {sorted(have)}")
+    else:
+        missing = [f for f in fields if f not in have]
+        if missing:
+            raise ValueError(f"no field {', '.join(missing)} in {pvd}; fields there: "
+                             f"{', '.join(sorted(have))}")
+        fields = list(dict.fromkeys(fields))
+    return pvd, entries, idx, list(fields), notes
 
 
 def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = None,
                   times: Sequence[float] | None = None,
-                  png_dir: str | os.PathLike | None = None) -> list[Path]:
-    """Render cell fields of the VTK series in ``out_dir`` (its .pvd) at chosen times (s).
+                  png_dir: str | os.PathLike | None = None, notes: list | None = None,
+                  plan=None, sequence: bool = False) -> list[Path]:
+    """Render cell fields of the VTK series in ``out_dir`` (its .pvd) at output times (s).
 
     ``fields``: names to draw (default: those of alpha, Theta, M00, d43_m, binder_fraction
-    present). ``times``: output times in s (each must be a written step; default first and last).
-    One PNG per field and time, ``<png_dir>/<field>_t<time>s.png`` (png_dir defaults to
-    ``out_dir/png``), with the same colour range for a field at every time. Returns the paths.
-    """
-    from pbe_cfd.cfd.vtk import read_pvd
+    present). ``times``: output times in s, each drawn at the nearest written time (a sentence
+    per substitution goes to ``notes``, or to stderr without it); default first and last. One
+    PNG per field and time, ``<png_dir>/<field>_t<time>s.png`` (png_dir defaults to
+    ``out_dir/png``), the same colour range for a field at every time, and with ``sequence``
+    ``<field>_sequence.png``: the times side by side on that range. ``plan``: the result of
+    ``plan_render`` (else it is made here). Returns the paths."""
+    import pyvista as pv
 
-    pv = _pyvista()
-    out_dir = Path(out_dir)
-    pvd = _find_pvd(out_dir)
-    entries = read_pvd(pvd)
-    idx = _pick_times([t for t, _ in entries], times)
-    meshes = {i: pv.read(entries[i][1]) for i in sorted(set(idx))}
-    have = set.intersection(*(set(m.cell_data.keys()) for m in meshes.values()))
-    if fields is None:
-        fields = [f for f in DEFAULT_FIELDS if f in have]
-        if not fields:
-            raise ValueError(f"render_series: none of {list(DEFAULT_FIELDS)} in {pvd}; "
-                             f"fields there: {sorted(have)}")
+    pvd, entries, idx, fields, found = plan or plan_render(out_dir, fields, times)
+    if notes is None:
+        for n in found:
+            print(f"render: {n}", file=sys.stderr)
     else:
-        missing = [f for f in fields if f not in have]
-        if missing:
-            raise ValueError(f"render_series: fields {missing} not in {pvd} at the chosen "
-                             f"times; fields there: {sorted(have)}")
+        notes.extend(found)
+    meshes = {i: pv.read(entries[i][1]) for i in idx}
+    cuts = {i: section(meshes[i]) for i in idx}
+    info = _run_info(pvd.parent, pvd.parent.parent)
     png_dir = Path(png_dir) if png_dir is not None else pvd.parent / "png"
     out = []
     for field in fields:
-        lo, hi, lg = _colour_limits([np.asarray(meshes[i].cell_data[field]) for i in idx],
-                                    field)
+        vals = []
         for i in idx:
+            _, data, _, _ = cuts[i]
+            v, e = _values(data, field), _empty_mask(data)
+            vals.append(v[~e] if e is not None else v)
+        lo, hi, lg = _colour_limits(vals, field)
+        label = field_label(field).split(" [")[0]
+        panels = []
+        for i in idx:
+            polys, data, axes_names, note = cuts[i]
             t = entries[i][0]
-            path = png_dir / f"{field}_t{t:g}s.png"
-            out.append(render_mesh_field(meshes[i], field, path, clim=(lo, hi), log_scale=lg,
-                                         title=f"{field}   t = {t:g} s"))
+            panel = (polys, data, f"t = {t:g} s")
+            panels.append(panel)
+            out.append(_render_panels([(polys, data, f"{label} at t = {t:g} s")], field,
+                                      png_dir / f"{field}_t{t:g}s.png", clim=(lo, hi),
+                                      log_scale=lg, cmap="viridis",
+                                      alpha_min=info.get("alpha_min"),
+                                      suptitle=info.get("name", ""), axes_names=axes_names,
+                                      note=note))
+        if sequence and len(idx) > 1:
+            out.append(_render_panels(panels, field, png_dir / f"{field}_sequence.png",
+                                      clim=(lo, hi), log_scale=lg, cmap="viridis",
+                                      alpha_min=info.get("alpha_min"),
+                                      suptitle=f"{info.get('name', '')}: {label}".lstrip(": "),
+                                      axes_names=axes_names, note=note))
     return out
 
 
+# ---------------------------------------------------------------------------- bed moments
 def _read_csv(csv_path: Path) -> tuple[list[str], np.ndarray]:
     with open(csv_path, newline="") as fh:
         rows = list(csv.reader(fh))
@@ -267,93 +469,110 @@ def _read_csv(csv_path: Path) -> tuple[list[str], np.ndarray]:
     return header, data
 
 
-def plot_bed_moments(csv_path: str | os.PathLike, png_path: str | os.PathLike) -> Path:
-    """Plot ``bed_moments.csv`` (time_s, then M.. and derived columns) to a PNG.
+#: Panels of bed_moments.png: (title, column names, unit) in the units of the VTK fields.
+BED_PANELS = (
+    ("number of granules", ("M00",), "1/m3"),
+    ("granule and binder mass", ("M10", "M01"), "kg/m3"),
+    ("second moments", ("M20", "M11", "M02"), "kg2/m3"),
+    ("free droplets", ("droplet_number_density",), "1/m3"),
+    ("mean diameters", ("d32_m", "d43_m"), "m"),
+    ("binder fraction", ("binder_fraction",), "-"),
+    ("granule and binder mass in the whole bed", ("bed_mass_kg", "bed_binder_mass_kg"), "kg"),
+)
 
-    Panel 1: each moment M_ij relative to its initial value (or to its final value when it
-    starts at zero, e.g. binder moments), log axis when they span decades. Panel 2: the
-    diameters (``*_m`` columns) in um. Panel 3: binder_fraction [-] and any other column
-    relative to its first non-zero value. Time axis in s.
-    """
-    import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+def _bed_panels(header) -> list:
+    """(title, columns, unit) of every panel for the columns of ``header``: the fixed
+    panels, then one per order of any other moment M_ij (i + j >= 3), then one per other
+    column (its unit from its name)."""
+    have = set(header)
+    panels = [(t, [c for c in cols if c in have], u) for t, cols, u in BED_PANELS]
+    panels = [p for p in panels if p[1]]
+    known = {c for _, cols, _ in panels for c in cols} | {"time_s"}
+    orders: dict = {}
+    for h in header:
+        m = re.fullmatch(r"M(\d)(\d)", h)
+        if h not in known and m:
+            orders.setdefault(int(m.group(1)) + int(m.group(2)), []).append(h)
+            known.add(h)
+    for k in sorted(orders):
+        panels.append((f"moments of order {k}", orders[k], f"kg{k}/m3"))
+    for h in header:
+        if h not in known:
+            panels.append((h, [h], field_label(h).split("[")[1].rstrip("]")))
+    return panels
 
-    csv_path, png_path = Path(csv_path), Path(png_path)
-    header, data = _read_csv(csv_path)
-    t = data[:, 0]
-    mcols = [i for i, h in enumerate(header) if re.fullmatch(r"M\d\d", h)]
-    sizes = [i for i, h in enumerate(header) if i > 0 and h.endswith("_m")]
-    rest = [i for i, h in enumerate(header) if i > 0 and i not in mcols and i not in sizes]
-    panels = [p for p in (mcols, sizes, rest) if p]
-    if not panels:
-        raise ValueError(f"{csv_path}: no columns to plot besides time_s")
-    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 4.2), squeeze=False)
-    axes = list(axes[0])
-    ax_i = 0
-    if mcols:
-        ax = axes[ax_i]
-        ax_i += 1
-        span = []
-        for i in mcols:
-            y = data[:, i]
-            if y[0] != 0:
-                ref, how = y[0], "initial"
-            elif y[-1] != 0:
-                ref, how = y[-1], "final"
-            else:
-                ax.plot(t, y, label=f"{header[i]} (all zero)")
-                continue
-            rel = y / ref
-            span.append(rel)
-            ax.plot(t, rel, label=f"{header[i]} / {how} {ref:.3g}")
-        if span:
-            s = np.concatenate(span)
-            s = s[np.isfinite(s) & (s > 0)]
-            if s.size and s.max() / s.min() > 100:
-                ax.set_yscale("log", nonpositive="mask")
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel("bed moment, relative [-]")
-        ax.set_title("bed-integrated moments")
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
-    if sizes:
-        ax = axes[ax_i]
-        ax_i += 1
-        for i in sizes:
-            ax.plot(t, data[:, i] * 1e6, label=header[i][:-2])
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel("diameter [um]")
-        ax.set_title("mean diameters")
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
-    if rest:
-        ax = axes[ax_i]
-        twin = None
-        lines = []
-        for i in rest:
-            h, y = header[i], data[:, i]
-            if h == "binder_fraction":
-                lines += ax.plot(t, y, "k-", label="binder fraction [-]")
-            else:
-                twin = twin or ax.twinx()
-                nz = np.flatnonzero(y != 0)
-                ref = y[nz[0]] if nz.size else 1.0
-                lines += twin.plot(t, y / ref, ":", label=f"{h} / {ref:.3g}")
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel("binder fraction [-]")
-        if twin is not None:
-            twin.set_ylabel("relative to first non-zero value [-]")
-        ax.set_title("binder and droplets")
-        ax.grid(True, alpha=0.3)
-        ax.legend(lines, [ln.get_label() for ln in lines], fontsize=8, loc="best")
-    fig.suptitle(str(csv_path.name), fontsize=9)
-    fig.tight_layout()
+
+def _scaled_axis(ax, unit: str):
+    """A power of ten of a linear axis goes into its unit ("[1e-4 m]"), not above the axis."""
+    lo, hi = ax.get_ylim()
+    big = max(abs(lo), abs(hi))
+    exp = int(np.floor(np.log10(big))) if big > 0 else 0
+    if -3 < exp < 4:
+        ax.set_ylabel(f"[{unit}]", fontsize=9)
+        return
+    from matplotlib.ticker import FuncFormatter
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v / 10.0 ** exp:.4g}"))
+    ax.set_ylabel(f"[1e{exp} {unit}]" if unit != "-" else f"[1e{exp}]", fontsize=9)
+
+
+def plot_bed_moments(csv_path: str | os.PathLike, png_path: str | os.PathLike,
+                     title: str | None = None) -> Path:
+    """Plot ``bed_moments.csv`` to a PNG (``bed_moments_figure``); returns the path."""
+    plt = _plt()
+    png_path = Path(png_path)
+    fig = bed_moments_figure(csv_path, title)
     png_path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(png_path, dpi=110)
+    fig.savefig(png_path, dpi=110, metadata=_png_meta("bed moments"))
     plt.close(fig)
     return png_path
+
+
+def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
+    """The figure of ``bed_moments.csv``: one panel per quantity, in the units of the VTK cell
+    fields (moments per m3 of bed: the bed average is the volume-weighted mean of the cells'
+    values), diameters in m, time in s, log axes named as such. ``title`` defaults to the
+    scene name in the run's summary.json."""
+    plt = _plt()
+    csv_path = Path(csv_path)
+    header, data = _read_csv(csv_path)
+    t = data[:, 0]
+    col = {h: data[:, i] for i, h in enumerate(header)}
+    panels = _bed_panels(header)
+    if not panels:
+        raise ValueError(f"{csv_path}: no columns to plot besides time_s")
+    ncol = min(3, len(panels))
+    nrow = -(-len(panels) // ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.3 * ncol, 3.1 * nrow + 0.6),
+                             squeeze=False, layout="constrained")
+    for ax, (name, cols, unit) in zip(axes.ravel(), panels):
+        for c in cols:
+            y = col[c]
+            ax.plot(t, y, lw=1.6, label=_LABELS.get(c, (c,))[0] if c.endswith("_m") else c)
+        ys = np.concatenate([col[c] for c in cols])
+        pos = ys[np.isfinite(ys) & (ys > 0)]
+        log = pos.size > 1 and pos.max() / pos.min() > 100 and np.all(ys[np.isfinite(ys)] >= 0)
+        if log:
+            ax.set_yscale("log")
+            name += " (log scale)"
+            ax.set_ylabel(f"[{unit}]", fontsize=9)
+        else:
+            _scaled_axis(ax, unit)
+        ax.set_title(name, fontsize=10)
+        ax.set_xlabel("time [s]", fontsize=9)
+        ax.grid(True, alpha=0.3)
+        ax.tick_params(labelsize=8)
+        if len(cols) > 1:
+            ax.legend(fontsize=8)
+    for ax in axes.ravel()[len(panels):]:
+        ax.axis("off")
+    if title is None:
+        info = _run_info(csv_path.parent)
+        title = info.get("name")
+    head = f"{title}: " if title else ""
+    fig.suptitle(f"{head}bed averages (per m3 of bed, the units of the VTK cell fields; "
+                 "time in s)", fontsize=10)
+    return fig
 
 
 def image_stats(png_path: str | os.PathLike) -> tuple[float, int]:

@@ -56,12 +56,15 @@ def decompose_case(case_dir, n_subdomains: int = 2, time: float | str | None = N
         m = re.search(r"^\s*numberOfSubdomains\s+(\d+)\s*;", own.read_text(), flags=re.M)
     if m is None or int(m.group(1)) != int(n_subdomains):
         alt = case / "system" / "decomposeParDict.pbe"
+        if alt.exists() and "pbe_cfd.distributed" not in alt.read_text(errors="replace"):
+            raise of.OpenFOAMError(f"{alt} exists and was not written by pbe-cfd; move it "
+                                   "away to let --decompose write its own")
         alt.write_text(decomposition_dict(int(n_subdomains)))
         args += ["-decomposeParDict", str(alt)]
     if time is not None:
         t = of.pick_time(case, time)
         args += ["-time", of.time_name(case, t)]
-    log = case / "log.decomposePar"
+    log = case / "log.pbe-cfd-decomposePar"     # never a log of the user's decomposePar
     with open(log, "w") as fh:
         r = subprocess.run(args, cwd=case, env=install.env(), stdout=fh,
                            stderr=subprocess.STDOUT)
@@ -105,7 +108,8 @@ def read_decomposition(case_dir, n_cells: int | None = None) -> list:
 
 
 def write_processor_fields(case_dir, decomposition: list, time_name: str,
-                           fields: dict, dimensions: dict | None = None) -> list:
+                           fields: dict, dimensions: dict | None = None,
+                           overwrite: bool = False) -> list:
     """Write cell fields (name -> (n_cells,) global values, SI) back per processor: each
     ``processorN/<time_name>/`` gets the values of its local cells (cellProcAddressing order)
     via ``openfoam.write_foam_fields`` (``dimensions``: name -> SI exponents, default
@@ -116,5 +120,6 @@ def write_processor_fields(case_dir, decomposition: list, time_name: str,
     written = []
     for d, addr in zip(processor_dirs(case_dir), decomposition):
         local = {k: np.asarray(v, dtype=float)[addr] for k, v in fields.items()}
-        written += write_foam_fields(d, time_name, local, dimensions=dimensions)
+        written += write_foam_fields(d, time_name, local, dimensions=dimensions,
+                                     overwrite=overwrite)
     return written

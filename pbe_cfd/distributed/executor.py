@@ -113,7 +113,7 @@ class ClusterExecutor:
         if self.store is not None:
             self.store.remove()
 
-    def mirror_to_processors(self, written) -> list:
+    def mirror_to_processors(self, written, overwrite: bool = False) -> list:
         """For a decomposed case: copy fields written into the case root (paths
         ``CASE/<time>/<name>``, as ``couple._write_foam`` returns them) into every
         ``processorN/<time>/<name>`` with the processor's local cells (cellProcAddressing),
@@ -136,7 +136,7 @@ class ClusterExecutor:
         out = []
         for tname, (fields, units) in by_time.items():
             out += write_processor_fields(self.case_dir, self.decomposition, tname, fields,
-                                          dimensions=units)
+                                          dimensions=units, overwrite=overwrite)
         return out
 
     # -- pieces ------------------------------------------------------------------------

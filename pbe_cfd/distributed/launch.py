@@ -24,6 +24,16 @@ def resume_manifest(out_dir) -> dict:
     return manifest
 
 
+def check_store(out_dir, overwrite: bool = False):
+    """A fresh cluster run writing to ``out_dir``: refuse (exit 2) to discard the chunks an
+    earlier run left in ``DIR.chunks/`` unless ``overwrite``; ``--resume`` completes them."""
+    store = store_path(out_dir)
+    if store.exists() and any(store.iterdir()) and not overwrite:
+        raise SceneError(str(store), None, f"holds chunks of an earlier cluster run; "
+                         f"`--resume {out_dir}` completes that run, --overwrite starts over "
+                         "(only the store's own files are removed)")
+
+
 def make_executor(scene, domain, out_dir, scene_arg=None, scheduler=None, workers=None,
                   chunks=None, decompose=None, resume=False) -> ClusterExecutor:
     """A ClusterExecutor for a coupled run writing to ``out_dir``: on the Dask scheduler at
@@ -42,6 +52,11 @@ def make_executor(scene, domain, out_dir, scene_arg=None, scheduler=None, worker
         case_dir = Path(case).resolve()
         if decompose:
             from ..cfd.openfoam import OpenFOAMError
+            if any(case_dir.glob("processor*")):  # decomposePar -force would delete them
+                raise SceneError(scene.source, "domain.case", f"--decompose: {case_dir} is "
+                                 "already decomposed (processor* directories, which "
+                                 "decomposePar -force would delete); drop --decompose to use "
+                                 "that decomposition")
             try:
                 decompose_case(case_dir, decompose, time=domain.cells.time)
             except OpenFOAMError as exc:

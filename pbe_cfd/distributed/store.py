@@ -5,17 +5,20 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import shutil
 import threading
 from pathlib import Path
 
 import numpy as np
 
+from ..output import remove_matching
 from ..scene import SceneError
 
 #: Name of the chunk store next to an output directory DIR: DIR.chunks/.
 STORE_SUFFIX = ".chunks"
 MANIFEST = "manifest.json"
+#: The files a chunk store writes (nothing else in DIR.chunks/ is ever removed).
+STORE_FILES = ("manifest.json", "chunk_*.npz", "step_*.npz", ".manifest.json.*.tmp",
+               ".chunk_*.tmp", ".step_*.tmp")
 STORE_VERSION = 1
 
 
@@ -84,9 +87,13 @@ class ChunkStore:
                     self.path, "--resume: made by a different problem (scene, case, "
                     "partition or method data differ); rerun without --resume to start over")
             return self
-        if self.path.exists():
-            shutil.rmtree(self.path)
-        self.path.mkdir(parents=True)
+        if self.path.exists() and any(self.path.iterdir()):
+            if manifest is None:
+                raise ChunkStoreError(self.path, "exists and is not a chunk store written by "
+                                      "pbe-cfd; nothing was changed: choose another --out "
+                                      "or move it away yourself")
+            remove_matching(self.path, STORE_FILES)   # only the store's own files
+        self.path.mkdir(parents=True, exist_ok=True)
         _atomic_write_text(self.path / MANIFEST, json.dumps(
             {"version": STORE_VERSION, "fingerprint": fingerprint, **meta}, indent=1))
         return self
@@ -136,8 +143,9 @@ class ChunkStore:
             return {name: z[name] for name in z.files}
 
     def remove(self):
-        """Delete the store (after the output was written)."""
-        shutil.rmtree(self.path, ignore_errors=True)
+        """Delete the store's own files, and the directory when that empties it (after the
+        output was written)."""
+        remove_matching(self.path, STORE_FILES)
 
 
 def fingerprint(*arrays, extra: str = "") -> str:

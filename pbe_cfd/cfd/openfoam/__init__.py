@@ -21,7 +21,7 @@ from .install import (ALPHA_FIELDS, FLUX_FIELDS, THETA_FIELDS, TOOLS, OpenFOAMEr
                       OpenFOAMInstall, find_openfoam, have_openfoam)
 from .snapshot import (FLUX_NAME, SNAPSHOT_NAME, default_flux_path, default_snapshot_path,
                        load_snapshot, write_snapshot)
-from .write import write_foam_fields
+from .write import check_foam_fields, write_foam_fields
 
 __all__ = [
     "OpenFOAMError",
@@ -44,6 +44,7 @@ __all__ = [
     "default_snapshot_path",
     "default_flux_path",
     "write_foam_fields",
+    "check_foam_fields",
     "cell_volumes_and_centres",
     "TOOLS", "ALPHA_FIELDS", "THETA_FIELDS", "FLUX_FIELDS", "SNAPSHOT_NAME", "FLUX_NAME",
 ]

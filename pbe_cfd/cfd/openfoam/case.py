@@ -11,6 +11,7 @@ import subprocess
 import threading
 import time as _time
 from collections.abc import Callable
+from importlib import resources
 from pathlib import Path
 
 
@@ -18,26 +19,20 @@ from .install import ALPHA_FIELDS, OpenFOAMError, find_openfoam
 
 
 def default_case_dir() -> Path:
-    """The fluid-bed case template ``openfoam_case/`` of the source repository.
-
-    Looked up in $PBE_CFD_CASE, then above this module (source checkouts, editable installs),
-    then in the current directory and its parents.
-    """
+    """The fluid-bed case template: $PBE_CFD_CASE when set, else the one shipped with the
+    package (``pbe_cfd/data/openfoam_case``; ``openfoam_case/`` at the repository root links to
+    it), so an installed package finds it from any directory."""
     env = os.environ.get("PBE_CFD_CASE")
     if env:
         if (Path(env) / "Allrun").is_file():
             return Path(env).resolve()
         raise OpenFOAMError(f"PBE_CFD_CASE={env} is not a case template (no Allrun)")
-    here = Path(__file__).resolve()
-    cwd = Path.cwd().resolve()
-    for parent in [*here.parents, cwd, *cwd.parents]:
-        cand = parent / "openfoam_case"
-        if (cand / "Allrun").is_file():
-            return cand
+    shipped = Path(str(resources.files("pbe_cfd") / "data" / "openfoam_case"))
+    if (shipped / "Allrun").is_file():
+        return shipped
     raise OpenFOAMError(
-        f"openfoam_case/ not found above {here.parent} or {cwd}; it ships with the source "
-        "repository, not the installed package: run from a checkout, set PBE_CFD_CASE, or "
-        "pass the case directory explicitly")
+        f"the case template {shipped} is missing from this installation (reinstall pbe_cfd, "
+        "or set PBE_CFD_CASE to a copy of openfoam_case/ from the source repository)")
 
 
 def copy_case(src: str | os.PathLike, dest: str | os.PathLike) -> Path:

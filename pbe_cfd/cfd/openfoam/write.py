@@ -19,9 +19,33 @@ _CONSTRAINT_TYPES = {"empty", "symmetry", "symmetryPlane", "wedge", "cyclic", "c
                      "processor"}
 
 
+def check_foam_fields(case_dir: str | os.PathLike, time_name: str, names,
+                      overwrite: bool = False, flag: str = "--foam-fields") -> None:
+    """Refuse (``output.OutputRefused``) to write fields ``names`` into ``case_dir/time_name``
+    (and every ``processor*/time_name``) where a file of that name exists that pbe-cfd did
+    not write (its header lacks the mark), or one it wrote earlier and ``overwrite`` is off."""
+    from ...output import OutputRefused, file_is_marked
+    case_dir = Path(case_dir)
+    dirs = [case_dir / str(time_name)] + sorted(
+        p / str(time_name) for p in case_dir.glob("processor*") if p.is_dir())
+    foreign, ours = [], []
+    for d in dirs:
+        for name in names:
+            p = d / name
+            if p.exists() or p.is_symlink():
+                (ours if p.is_file() and file_is_marked(p) else foreign).append(p)
+    if foreign:
+        raise OutputRefused(f"{flag}: {foreign[0]} exists and was not written by pbe-cfd; "
+                            "nothing was changed: move it away yourself to write the fields")
+    if ours and not overwrite:
+        raise OutputRefused(f"{flag}: {ours[0]} was written by an earlier pbe-cfd run; add "
+                            "--overwrite to replace the pbe.* fields of that time")
+
+
 def write_foam_fields(case_dir: str | os.PathLike, time_name: str,
                       fields: Mapping[str, np.ndarray],
-                      dimensions: Mapping[str, str | tuple] | None = None) -> list[Path]:
+                      dimensions: Mapping[str, str | tuple] | None = None,
+                      overwrite: bool = False) -> list[Path]:
     """Write cell values as OpenFOAM volScalarFields into ``case_dir/time_name/``.
 
     ``fields``: name -> (n_cells,) values in OpenFOAM cell order, SI units. Boundaries are
@@ -29,9 +53,13 @@ def write_foam_fields(case_dir: str | os.PathLike, time_name: str,
     SI exponents "[kg m s K mol A cd]" (e.g. "[0 -3 0 0 0 0 0]" for 1/m3), default
     dimensionless. Plain ASCII. ParaView's OpenFOAM reader lists only numeric time
     directories: use the CFD time (e.g. "1.5", next to alpha and Theta) or the PBE time in s
-    (e.g. "600"); other names work but warn. Returns the files.
+    (e.g. "600"); other names work but warn. Each file's header says it was written by
+    pbe-cfd; a file of the same name that pbe-cfd did not write is never replaced, one it wrote
+    only with ``overwrite`` (``check_foam_fields``, ``output.OutputRefused``). Returns the files.
     """
     from foamlib import FoamFile
+
+    from ...output import MARK
 
     case_dir = Path(case_dir)
     time_name = str(time_name)
@@ -52,6 +80,10 @@ def write_foam_fields(case_dir: str | os.PathLike, time_name: str,
     if n_cells is None:
         n_cells = int(np.asarray(FoamFile(mesh_dir / "owner")[None]).max()) + 1
     out_dir = case_dir / time_name
+    for name in fields:
+        p = out_dir / name
+        if p.exists() or p.is_symlink():
+            check_foam_fields(case_dir, time_name, [name], overwrite, flag="write_foam_fields")
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for name, values in fields.items():
@@ -67,6 +99,8 @@ def write_foam_fields(case_dir: str | os.PathLike, time_name: str,
         if not isinstance(dim, str):
             dim = "[" + " ".join(str(int(x)) for x in dim) + "]"
         lines = [
+            f"// {name}: {MARK} (population balance moments; any other file of this name",
+            "// is never replaced by pbe-cfd)",
             "FoamFile", "{", "    version     2.0;", "    format      ascii;",
             "    class       volScalarField;", f'    location    "{time_name}";',
             f"    object      {name};", "}", "",
