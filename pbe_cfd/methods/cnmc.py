@@ -87,8 +87,10 @@ A proposal with rate above its bound is counted in ``violations`` and makes
 ``simulate_ensemble`` raise (never seen; the tests check every pair of random populations).
 ``pair_rate_bounds`` gives the same bound for one class spanning [gmin, gmax].
 
-ktgf needs d43 = sum d^4 / sum d^3 [m] of the box (all particles, droplets included, with
-d = (6 p / (pi rho_s))^(1/3)); sum d^3 follows from P and sum d^4 is updated per event.
+ktgf needs d43 = sum d^4 / sum d^3 [m] of the granules of the box (free droplets excluded
+where they are a population of their own, as in every method: docs/physics.md, "d43"; with
+d = (6 p / (pi rho_s))^(1/3)); sum d^3 follows from P and sum d^4 is updated per event, the
+free droplets (all of mass p_d) are subtracted (``_kernel_d43``).
 
 Finite-N bias (why the band can be trusted, and when it cannot)
 ---------------------------------------------------------------
@@ -149,6 +151,17 @@ def _d4(p, rho):
     """Fourth power of the volume-equivalent diameter d = (6 p / (pi rho))^(1/3) [m^4]."""
     d = (_C_D * p / rho) ** (1.0 / 3.0)
     return d * d * d * d
+
+
+@nb.njit(cache=True)
+def _kernel_d43(s4, ptot, n_free_droplets, pd, rho):
+    """d43 [m] the ktgf kernel uses: sum d^4 / sum d^3 of the granules, from the box sums
+    s4 = sum d^4 [m^4] and ptot = sum p [kg] less the free droplets (mass pd [kg] each);
+    0 if the box holds no granule mass."""
+    gran_mass = ptot - n_free_droplets * pd
+    if not gran_mass > 0.0:
+        return 0.0
+    return max(s4 - n_free_droplets * _d4(pd, rho), 0.0) / (_C_D / rho * gran_mass)
 
 
 @nb.njit(cache=True)
@@ -370,8 +383,7 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
         s4 += _d4(p[k], rho)
     conc0 = ptot / volume0
     mass_rate = inj * pd                     # kg/(m3 s) added by injection
-    s3_factor = _C_D / rho                   # sum d^3 = s3_factor * ptot
-    d43 = s4 / (s3_factor * ptot)
+    d43 = _kernel_d43(s4, ptot, dcnt[0], pd, rho)
     d43_tab = d43 * _D43_MARGIN
     for c in range(N_BINS):
         _bound_row(c, lo, hi, table, tabd, alpha, theta, d43_tab, params, config)
@@ -457,7 +469,7 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
             changed = True
         else:
             trials += 1
-            d43 = s4 / (s3_factor * ptot)
+            d43 = _kernel_d43(s4, ptot, dcnt[0], pd, rho)
             if (u < r_inj + r_gg and r_gg > 0.0) or r_dg <= 0.0:
                 # granule-granule: class a by its share of ordered pairs, then class c
                 x = np.random.random() * w_gg
@@ -561,7 +573,7 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
                         lo[c] = min(lo[c], p[k])
                         hi[c] = max(hi[c], p[k])
                 rebuild = True
-            d43 = s4 / (s3_factor * ptot)
+            d43 = _kernel_d43(s4, ptot, dcnt[0], pd, rho)
             if d43 > d43_tab or d43 * _D43_MARGIN ** 3 < d43_tab:
                 rebuild = True
             if rebuild:
