@@ -15,8 +15,8 @@ import pytest
 
 from pbe_cfd import model
 from pbe_cfd.methods.dispatch import WORK_SIZE, method_rhs
+from pbe_cfd.methods.registry import method_of
 from pbe_cfd.scene import load_scene
-from pbe_cfd.simulate import method_aux
 
 from conftest import make_scene
 
@@ -27,7 +27,7 @@ def rhs_at_droplet_numbers(method_table, binder_fraction=0.15):
                                 initial=dataclasses.replace(scene.initial,
                                                             binder_fraction=binder_fraction))
     arrays = model.pack(scene)
-    aux, _ = method_aux(scene, arrays)
+    aux = method_of(scene).aux(scene, arrays, None)
     state = model.initial_moments(scene, arrays, arrays.state_names)
     k = arrays.state_names.index("droplet_number_density")
     cell = model.well_mixed_cell(scene)[0]

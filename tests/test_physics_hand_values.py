@@ -242,8 +242,9 @@ def test_collision_velocity_from_granular_temperature(theta):
 def test_collision_velocity_of_every_mesh_cell():
     """The coupled run's cell rows and the Laguerre tensor's Theta grid use the same u0(Theta)."""
     from pbe_cfd.cfd.openfoam import load_snapshot
-    from pbe_cfd.couple import build_cells
+    from pbe_cfd.domain import build_cells
     from pbe_cfd.methods.laguerre_tensor import theta_to_u0
+    from pbe_cfd.physics.kernels import collision_velocity as kernel_u0
     from pbe_cfd.scene import load_scene
     cells = load_snapshot()
     rows = build_cells(load_scene("fluid-bed"), cells)[0]
@@ -253,6 +254,7 @@ def test_collision_velocity_of_every_mesh_cell():
     assert np.count_nonzero(expected > 0) > 100
     for t in (1e-6, 7.8e-5, 1.0):
         assert float(theta_to_u0(t)) == pytest.approx(collision_velocity(t), rel=REL, abs=0)
+        assert float(kernel_u0(t)) == pytest.approx(collision_velocity(t), rel=REL, abs=0)
 
 
 # ---- efficiency factors --------------------------------------------------------------------
