@@ -2,7 +2,7 @@
 
 Smith & Matsoukas (1998), Lin, Lee & Matsoukas (2002), seed 000 section IV. The physics is the
 registry's: ``physics.rates.aggregation_rate`` for granule-granule pairs and
-``physics.rates.droplet_capture_rate`` for droplet-granule pairs (DESIGN section 3). All
+``physics.rates.droplet_capture_rate`` for droplet-granule pairs (docs/physics.md section 7). All
 quantities are SI: masses p, b in kg, volumes in m3, times in s, rates in m3/s (pair rates) or
 1/s (event rates of the box), number densities in 1/m3.
 

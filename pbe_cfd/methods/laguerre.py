@@ -293,8 +293,8 @@ def moments_from_state(state_rows, params, config, m, aux=None):
     """SI moments of one state or of rows of states (shape (n, N_STATE)).
 
     Returns dict of arrays (shape (n,), or floats for a 1-D state):
-    "M{i}{j}" [kg^(i+j)/m3], i, j < m: the whole population, free droplets included (DESIGN
-    section 4 output contract); "granule_M{i}{j}": granules only; if droplets are separate,
+    "M{i}{j}" [kg^(i+j)/m3], i, j < m: the whole population, free droplets included
+    (docs/physics.md section 11); "granule_M{i}{j}": granules only; if droplets are separate,
     "droplet_number_density" [1/m3]. For m = 2, "M20" and "M02" are not carried: with ``aux``
     they are added from the reconstruction on the support (an estimate), otherwise absent.
     """
