@@ -3,7 +3,7 @@
 The domain layer: it decides which effects are computed (only those whose table is present),
 packs ``params``/``config``/``cell`` (``physics.parameters``) from the scene and the registries
 (``physics.kernels``, ``physics.efficiency``, ``methods.registry``), builds the scaled initial
-states, and turns scaled states back into the SI output columns of DESIGN section 4.
+states, and turns scaled states back into the SI output columns of docs/physics.md section 11.
 """
 from __future__ import annotations
 

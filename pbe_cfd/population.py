@@ -1,4 +1,4 @@
-"""SI output columns from a population given as weighted particles (DESIGN section 4).
+"""SI output columns from a population given as weighted particles (docs/physics.md section 11).
 
 Every method can describe its population as weights w [1/m3] at masses p [kg] and binder b
 [kg] (QMOM: its nodes; cNMC: its particles; Laguerre ROM: its reconstruction on a grid), plus free

@@ -1,4 +1,4 @@
-"""Scene files: TOML -> validated, frozen dataclasses (DESIGN section 4).
+"""Scene files: TOML -> validated, frozen dataclasses (the keys: README.md, "Scenes").
 
 A table present means that effect runs; an absent table is not computed at all. Every error
 names the file, the key and what was expected, and is raised as ``SceneError``.
@@ -112,7 +112,7 @@ class BinderInjection:
 
 @dataclass(frozen=True)
 class Method:
-    """Numerical method and its accuracy knobs (see DESIGN section 4)."""
+    """Numerical method and its accuracy knobs (README.md, "Scenes")."""
     name: str
     nodes: int = 3
     order: int = 3
@@ -294,7 +294,7 @@ def load_scene(source) -> Scene:
 
 
 def scene_from_dict(data: dict, path="<scene>") -> Scene:
-    """Validate a parsed TOML document into a ``Scene`` (see DESIGN section 4)."""
+    """Validate a parsed TOML document into a ``Scene`` (README.md, "Scenes")."""
     for key in data:
         if key not in _TABLES:
             raise SceneError(path, key, f"unknown table; expected one of: {', '.join(_TABLES)}")

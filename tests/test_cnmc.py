@@ -1,9 +1,16 @@
-"""Constant-number Monte Carlo (pbe_cfd.methods.cnmc): analytic checks, conservation, injection,
+"""Constant-number Monte Carlo (pbe_cfd.methods.cnmc): analytic checks, injection,
 reproducibility, the majorant, tiny and collapsing boxes.
 
-The analytic checks compare the ensemble's 95% band (mean -+ t_{0.975,R-1} s / sqrt(R)) with the
-closed-form moments; seeds are fixed, so each check is deterministic, and the band is a real
-statistical band (its coverage was measured over many seeds, see the cnmc module docstring).
+What is random in the cNMC is the number of particles per volume (M00, the droplets) and how
+binder and mass are shared among them (M01 where binder fractions differ, M20, M11, M02); M10
+is exact by construction (the box volume is defined from the mass concentration, so M10 equals
+the target whatever happens in the box), so no test asserts it. The analytic checks compare the
+ensemble's 95% band (mean -+ t_{0.975,R-1} s / sqrt(R)) with the closed-form moments over a set
+of seeds fixed in this file before any was run; each band covers with probability ~0.95 (less
+where the finite-N bias of the cnmc module docstring bites), so the number of covering seeds is
+binomial and each check requires the count that a correct cNMC reaches with probability
+>= 1 - 1e-3 (``min_covered``). A wrong rate of a few standard errors drops the coverage to a
+few percent and fails. The brute-force check of the cNMC's physics is tests/test_cnmc_physics.py.
 """
 import math
 
@@ -19,6 +26,7 @@ N0 = 1e10          # initial number density [1/m3]
 P0 = 1e-9          # initial particle mass [kg]
 RHO = 1000.0       # particle density [kg/m3]
 KERNEL_CODES = {"constant": 0, "sum": 1, "product": 2, "eke": 3, "ktgf": 4}
+FALSE_ALARM = 1e-3  # per coverage check
 
 
 def make_physics(kernel, rate, geometric=False, physical=False, saturation=False,
@@ -60,58 +68,171 @@ def initial(distribution="monodisperse", y0=0.0, nd0=0.0):
             "binder_fraction": y0, "droplet_number_density": nd0}
 
 
-def assert_in_band(res, name, exact):
-    lo, hi = res[name + "_lo"], res[name + "_hi"]
-    assert np.all(hi > lo)
-    ok = (lo <= exact) & (exact <= hi)
-    assert ok.all(), (f"{name}: exact {exact} outside band [{lo}, {hi}], "
-                      f"mean {res[name]}, rel. dev. {(res[name] - exact) / exact}")
+def min_covered(n_seeds, coverage):
+    """Smallest count k of covering seeds such that a cNMC whose bands cover with probability
+    ``coverage`` has P(count < k) <= FALSE_ALARM (binomial)."""
+    k = 0
+    while stats.binom.cdf(k, n_seeds, coverage) <= FALSE_ALARM:
+        k += 1
+    return k
+
+
+def count_covers(results, name, index, exact):
+    """How many ensembles' 95% bands of ``name`` at output ``index`` hold ``exact``."""
+    return sum(int(r[name + "_lo"][index] <= exact <= r[name + "_hi"][index]) for r in results)
+
+
+def assert_coverage(results, checks, coverage, label):
+    """checks: {(name, index): exact}; each series of seeds is one binomial count."""
+    need = min_covered(len(results), coverage)
+    assert need >= 1
+    for (name, index), exact in checks.items():
+        got = count_covers(results, name, index, exact)
+        devs = [f"{(r[name][index] - exact) / exact:+.2%}" for r in results]
+        assert got >= need, (f"{label}: {name}[{index}] covered by {got} of {len(results)} "
+                             f"seeds, need {need} (coverage {coverage}); mean deviations {devs}")
 
 
 # ---- analytic kernels ------------------------------------------------------------------------
+CONSTANT_SEEDS = tuple(range(300, 312))        # fixed before the first run
+
+
 def test_constant_kernel_matches_analytic_moments():
+    # tau = k0 N0 t; M00 = 2 N0 / (2 + tau), M20 = M20(0) + k0 M1^2 t. Measured coverage of the
+    # 95% band of 16 replicas of N = 2000 at tau = 1 and 5: 92.5-97.5% over 40 ensembles (cnmc
+    # module docstring); 0.925 gives the threshold: 7 of 12 seeds per series.
     k0 = 1e-12
     params, config, cell = make_physics("constant", k0, bivariate=False)
     tau = np.array([0.0, 1.0, 5.0])
     t = tau / (k0 * N0)
-    res = cnmc.simulate_ensemble(params, config, cell, initial(), t, 2000, 16, seed=11)
     m1 = N0 * P0
-    m00 = 2.0 * N0 / (2.0 + tau)
-    m20 = N0 * P0 ** 2 + k0 * m1 ** 2 * t
-    for name, exact in (("M00", m00), ("M20", m20)):
-        assert_in_band({key: v[1:] for key, v in res.items() if key.startswith(name)},
-                       name, exact[1:])
-    assert np.allclose(res["M10"], m1, rtol=1e-12, atol=0)
-    assert res["accepted"] == res["trials"]          # the bound k0 is exact for this kernel
+    results = []
+    for seed in CONSTANT_SEEDS:
+        res = cnmc.simulate_ensemble(params, config, cell, initial(), t, 2000, 16, seed=seed)
+        assert res["accepted"] == res["trials"]      # the bound k0 is exact for this kernel
+        results.append(res)
+    checks = {}
+    for k in (1, 2):
+        checks[("M00", k)] = 2.0 * N0 / (2.0 + tau[k])
+        checks[("M20", k)] = N0 * P0 ** 2 + k0 * m1 ** 2 * t[k]
+    assert_coverage(results, checks, 0.925, "constant kernel")
 
 
+SUM_SEEDS_SHORT = tuple(range(400, 412))       # fixed before the first run
+SUM_SEEDS_LONG = (500, 501, 502, 503)
+
+
+@pytest.mark.slow
 def test_sum_kernel_matches_analytic_moments():
     # tau = k0 M1 t (k0 in m3/(kg s)); M00 = N0 exp(-tau), M20 = M20(0) exp(2 tau).
     # Finite-N bias of M20 (module docstring): about -2 * int_0^tau (3 e^s - 2)/N ds
     # = -864/N at tau = 5, and M20 of one replica is heavy-tailed. Coverage of the 95% band
     # of 8 replicas over 40 ensembles: N = 2000: 35% (mean -28%); N = 20000: 75% (mean -6%);
-    # N = 50000: 95% (mean -3.3% +- 1.3%, M00 92.5%); with 16 replicas of 50000 the band
-    # narrows to the size of the bias and coverage drops to 83%; N = 100000: 95% (20
-    # ensembles). So tau = 5 runs with N = 50000 and 8 replicas. Seeds: seed 5 (picked first)
-    # missed M00 at tau = 5 by 1.7% (one of the 7.5%); the test uses seed 0 for tau = 5.
+    # N = 50000: 95% (mean -3.3% +- 1.3%, M00 92.5%). So tau = 5 runs with N = 50000 and 8
+    # replicas on 4 seeds (at coverage 0.925 at least 1 must cover; all four miss with
+    # probability 3e-5), and tau = 1 (biases -6.3/N on M20, +1.7/N on M00) with N = 2000 and
+    # 16 replicas on 12 seeds (at least 7). (An earlier version ran one seed per case and
+    # replaced a seed whose band missed M00 by 1.7%; the seeds here were fixed before running.)
     k0 = 1e-12 / P0
     params, config, cell = make_physics("sum", k0, bivariate=False)
     m1 = N0 * P0
-    for n, replicas, tau, seed in ((2000, 16, 1.0, 5), (50000, 8, 5.0, 0)):
+    for n, replicas, tau, seeds in ((2000, 16, 1.0, SUM_SEEDS_SHORT),
+                                    (50000, 8, 5.0, SUM_SEEDS_LONG)):
         t = np.array([0.0, tau / (k0 * m1)])
-        res = cnmc.simulate_ensemble(params, config, cell, initial(), t, n, replicas, seed)
-        for name, exact in (("M00", N0 * math.exp(-tau)),
-                            ("M20", N0 * P0 ** 2 * math.exp(2.0 * tau))):
-            lo, hi = res[name + "_lo"][1], res[name + "_hi"][1]
-            assert lo <= exact <= hi, (n, tau, name, res[name][1], exact, lo, hi)
-        assert np.allclose(res["M10"], m1, rtol=1e-12, atol=0)
+        results = [cnmc.simulate_ensemble(params, config, cell, initial(), t, n, replicas,
+                                          seed) for seed in seeds]
+        checks = {("M00", 1): N0 * math.exp(-tau),
+                  ("M20", 1): N0 * P0 ** 2 * math.exp(2.0 * tau)}
+        assert_coverage(results, checks, 0.925, f"sum kernel, tau = {tau}")
 
 
-# ---- conservation ----------------------------------------------------------------------------
+# ---- injection against closed forms ------------------------------------------------------------
+INJECTION_SEEDS = tuple(range(600, 610))       # fixed before the first run
+
+
+def constant_kernel_with_injection(t, k0, rate, pd, m00, m10, m01, m20, m11, m02):
+    """Closed-form moments of the constant kernel with droplets injected as ordinary particles
+    (docs/physics.md, "analytic checks"): dM00/dt = R - k0 M00^2 / 2 (Riccati),
+    dM10/dt = dM01/dt = R p_d, dM20/dt = k0 M10^2 + R p_d^2, dM11/dt = k0 M10 M01 + R p_d^2,
+    dM02/dt = k0 M01^2 + R p_d^2."""
+    s = math.sqrt(2.0 * rate / k0)                       # steady number density
+    a = (m00 - s) / (m00 + s)
+    e = math.exp(-k0 * s * t)
+    c = rate * pd
+
+    def integral(x0, y0):                                # int_0^t (x0 + c u)(y0 + c u) du
+        return x0 * y0 * t + (x0 + y0) * c * t ** 2 / 2.0 + c * c * t ** 3 / 3.0
+    return {"M00": s * (1.0 + a * e) / (1.0 - a * e),
+            "M10": m10 + c * t, "M01": m01 + c * t,
+            "M20": m20 + k0 * integral(m10, m10) + rate * pd ** 2 * t,
+            "M11": m11 + k0 * integral(m10, m01) + rate * pd ** 2 * t,
+            "M02": m02 + k0 * integral(m01, m01) + rate * pd ** 2 * t}
+
+
+def separate_droplets_constant_kernel(t, k0, rate, factor, n0, nd0):
+    """Granules N_g = N0 / (1 + tau/2) (droplet capture keeps their number), free droplets
+    dn/dt = R - f k0 N_g n: n(t) = [n(0) + R (2/(k0 N0)) ((1 + tau/2)^(2f+1) - 1) / (2f + 1)]
+    / (1 + tau/2)^(2f), tau = k0 N0 t."""
+    x = 1.0 + k0 * n0 * t / 2.0
+    nd = (nd0 + rate * 2.0 / (k0 * n0) * (x ** (2 * factor + 1) - 1.0) / (2 * factor + 1)) \
+        / x ** (2 * factor)
+    return n0 / x, nd
+
+
+def test_injection_as_ordinary_particles_matches_closed_forms():
+    """Number and binder of a box fed by droplets (random slot overwritten, volume rescaled):
+    M00, M01, M20, M11, M02 against the closed forms at 100 and 300 s."""
+    k0, pd, y0, nd0 = 1e-12, 0.2 * P0, 0.1, 0.02 * N0
+    rate = 0.05 * N0 / 100.0                       # droplets/(m3 s): 5% of N0 per 100 s
+    params, config, cell = make_physics("constant", k0, droplet_mass=pd)
+    cell[P.INJECTION] = rate
+    t = np.array([0.0, 100.0, 300.0])
+    results = []
+    for seed in INJECTION_SEEDS:
+        res = cnmc.simulate_ensemble(params, config, cell, initial(y0=y0, nd0=nd0), t, 2000, 16,
+                                     seed)
+        assert res["events_injection"] > 0 and np.all(res["droplet_number_density"] == 0)
+        results.append(res)
+    m = {"M00": N0 + nd0, "M10": N0 * P0 + nd0 * pd, "M01": y0 * N0 * P0 + nd0 * pd,
+         "M20": N0 * P0 ** 2 + nd0 * pd ** 2, "M11": y0 * N0 * P0 ** 2 + nd0 * pd ** 2,
+         "M02": y0 ** 2 * N0 * P0 ** 2 + nd0 * pd ** 2}
+    checks = {}
+    for k in (1, 2):
+        exact = constant_kernel_with_injection(t[k], k0, rate, pd, m["M00"], m["M10"],
+                                               m["M01"], m["M20"], m["M11"], m["M02"])
+        for name in ("M00", "M01", "M20", "M11", "M02"):
+            checks[(name, k)] = exact[name]
+    assert_coverage(results, checks, 0.9, "injection, ordinary droplets")
+
+
+def test_injection_as_separate_droplets_matches_closed_forms():
+    """Free droplets captured at f k0 per granule: the droplet number density, M00 and M01
+    (binder of the whole population, droplets included) against the closed forms."""
+    k0, pd, y0, nd0, factor = 1e-12, 0.2 * P0, 0.1, 0.02 * N0, 5.0
+    rate = 0.05 * N0 / 100.0
+    params, config, cell = make_physics("constant", k0, separate=True, droplet_mass=pd,
+                                        droplet_factor=factor)
+    cell[P.INJECTION] = rate
+    t = np.array([0.0, 30.0, 300.0])
+    results = [cnmc.simulate_ensemble(params, config, cell, initial(y0=y0, nd0=nd0), t, 2000,
+                                      16, seed) for seed in INJECTION_SEEDS]
+    checks = {}
+    for k in (1, 2):
+        n_g, n_d = separate_droplets_constant_kernel(t[k], k0, rate, factor, N0, nd0)
+        checks[("droplet_number_density", k)] = n_d
+        checks[("M00", k)] = n_g + n_d
+        checks[("M01", k)] = y0 * N0 * P0 + nd0 * pd + rate * pd * t[k]
+    assert_coverage(results, checks, 0.9, "injection, separate droplets")
+
+
+# ---- binder bookkeeping ---------------------------------------------------------------------
 @pytest.mark.parametrize("kernel,rate,t_end", [
     ("constant", 1e-12, 3e2), ("sum", 1e-3, 3e2), ("product", 1e6, 3e1),
     ("eke", 1e-12, 3e2), ("ktgf", 1.0, 1e3)])
-def test_mass_and_binder_conserved_without_injection(kernel, rate, t_end):
+def test_binder_fraction_kept_by_every_merge_and_copy(kernel, rate, t_end):
+    """Every particle starts with binder fraction 0.3 and every merge adds (p, b) and every copy
+    copies (p, b), so M01 = 0.3 M10 must hold to round-off (a merge that added only p, or a copy
+    of p without b, breaks it); the box must also aggregate."""
     params, config, cell = make_physics(kernel, rate, geometric=True, physical=False,
                                         saturation=(kernel == "ktgf"))
     t = np.linspace(0.0, t_end, 6)
@@ -119,39 +240,9 @@ def test_mass_and_binder_conserved_without_injection(kernel, rate, t_end):
                                  500, 2, seed=3)
     assert res["accepted"] > 100
     assert res["M00"][-1] < 0.9 * res["M00"][0]
-    for name in ("M10", "M01"):
-        assert np.allclose(res[name], res[name][0], rtol=1e-12, atol=0), res[name]
-    assert np.all(np.diff(res["M00"]) <= 0)
-    assert np.allclose(res["binder_fraction"], 0.3, rtol=1e-12)
-
-
-@pytest.mark.parametrize("separate", [True, False])
-def test_injection_adds_exactly_the_droplet_mass(separate):
-    pd = 0.2 * P0
-    params, config, cell = make_physics("eke", 1e-12, geometric=True, separate=separate,
-                                        droplet_mass=pd, droplet_factor=100.0 if separate else 0)
-    rate = 0.05 * N0 / 100.0                       # droplets/(m3 s): 5% of N0 per 100 s
-    cell[P.INJECTION] = rate
-    t = np.linspace(0.0, 300.0, 7)
-    res = cnmc.simulate_ensemble(params, config, cell, initial(y0=0.1, nd0=0.02 * N0), t,
-                                 1000, 32, seed=7)
-    assert res["events_injection"] > 0 and res["accepted"] > 0
-    m10 = res["M10"][0] + rate * pd * t
-    assert np.allclose(res["M10"], m10, rtol=1e-12, atol=0)
-    # M01 follows the same line in expectation only: a copy changes the box's binder/mass
-    # ratio by O(1/N) (module docstring). Over 40 ensembles of this case (1280 replicas) the
-    # mean deviation was below 0.04% +- 0.04% and the 95% band held the line in 37-40 of 40,
-    # so a single 95% band misses it 1 time in 20 by design: test the deviation in standard
-    # errors of the ensemble mean instead (|z| < 4: a false alarm 1 time in 16,000).
-    m01 = res["M01"][0] + rate * pd * t
-    t975 = (res["M01_hi"] - res["M01"])[1:]
-    z = (res["M01"][1:] - m01[1:]) / (t975 / stats.t.ppf(0.975, 31))
-    assert np.all(np.abs(z) < 4.0), z
-    assert np.all(np.abs(res["M01"] / m01 - 1.0) < 0.02)
-    if separate:
-        assert np.all(res["droplet_number_density"] > 0)
-    else:
-        assert np.all(res["droplet_number_density"] == 0)
+    assert np.allclose(res["M01"], res["M01"][0], rtol=1e-12, atol=0), res["M01"]
+    assert np.allclose(res["binder_fraction"], 0.3, rtol=1e-12, atol=0)
+    assert np.allclose(res["M11"], 0.3 * res["M20"], rtol=1e-12, atol=0)
 
 
 def test_univariate_carries_no_binder():
@@ -161,7 +252,7 @@ def test_univariate_carries_no_binder():
     res = cnmc.simulate_ensemble(params, config, cell, initial(y0=0.5), t, 300, 2, seed=1)
     for name in ("M01", "M11", "M02", "binder_fraction"):
         assert np.all(res[name] == 0.0)
-    assert np.allclose(res["M10"], res["M10"][0] + 1e7 * 0.2 * P0 * t, rtol=1e-12)
+    assert res["events_injection"] > 0
 
 
 # ---- reproducibility and API -----------------------------------------------------------------
@@ -196,7 +287,8 @@ def test_result_keys_shapes_and_progress():
     for name in ("trials", "accepted", "events_injection"):
         assert isinstance(int(res[name]), int) and res[name] >= 0
     assert res["M00"][0] == pytest.approx(N0, rel=1e-14)
-    assert res["d43_m"][0] == pytest.approx((6 * P0 / (math.pi * RHO)) ** (1 / 3), rel=1e-12)
+    d0 = (6 * P0 / (math.pi * RHO)) ** (1 / 3)
+    assert res["d43_m"][0] == pytest.approx(d0, rel=1e-12, abs=0)
 
 
 # ---- the majorant ----------------------------------------------------------------------------
@@ -249,7 +341,6 @@ def test_ten_particle_box_stays_finite():
     for name in cnmc.QUANTITY_NAMES:
         for suffix in ("", "_lo", "_hi"):
             assert np.all(np.isfinite(res[name + suffix])), name + suffix
-    assert np.allclose(res["M10"], res["M10"][0] + 1e8 * pd * t, rtol=1e-12)
     assert res["accepted"] > 0 and res["events_injection"] > 0
 
 
@@ -276,17 +367,19 @@ def test_box_coalescing_to_few_particles_stays_finite(kernel, rate, t_end, disti
     assert np.all(np.isfinite(out))
     assert np.all(np.diff(out[:, 0]) <= 0)                       # M00 non-increasing
     assert out[-1, 0] < 1e-3 * N0
-    assert np.allclose(out[:, 1], N0 * P0, rtol=1e-12)            # M10
-    assert np.allclose(out[:, 2], 0.3 * N0 * P0, rtol=1e-12)      # M01
+    assert np.allclose(out[:, 2], 0.3 * N0 * P0, rtol=1e-12, atol=0)      # M01: binder kept
     assert np.unique(p).size <= distinct                          # a few distinct particles
-    assert np.all(b == pytest.approx(0.3 * p, rel=1e-12))
+    assert np.all(b == pytest.approx(0.3 * p, rel=1e-12, abs=0))
 
 
 def test_exponential_waiting_times_agree_with_mean_step():
+    """Mean step 1/R (seed 000 eq. 20) and exponential steps give the same M00 at tau = 2 within
+    the replicas' own scatter: |mean - exact| below t_{0.9995, 7} standard errors of the mean
+    (a false alarm 1 time in 1000 per clock) plus the O(1/N) finite-N bias (1e-3 here)."""
     k0 = 1e-12
     params, config, cell = make_physics("constant", k0, bivariate=False)
     t = np.array([0.0, 2.0 / (k0 * N0)])
-    rows = []
+    exact = N0 / 2.0                                              # tau = 2
     for expo in (0, 1):
         reps = []
         for r in range(8):
@@ -295,10 +388,9 @@ def test_exponential_waiting_times_agree_with_mean_step():
             cnmc.run_box(p, np.zeros(2000), np.zeros(2000, np.int64), 2000 / N0, t, cell,
                          params, config, 100 + r, expo, 10 ** 8, out)
             reps.append(out[1, 0])
-        rows.append(np.mean(reps))
-    exact = N0 / 2.0                                              # tau = 2
-    assert rows[0] == pytest.approx(exact, rel=0.01)
-    assert rows[1] == pytest.approx(exact, rel=0.01)
+        se = np.std(reps, ddof=1) / math.sqrt(len(reps))
+        assert 0 < se < 0.01 * exact
+        assert abs(np.mean(reps) - exact) <= stats.t.ppf(0.9995, 7) * se + 1e-3 * exact, expo
 
 
 def test_invalid_input_is_rejected():

@@ -1,4 +1,4 @@
-"""QMOM + realizable RK3(2) against the analytic moment solutions of DESIGN section 3.
+"""QMOM + realizable RK3(2) against the analytic moment solutions of docs/physics.md section 10.
 
 These moment systems close exactly under N-node quadrature (M0, M1, M2 for the constant, sum
 and product kernels; M11 for the two-component constant kernel), so the error measured is the

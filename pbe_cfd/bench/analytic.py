@@ -23,7 +23,7 @@ def analytic_moments(scene, times) -> dict:
 
     With k0 the kernel [m3/s], R the injection [droplets/(m3 s)] of droplets of mass p_d (pure
     binder, ordinary particles), A = M10(0), C = M01(0), B = R p_d, the moment equations
-    (DESIGN section 3, the constant kernel's gains 2 p p', p b' + p' b, 2 b b')
+    (docs/physics.md section 10, the constant kernel's gains 2 p p', p b' + p' b, 2 b b')
         dM00/dt = R - k0 M00^2 / 2,            dM10/dt = dM01/dt = B,
         dM20/dt = k0 M10^2 + R p_d^2,  dM11/dt = k0 M10 M01 + R p_d^2,  dM02/dt = k0 M01^2 + R p_d^2
     close and integrate to

@@ -14,10 +14,10 @@ class NumpyQMOM:
     """The QMOM right-hand side as a user would write it without this package: NumPy Wheeler
     recurrence, ``numpy.linalg.eigh`` of the Jacobi matrix, binder per node by
     ``numpy.linalg.solve`` of the weighted Vandermonde system (clipped to [0, p]), the kernel
-    and efficiency formulas of DESIGN section 3 as plain Python functions, Python loops over
-    pairs and moments. Same state layout and scaling as ``methods.qmom`` (scaled moments), so
-    ``scipy.integrate.solve_ivp(baseline.rhs, ...)`` integrates exactly what the package does
-    (without its realizability control)."""
+    and efficiency formulas of docs/physics.md sections 4-6 as plain Python functions, Python
+    loops over pairs and moments. Same state layout and scaling as ``methods.qmom`` (scaled
+    moments), so ``scipy.integrate.solve_ivp(baseline.rhs, ...)`` integrates exactly what the
+    package does (without its realizability control)."""
 
     def __init__(self, params, config):
         self.p = [float(x) for x in params]
@@ -70,7 +70,7 @@ class NumpyQMOM:
             b = np.full(n, rhs[0] / max(np.sum(w * x), 1e-300)) * x
         return np.clip(b, 0.0, x)
 
-    # -- physics of DESIGN section 3, one pair at a time
+    # -- physics of docs/physics.md sections 4-7, one pair at a time
     def props(self, pm, bm):
         p = self.p
         d = (6.0 * pm / (math.pi * p[P.DENSITY])) ** (1.0 / 3.0)

@@ -2,7 +2,7 @@
 
 Smith & Matsoukas (1998), Lin, Lee & Matsoukas (2002), seed 000 section IV. The physics is the
 registry's: ``physics.rates.aggregation_rate`` for granule-granule pairs and
-``physics.rates.droplet_capture_rate`` for droplet-granule pairs (DESIGN section 3). All
+``physics.rates.droplet_capture_rate`` for droplet-granule pairs (docs/physics.md section 7). All
 quantities are SI: masses p, b in kg, volumes in m3, times in s, rates in m3/s (pair rates) or
 1/s (event rates of the box), number densities in 1/m3.
 
@@ -88,8 +88,10 @@ A proposal with rate above its bound is counted in ``violations`` and makes
 ``simulate_ensemble`` raise (never seen; the tests check every pair of random populations).
 ``pair_rate_bounds`` gives the same bound for one class spanning [gmin, gmax].
 
-ktgf needs d43 = sum d^4 / sum d^3 [m] of the box (all particles, droplets included, with
-d = (6 p / (pi rho_s))^(1/3)); sum d^3 follows from P and sum d^4 is updated per event.
+ktgf needs d43 = sum d^4 / sum d^3 [m] of the granules of the box (free droplets excluded
+where they are a population of their own, as in every method: docs/physics.md section 4.3;
+with d = (6 p / (pi rho_s))^(1/3)); sum d^3 follows from P and sum d^4 is updated per event,
+the free droplets (all of mass p_d) are subtracted (``cnmc_box._kernel_d43``).
 
 Finite-N bias (why the band can be trusted, and when it cannot)
 ---------------------------------------------------------------

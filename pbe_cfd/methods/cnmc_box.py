@@ -39,6 +39,17 @@ def _d4(p, rho):
 
 
 @nb.njit(cache=True)
+def _kernel_d43(s4, ptot, n_free_droplets, pd, rho):
+    """d43 [m] the ktgf kernel uses: sum d^4 / sum d^3 of the granules (docs/physics.md
+    section 4.3), from the box sums s4 = sum d^4 [m^4] and ptot = sum p [kg] less the free
+    droplets (mass pd [kg] each); 0 if the box holds no granule mass."""
+    gran_mass = ptot - n_free_droplets * pd
+    if not gran_mass > 0.0:
+        return 0.0
+    return max(s4 - n_free_droplets * _d4(pd, rho), 0.0) / (_C_D / rho * gran_mass)
+
+
+@nb.njit(cache=True)
 def pair_rate_bounds(gmin, gmax, n_granules, alpha, theta, d43, params, config):
     """Majorants (B_gg, B_dg) [m3/s] of the granule-granule and droplet-granule pair rates.
 
@@ -223,8 +234,7 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
                                     dirty, dlist, dpos, dcnt)
     conc0 = ptot / volume0
     mass_rate = inj * pd                     # kg/(m3 s) added by injection
-    s3_factor = _C_D / rho                   # sum d^3 = s3_factor * ptot
-    d43_tab = s4 / (s3_factor * ptot) * _D43_MARGIN
+    d43_tab = _kernel_d43(s4, ptot, dcnt[0], pd, rho) * _D43_MARGIN
     for c in range(N_BINS):
         _bound_row(c, lo, hi, table, tabd, alpha, theta, d43_tab, params, config)
         dirty[c] = False
@@ -268,7 +278,7 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
             changed = True
         else:
             trials += 1
-            d43 = s4 / (s3_factor * ptot)
+            d43 = _kernel_d43(s4, ptot, nd, pd, rho)
             granules = (u < r_inj + r_gg and r_gg > 0.0) or r_dg <= 0.0
             i, j, rate, bound = _propose(granules, w_gg, w_dg, n_occ, occ, trow, srow, drow,
                                          bcnt, table, tabd, members, dlist, nd, p, b, alpha,
@@ -285,7 +295,7 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
                 break
         if changed:
             since_sync, ptot, s4, d43_tab = _refresh_bounds(
-                since_sync, p, rho, s3_factor, ptot, s4, d43_tab, bin_of, lo, hi, dirty,
+                since_sync, p, rho, dcnt[0], pd, ptot, s4, d43_tab, bin_of, lo, hi, dirty,
                 table, tabd, alpha, theta, params, config)
 
     for k in range(k_out, n_out):
@@ -492,8 +502,8 @@ def _merge(i, j, p, b, isdrop, rho, m_ref, ptot, s4, bin_of, bpos, members, bcnt
 
 
 @nb.njit(cache=True, inline="always")
-def _refresh_bounds(since_sync, p, rho, s3_factor, ptot, s4, d43_tab, bin_of, lo, hi, dirty,
-                    table, tabd, alpha, theta, params, config):
+def _refresh_bounds(since_sync, p, rho, n_free_droplets, pd, ptot, s4, d43_tab, bin_of, lo, hi,
+                    dirty, table, tabd, alpha, theta, params, config):
     """After a change of the box: every N changes an exact O(N) pass over the sums and class
     intervals; the majorant tables rebuilt when d43 leaves their margin (else only the dirty
     classes). Returns (since_sync, total mass [kg], sum d^4 [m^4], d43 of the tables [m])."""
@@ -515,7 +525,7 @@ def _refresh_bounds(since_sync, p, rho, s3_factor, ptot, s4, d43_tab, bin_of, lo
                 lo[c] = min(lo[c], p[k])
                 hi[c] = max(hi[c], p[k])
         rebuild = True
-    d43 = s4 / (s3_factor * ptot)
+    d43 = _kernel_d43(s4, ptot, n_free_droplets, pd, rho)
     if d43 > d43_tab or d43 * _D43_MARGIN ** 3 < d43_tab:
         rebuild = True
     if rebuild:

@@ -12,8 +12,9 @@ dM~_a/dt = k0 N_ref F_cell sum_{k<=l} Q[k,l,a](u0) M~_k M~_l              (aggre
 dn~_d/dt = -k0 N_ref F_cell n~_d sum_k Cd0[k](u0) M~_k + INJECTION / N_ref,
 
 F_cell = g0(alpha) sqrt(Theta) d43^(3/2) for the ktgf kernel (1 otherwise); d43 [m] from the
-reconstruction: d43 = (6 / (pi rho_s))^(1/3) int p^(4/3) n / int p n, free droplets included
-(they are particles of the cell, as in the cNMC), falling back to the log-convex moment estimate
+reconstruction: d43 = (6 / (pi rho_s))^(1/3) int p^(4/3) n / int p n of the granules, free
+droplets excluded as in every method (docs/physics.md, "d43"), falling back to the log-convex
+moment estimate
 M_(4/3) = M_1^(2/3) M_2^(1/3) (or M_1 (M_1/M_0)^(1/3) for m = 2) if the reconstruction gives a
 non-positive value. Q, Cd, Cd0 are tabulated in ln(u0) when the physical efficiency is on and
 the tensor was built on a Theta grid (grid u0 = 4 sqrt(Theta / pi)); at RHS time u0 =
@@ -79,7 +80,8 @@ def _slice_position(cell, aux):
 
 @nb.njit(cache=True)
 def laguerre_d43(state, aux, params, config):
-    """Volume-mean diameter d43 [m] of the cell's population (granules + free droplets)."""
+    """Volume-mean diameter d43 [m] of the cell's granules, the ktgf kernel's d43 (free
+    droplets excluded, docs/physics.md "d43")."""
     m = int(aux[AUX_ORDER])
     K = m * m
     pref = params[P.MASS_SCALE]
@@ -90,13 +92,6 @@ def laguerre_d43(state, aux, params, config):
     m0 = state[0]
     m1 = state[m] if m > 1 else 0.0
     m2 = state[2 * m] if m > 2 else 0.0
-    if config[P.SEPARATE_DROPLETS] == 1 and config[P.N_STATE] > K:
-        nd = state[K]
-        x = params[P.DROPLET_MASS] / pref
-        m43 += nd * x ** (4.0 / 3.0)
-        m0 += nd
-        m1 += nd * x
-        m2 += nd * x * x
     if not (m1 > 0.0):
         return 0.0
     if not (m43 > 0.0):
@@ -298,8 +293,8 @@ def moments_from_state(state_rows, params, config, m, aux=None):
     """SI moments of one state or of rows of states (shape (n, N_STATE)).
 
     Returns dict of arrays (shape (n,), or floats for a 1-D state):
-    "M{i}{j}" [kg^(i+j)/m3], i, j < m: the whole population, free droplets included (DESIGN
-    section 4 output contract); "granule_M{i}{j}": granules only; if droplets are separate,
+    "M{i}{j}" [kg^(i+j)/m3], i, j < m: the whole population, free droplets included
+    (docs/physics.md section 11); "granule_M{i}{j}": granules only; if droplets are separate,
     "droplet_number_density" [1/m3]. For m = 2, "M20" and "M02" are not carried: with ``aux``
     they are added from the reconstruction on the support (an estimate), otherwise absent.
     """

@@ -4,7 +4,7 @@ Everything here runs once per scene (or once per cache key) in Python/numpy with
 for the kernel matrix; ``laguerre.py`` holds the numba right-hand side that reads the flat
 ``aux`` array built here.
 
-Formulas (derived from the definitions, DESIGN section 3; seed 000 eqs. 8-16)
+Formulas (derived from the definitions, docs/physics.md section 9; seed 000 eqs. 8-16)
 ---------------------------------------------------------------------------
 Internal coordinates u = p / c, v = b / d (c, d the weight means [kg]). Weights are gamma
 densities of mean 1,
@@ -30,7 +30,7 @@ Moment-consistent correction (default): G[a, k] = int_S u^i v^j phi_k over the s
 S = {b <= p, p <= p_max, b <= b_max} with the quadrature below, and phi~ = phi G^-1, so the
 reconstruction n = sum_a M_a phi~_a reproduces all m x m moments exactly on S.
 
-RHS (DESIGN section 3): dM_a/dt = 1/2 int_S int_S beta(r, r') D_a(r, r') n(r) n(r') with
+RHS (docs/physics.md section 2): dM_a/dt = 1/2 int_S int_S beta(r, r') D_a(r, r') n(r) n(r') with
 D_a = A_a(r + r') - A_a(r) - A_a(r'), A_a = p^i b^j. Expanding (p+p')^i (b+b')^j binomially,
 D_a = sum_{e <= a, e != 0, e != a} C(a, e) A_e(r) A_{a-e}(r') for a != 0 (all terms
 non-negative, no cancellation) and D_0 = -1, so with Psi[s, (e, k)] = w_s A_e(r_s) phi_k(r_s) and the symmetric kernel matrix

@@ -1,4 +1,4 @@
-"""Quadrature method of moments with node-wise binder (DESIGN section 3).
+"""Quadrature method of moments with node-wise binder (docs/physics.md section 9).
 
 State of one cell (non-dimensional: SI moment M_ij per m3 divided by N_ref p_ref^(i+j), with
 N_ref = params[NUMBER_SCALE] [1/m3] and p_ref = params[MASS_SCALE] [kg] for both masses):

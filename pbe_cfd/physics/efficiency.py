@@ -1,4 +1,4 @@
-"""Success probability psi of a collision (DESIGN section 3): the efficiency registry.
+"""Success probability psi of a collision (docs/physics.md section 6): the efficiency registry.
 
 Each factor is a numba function ``f(props, a, c, u0, params)`` of two rows of the per-particle
 property array (``physics.properties``: masses p, binder b [kg], diameters [m], eta(y),

@@ -1,4 +1,4 @@
-"""Binder droplet source (DESIGN section 3): pure-binder droplets of mass p_d, b = p_d."""
+"""Binder droplet source (docs/physics.md section 7): pure-binder droplets of mass p_d, b = p_d."""
 import math
 
 import numba as nb

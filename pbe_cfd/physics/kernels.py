@@ -1,5 +1,5 @@
-"""Collision frequencies beta [m3/s] of the aggregation kernels (DESIGN section 3): the kernel
-registry.
+"""Collision frequencies beta [m3/s] of the aggregation kernels (docs/physics.md section 4):
+the kernel registry.
 
 Each kernel is a numba function ``f(props, a, c, cell_factor, params)`` of two rows a, c of the
 per-particle property array (``physics.properties``) and the cell factor, the part of the

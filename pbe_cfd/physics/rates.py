@@ -1,12 +1,12 @@
 """Aggregation rate of a pair: collision frequency times success probability [m3/s].
 
-Combines the two registries (``kernels``, ``efficiency``) with the droplet rules of DESIGN
-section 3: where droplets are a population of their own, droplets never aggregate with each
-other and a droplet meets a granule at ``droplet_factor`` times the kernel. ``pair_rate`` works
-on precomputed property rows (the fast path of the moment methods; ``particle_properties``
-fills them with what the scene's kernel and factors read); ``aggregation_rate`` and
-``droplet_capture_rate`` are the single-pair forms used where particles come one pair at a time
-(Monte Carlo, tensor builds).
+Combines the two registries (``kernels``, ``efficiency``) with the droplet rules of
+docs/physics.md section 7: where droplets are a population of their own, droplets never
+aggregate with each other and a droplet meets a granule at ``droplet_factor`` times the
+kernel. ``pair_rate`` works on precomputed property rows (the fast path of the moment methods;
+``particle_properties`` fills them with what the scene's kernel and factors read);
+``aggregation_rate`` and ``droplet_capture_rate`` are the single-pair forms used where
+particles come one pair at a time (Monte Carlo, tensor builds).
 """
 import numba as nb
 import numpy as np
