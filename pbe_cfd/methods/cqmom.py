@@ -43,11 +43,6 @@ _as_strided = np.lib.stride_tricks.as_strided
 #: Re-projection mismatch of the size moments (relative to each moment) up to which a set whose
 #: quadrature lost nodes is accepted as on the realizable boundary (as QMOM).
 PROJECTION_TOLERANCE = 1.0e-8
-#: Mixed moments M_kl must be reproduced by the points within this share of their bound
-#: sum_a w_a p_a^(k+l) (b <= p): the conditional moments of a node carrying a tiny share of the
-#: number are fixed by the moments only to ~1e-6 (the Vandermonde solve's conditioning follows
-#: the spread of the weights; the value QMOM uses for its binder moments).
-MIXED_TOLERANCE = 1.0e-6
 MAX_SIZE_NODES = 4
 MAX_BINDER_NODES = 3
 
@@ -547,14 +542,20 @@ def _project_into(state, target, config, work, n):
 
 @nb.njit(cache=True, error_model="numpy")
 def cqmom_realizable(state, aux, params, config, work):
-    """True if the cell's state is a realizable CQMOM moment set.
+    """True if the cell's state is a realizable moment set for CQMOM.
 
     Checks finiteness, non-negative number and droplets; the size moments as QMOM (a reduced
-    quadrature must reproduce the discarded moments within PROJECTION_TOLERANCE); 0 <= M01 <=
-    M10; and every mixed moment M_kl reproduced by the points (whose binder is bounded by
-    construction) within MIXED_TOLERANCE of its bound sum_a w_a p_a^(k+l). A conditional set
-    that was not realizable was replaced by the nearest realizable one, so this is where it
-    shows. An all-zero (empty) state is realizable.
+    quadrature must reproduce the discarded moments within PROJECTION_TOLERANCE); and the
+    conditions every population with 0 <= b <= p meets: M_kl >= 0 and, where M_(k+l)0 is
+    carried, M_kl <= M_(k+l)0 (for M01: the binder mass within the granule mass).
+
+    Conditional moments recovered from the moments of a general population are often not
+    realizable (measured: 70-80% of random populations of 1-14 atoms); that is the closure's
+    gap, not a broken state: the inversion uses the nearest realizable conditional set and the
+    accepted state is projected onto it (``cqmom_project``). Rejecting such states instead would
+    tie the step to the projection tolerance (measured on the seed scenario: 52,000 steps with
+    120,000 rejections instead of 1,700 steps, the same moments). An all-zero (empty) state is
+    realizable.
     """
     n_state = config[P.N_STATE]
     n_max = config[P.ORDER]
@@ -575,34 +576,63 @@ def cqmom_realizable(state, aux, params, config, work):
     n = _invert_work(state, config, work)
     if n == 0:
         return False
-    ot = _off_target(n_max, m)
-    target = work[ot:ot + n_state]
-    _project_into(state, target, config, work, n)
     if n < n_max:
+        ot = _off_target(n_max, m)
+        target = work[ot:ot + n_state]
+        _project_into(state, target, config, work, n)
         for k in range(2 * n_max):
             if abs(target[k] - state[k]) > PROJECTION_TOLERANCE * abs(state[k]):
                 return False
     if config[P.BIVARIATE] == 1:
-        m01 = state[2 * n_max]
-        if m01 < 0.0 or m01 > state[1] * (1.0 + PROJECTION_TOLERANCE):
-            return False
         for l in range(1, 2 * m):
             for k in range(n_max):
-                bound = 0.0
-                for a in range(n):
-                    bound += work[n_max + a] * work[a] ** (k + l)
-                i = _mixed_index(n_max, k, l)
-                if abs(target[i] - state[i]) > MIXED_TOLERANCE * bound:
+                value = state[_mixed_index(n_max, k, l)]
+                if value < 0.0:
+                    return False
+                if k + l < 2 * n_max and value > state[k + l] * (1.0 + PROJECTION_TOLERANCE):
                     return False
     return True
 
 
 @nb.njit(cache=True, error_model="numpy")
+def representation_error(state, config, work):
+    """Largest mismatch |M_kl(points) - M_kl| / sum_a w_a p_a^(k+l) over the mixed moments,
+    l >= 1 [-]: 0 (to round-off) for a state the points represent, e.g. after
+    ``cqmom_project``; how far the conditional moments were from realizable otherwise."""
+    n_state = config[P.N_STATE]
+    n_max = config[P.ORDER]
+    m = config[P.BINDER_NODES]
+    if state[0] <= 0.0 or config[P.BIVARIATE] != 1:
+        return 0.0
+    n = _invert_work(state, config, work)
+    ot = _off_target(n_max, m)
+    target = work[ot:ot + n_state]
+    _project_into(state, target, config, work, n)
+    worst = 0.0
+    for l in range(1, 2 * m):
+        for k in range(n_max):
+            bound = 0.0
+            for a in range(n):
+                bound += work[n_max + a] * work[a] ** (k + l)
+            i = _mixed_index(n_max, k, l)
+            if bound > 0.0:
+                worst = max(worst, abs(target[i] - state[i]) / bound)
+    return worst
+
+
+@nb.njit(cache=True, error_model="numpy")
 def cqmom_project(state, aux, params, config, work):
-    """Re-project an accepted state onto its points, in place: where size nodes were lost every
-    moment but M00, M10 and M01 becomes that of the points; otherwise the mixed moments but M01
-    do (a conditional set replaced by its nearest realizable one is snapped onto it). Number,
-    mass and binder mass are never touched."""
+    """Re-project an accepted state, in place, as QMOM does: where size nodes were lost, every
+    moment but M00, M10 and M01 becomes that of the points; otherwise the binder-weighted
+    moments M_k1 (k >= 1) become those of the bounded per-node binder (with N2 = 1 this is
+    QMOM's projection exactly). Number, mass and binder mass are never touched.
+
+    The higher mixed moments M_kl, l >= 2, stay as carried: the points are the nearest
+    realizable reading of them. Snapping them onto the points after every step biases them,
+    because the conditional sets that are not realizable are mostly negative variances and
+    clipping those only ever adds variance: measured on the seed scenario with N1 = N2 = 2,
+    M02 +47% against the cNMC after 10 s with that projection, within 0.5% without it.
+    """
     n_state = config[P.N_STATE]
     n_max = config[P.ORDER]
     m = config[P.BINDER_NODES]
@@ -611,17 +641,20 @@ def cqmom_project(state, aux, params, config, work):
     n = _invert_work(state, config, work)
     if n == 0:
         return
+    bivariate = config[P.BIVARIATE] == 1
+    if n == n_max and not bivariate:
+        return
     ot = _off_target(n_max, m)
     target = work[ot:ot + n_state]
     _project_into(state, target, config, work, n)
     m01 = 2 * n_max
-    n_moments = n_state - config[P.SEPARATE_DROPLETS]
-    first = 2 if n < n_max else m01
-    if config[P.BIVARIATE] == 0 and n == n_max:
-        return
-    for k in range(first, n_moments):
-        if k != m01:
-            state[k] = target[k]
+    if n < n_max:
+        for k in range(2, n_state - config[P.SEPARATE_DROPLETS]):
+            if k != m01:
+                state[k] = target[k]
+    else:
+        for k in range(1, n_max):
+            state[m01 + k] = target[m01 + k]
 
 
 def quadrature_of(state, config):
