@@ -20,7 +20,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pbe_cfd import model
-from pbe_cfd.methods import cqmom
+from pbe_cfd.methods import cqmom, cqmom_sources
 from pbe_cfd.methods.conditional import gauss2_unit_interval, gauss_unit_interval
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.rates import aggregation_rate, droplet_capture_rate
@@ -345,7 +345,7 @@ def test_rhs_equals_the_exact_sources_of_a_represented_population(case, n1, n2):
     cell = model.well_mixed_cell(scene)[0]
     out = np.zeros_like(state)
     work = fresh_work(n1, n2)
-    cqmom.cqmom_rhs(state, out, cell, np.zeros(1), arrays.params, arrays.config, work)
+    cqmom_sources.cqmom_rhs(state, out, cell, np.zeros(1), arrays.params, arrays.config, work)
     expected, magnitude = _direct_sources(p, b, w, nd, arrays, cell, names)
     unit = np.array([n_ref * p_ref ** (int(s[1]) + int(s[2])) if s.startswith("M") else n_ref
                      for s in names])
