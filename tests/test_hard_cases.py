@@ -14,7 +14,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pbe_cfd import integrate, model
-from pbe_cfd.couple import Domain, run_coupled
+from pbe_cfd.couple import run_coupled
+from pbe_cfd.domain import Domain
 from pbe_cfd.cfd.openfoam import load_snapshot
 from pbe_cfd.methods.dispatch import WORK_SIZE
 from pbe_cfd.methods.qmom import qmom_project, qmom_realizable, quadrature_of

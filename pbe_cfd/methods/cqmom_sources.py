@@ -11,9 +11,12 @@ All quantities are scaled (see ``methods.cqmom``); no allocation.
 import numba as nb
 
 from ..physics import parameters as P
-from ..physics.efficiency import pair_success_probability
-from ..physics.kernels import kernel_cell_factor, pair_collision_frequency
-from ..physics.properties import DIAMETER, particle_properties
+from ..physics.efficiency import efficiency_property_groups, pair_success_probability
+from ..physics.kernels import (kernel_cell_factor, kernel_property_groups, kernel_uses_d43,
+                               pair_collision_frequency)
+from ..physics.properties import (BINDER_LAYER, DIAMETER, EKE_CBRT, EKE_INV, INV_DIAMETER_CUBED,
+                                  WETTING, fill_properties)
+from ..physics.rates import particle_properties
 from .cqmom import (invert_cached, mixed_index, off_acc, off_bpowers, off_counts, off_points,
                     off_powers, props_view)
 
@@ -21,7 +24,9 @@ from .cqmom import (invert_cached, mixed_index, off_acc, off_bpowers, off_counts
 @nb.njit(cache=True, inline="always")
 def _fill_properties(work, n_max, m, n, params, config):
     """Property rows of every point and the powers x_a^k (k < 2 N1), b_i^l (l < 2 N2);
-    returns d43 [m] of the granules (for the ktgf kernel, else 0)."""
+    returns d43 [m] of the granules (where the kernel needs it, else 0). The size columns
+    (cube roots) are computed once per size node and copied to its other points; only the
+    binder columns (exponentials of y) are computed per point."""
     op = off_points(n_max)
     npt = n_max * m
     props = props_view(work, n_max, m)
@@ -29,7 +34,9 @@ def _fill_properties(work, n_max, m, n, params, config):
     bpow = off_bpowers(n_max, m)
     counts = off_counts(n_max, m)
     mass_scale = params[P.MASS_SCALE]
-    ktgf = config[P.KERNEL] == 4
+    groups = kernel_property_groups(config[P.KERNEL]) | efficiency_property_groups(config)
+    binder_groups = groups & (WETTING | BINDER_LAYER)
+    with_d43 = kernel_uses_d43(config[P.KERNEL])
     num43 = 0.0
     den43 = 0.0
     for a in range(n):
@@ -38,17 +45,24 @@ def _fill_properties(work, n_max, m, n, params, config):
         for k in range(2 * n_max):
             work[xpow + a * 2 * n_max + k] = power
             power *= xa
+        first = a * m
         for b in range(int(work[counts + a])):
-            i = a * m + b
+            i = first + b
             bi = work[op + npt + i]
-            particle_properties(xa * mass_scale, bi * mass_scale, params, config, props, i)
+            if b == 0:
+                fill_properties(xa * mass_scale, bi * mass_scale, params, groups, props, i)
+            else:
+                fill_properties(xa * mass_scale, bi * mass_scale, params, binder_groups, props,
+                                i)
+                for col in (DIAMETER, INV_DIAMETER_CUBED, EKE_CBRT, EKE_INV):
+                    props[i, col] = props[first, col]
             power = 1.0
             for l in range(2 * m):
                 work[bpow + i * 2 * m + l] = power
                 power *= bi
-        if ktgf:
+        if with_d43:
             wx = work[n_max + a] * xa
-            num43 += wx * props[a * m, DIAMETER]
+            num43 += wx * props[first, DIAMETER]
             den43 += wx
     return num43 / den43 if den43 > 0.0 else 0.0
 
