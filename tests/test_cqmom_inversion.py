@@ -109,11 +109,20 @@ def test_three_node_rule_and_its_reduction():
     nodes, weights = np.zeros(3), np.zeros(3)
     assert gauss_unit_interval(mu, 3, nodes, weights, np.zeros(80)) == 3
     assert np.sort(nodes) == pytest.approx(y, abs=1e-10)
+    for dent in (1.5, 0.5):            # mu5 above / below its range given mu0 .. mu4
+        bad = mu.copy()
+        bad[5] *= dent
+        n = gauss_unit_interval(bad, 3, nodes, weights, np.zeros(80))
+        # the principal representation: an atom on 1 (0) and mu0 .. mu4 kept
+        assert n == 3 and np.all((nodes >= 0) & (nodes <= 1)) and np.all(weights >= 0)
+        assert (1.0 if dent > 1 else 0.0) in nodes
+        back = [np.sum(weights * nodes ** l) for l in range(5)]
+        assert back == pytest.approx(list(mu[:5]), rel=1e-10)
     bad = mu.copy()
-    bad[5] *= 1.5                      # no measure on [0, 1] has these moments
+    bad[3] *= 3.0                      # mu3 out of range: two nodes of mu0 .. mu3
     n = gauss_unit_interval(bad, 3, nodes, weights, np.zeros(80))
-    assert n == 2 and np.all((nodes[:2] >= 0) & (nodes[:2] <= 1))
-    assert np.sum(weights[:2] * nodes[:2]) == pytest.approx(mu[1], rel=1e-12)
+    assert n <= 2 and np.all((nodes[:n] >= 0) & (nodes[:n] <= 1))
+    assert np.sum(weights[:n] * nodes[:n]) == pytest.approx(mu[1], rel=1e-12)
 
 
 # --------------------------------------------------------------------------- inversion

@@ -93,13 +93,46 @@ def gauss2_unit_interval(mu1, mu2, mu3, nodes, weights):
     return 2
 
 
-#: A three-node rule is accepted with nodes up to this far outside [0, 1], and clipped onto it.
-#: An atom on an end point (dry granules: y = 0) is common, and the recovered conditional
-#: moments carry the integration error (rtol ~1e-8) divided by the node's share (down to ~1e-4):
-#: its node lands up to ~1e-4 outside. Clipping moves it by far less than the width of the
-#: efficiency switch in y (1/35 for the accessible-binder sigmoid); rejecting the rule would
-#: lose a whole point.
-END_POINT_SLACK = 1.0e-3
+#: A three-node rule is accepted with nodes up to this far outside [0, 1] (round-off of an atom
+#: on an end point: dry granules, y = 0), and clipped onto it; beyond, the principal
+#: representation with an atom on that end point.
+END_POINT_SLACK = 1.0e-12
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _principal3(mu, upper, nodes, weights):
+    """Principal representation of the fraction moments mu[0:5] on [0, 1]: an atom on 0
+    (``upper`` False) or on 1 (True) and the two-node rule of the moments of y dmu (of
+    (1 - y) dmu), which keeps mu0 .. mu4 and moves only mu5 (the three-node analogue of the
+    atoms ``gauss2_unit_interval`` puts on an end point). Returns the node count, 0 if mu0 ..
+    mu4 are themselves not realizable (the caller then reduces the count)."""
+    if upper:
+        nu0 = 1.0 - mu[1]
+        nu1 = mu[1] - mu[2]
+        nu2 = mu[2] - mu[3]
+        nu3 = mu[3] - mu[4]
+    else:
+        nu0 = mu[1]
+        nu1 = mu[2]
+        nu2 = mu[3]
+        nu3 = mu[4]
+    if not (nu0 > 0.0):
+        return 0
+    n = gauss2_unit_interval(nu1 / nu0, nu2 / nu0, nu3 / nu0, nodes, weights)
+    rest = 1.0
+    for a in range(n):
+        lever = 1.0 - nodes[a] if upper else nodes[a]
+        if not (lever > 0.0):
+            return 0
+        weights[a] = nu0 * weights[a] / lever
+        rest -= weights[a]
+    if rest < 0.0:
+        return 0
+    if rest <= DEGENERACY_TOLERANCE:   # the end point holds nothing: n atoms inside carry it
+        return n
+    nodes[n] = 1.0 if upper else 0.0
+    weights[n] = rest
+    return n + 1
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -109,8 +142,10 @@ def gauss_unit_interval(mu, m, nodes, weights, work):
 
     m = 1: the node mu1 (clipped to [0, 1]); m = 2: ``gauss2_unit_interval``; m = 3: Wheeler
     and Golub-Welsch on the moments of z = 1 + y (so that an atom on y = 0 is an ordinary
-    positive node), accepted if it gives three nodes in [0, 1] (within END_POINT_SLACK),
-    otherwise the two-node rule of the first four moments (the count is reduced, never NaN).
+    positive node), accepted if its three nodes lie in [0, 1] (within END_POINT_SLACK, then
+    clipped); a node below 0 (above 1) means mu5 is outside its range and the rule becomes the
+    principal representation with an atom on 0 (on 1), which keeps mu0 .. mu4; where even those
+    are not realizable, the two-node rule of mu0 .. mu3 (the count is reduced, never NaN).
     ``work`` length >= 6 + 61 (the shifted moments, then ``quadrature.wheeler_nodes``'s work).
     """
     mu1 = mu[1]
@@ -135,7 +170,39 @@ def gauss_unit_interval(mu, m, nodes, weights, work):
                 nodes[a] = min(max(nodes[a], 0.0), 1.0)
             if inside:
                 return 3
+        n = _nearest_principal3(mu, nodes, weights, work)
+        if n > 0:
+            return n
     return gauss2_unit_interval(mu1, mu[2], mu[3], nodes, weights)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _nearest_principal3(mu, nodes, weights, work):
+    """Of the two principal representations of mu0 .. mu4 (``_principal3``: atom on 0, atom
+    on 1), the one whose mu5 is nearer the given mu5; 0 if neither exists. (A node of the
+    three-node rule below 0 makes Wheeler drop it, so the side cannot be read off the rule.)
+    ``work`` length >= 6."""
+    lower_nodes = work[0:3]
+    lower_weights = work[3:6]
+    n_low = _principal3(mu, False, lower_nodes, lower_weights)
+    n_up = _principal3(mu, True, nodes, weights)
+    if n_low == 0:
+        return n_up
+    miss_up = math.inf
+    if n_up > 0:
+        miss_up = -mu[5]
+        for a in range(n_up):
+            miss_up += weights[a] * nodes[a] ** 5
+        miss_up = abs(miss_up)
+    miss_low = -mu[5]
+    for a in range(n_low):
+        miss_low += lower_weights[a] * lower_nodes[a] ** 5
+    if abs(miss_low) <= miss_up:
+        for a in range(n_low):
+            nodes[a] = lower_nodes[a]
+            weights[a] = lower_weights[a]
+        return n_low
+    return n_up
 
 
 #: The bounded per-node binder is corrected to reproduce M01 where it misses it by more than
@@ -177,17 +244,18 @@ def fraction_moments(state, start, n_size, n, nodes, weights, mean_binder, m, co
     cond[a * 2m + l], from the mixed moments M_kl at state[start + (l - 1) n_size + k].
 
     ``mean_binder`` holds the bounded per-node binder <b>_a in [0, p_a] (which reproduces M01
-    exactly; see ``qmom.solve_node_binder``). A node with <b>_a on a bound (0 or p_a) holds a
-    single atom y = 0 or 1; its share of every M_kl is subtracted and the remaining nodes solve
-    the Vandermonde system of the first n_free equations, l = 2 .. 2m - 1, in masses scaled by
-    the mean size (``mean_size`` = M10/M00 in the same units as ``nodes``). ``fixed[a]`` is set
-    to ON_BOUND or FREE. ``work`` length >= 4 n + n (n + 1). Coincident free nodes (a singular
-    system) share the conditional moments of their mean fraction (one atom each).
+    exactly; see ``qmom.solve_node_binder``): <y>_a = <b>_a / p_a. The levels l >= 2 come from
+    the Vandermonde systems of all n nodes (Yuan and Fox), in masses scaled by their mean; a
+    node whose <b>_a lies on a bound (0 or p_a) holds a single atom y = 0 or 1 whatever its
+    solved moments (``fixed[a]`` = ON_BOUND, else FREE). Solving every level with every node,
+    rather than with the free nodes alone, keeps the conditional moments continuous in the
+    state when a node reaches a bound: switching the set of equations made the right-hand side
+    jump and the step controller chatter (measured: a step budget of 1e6 exhausted). ``work``
+    length >= 4 n + n (n + 1). Coincident nodes (a singular system) get one atom each.
     """
     rhs = work[0:n]
     sol = work[n:2 * n]
     scaled = work[2 * n:3 * n]
-    index = work[3 * n:4 * n]
     solve_work = work[4 * n:]
     mean_size = 0.0
     total = 0.0
@@ -195,40 +263,23 @@ def fraction_moments(state, start, n_size, n, nodes, weights, mean_binder, m, co
         mean_size += weights[a] * nodes[a]
         total += weights[a]
     mean_size = mean_size / total
-    n_free = 0
     for a in range(n):
         y = mean_binder[a] / nodes[a]
         row = a * 2 * m
         cond[row] = 1.0
         cond[row + 1] = y
-        if mean_binder[a] <= 0.0 or mean_binder[a] >= nodes[a]:
-            fixed[a] = ON_BOUND
-            y = 0.0 if mean_binder[a] <= 0.0 else 1.0
-            cond[row + 1] = y
-            for l in range(2, 2 * m):
-                cond[row + l] = y
-        else:
-            fixed[a] = FREE
-            index[n_free] = a
-            scaled[n_free] = nodes[a] / mean_size
-            n_free += 1
-    if n_free == 0:
-        return
+        fixed[a] = ON_BOUND if (mean_binder[a] <= 0.0 or mean_binder[a] >= nodes[a]) else FREE
+        scaled[a] = nodes[a] / mean_size
     for l in range(2, 2 * m):
         base = start + (l - 1) * n_size
         scale_k = 1.0
-        for k in range(n_free):
-            value = state[base + k]
-            for a in range(n):
-                if fixed[a] == ON_BOUND and cond[a * 2 * m + 1] == 1.0:
-                    value -= weights[a] * nodes[a] ** (k + l)
-            rhs[k] = value / scale_k
+        for k in range(n):
+            rhs[k] = state[base + k] / scale_k
             scale_k *= mean_size
-        if solve_vandermonde(scaled, rhs, sol, n_free, solve_work):
-            for f in range(n_free):
-                a = int(index[f])
-                cond[a * 2 * m + l] = sol[f] / (weights[a] * nodes[a] ** l)
-        else:
-            for f in range(n_free):
-                a = int(index[f])
-                cond[a * 2 * m + l] = cond[a * 2 * m + 1] ** l
+        solved = solve_vandermonde(scaled, rhs, sol, n, solve_work)
+        for a in range(n):
+            row = a * 2 * m
+            if fixed[a] == ON_BOUND or not solved:
+                cond[row + l] = cond[row + 1] ** l
+            else:
+                cond[row + l] = sol[a] / (weights[a] * nodes[a] ** l)
