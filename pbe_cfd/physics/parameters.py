@@ -42,7 +42,8 @@ BIVARIATE = 2            # 1 if binder mass is a coordinate (otherwise univariat
 METHOD = 3               # code of the moment method (methods.dispatch)
 ORDER = 4                # QMOM nodes N, or Laguerre order m
 N_STATE = 5              # length of one cell's state vector
-N_SWITCHES_START = 6     # a new single slot goes above this line and moves this number up
+BINDER_NODES = 6         # CQMOM conditional nodes N2 per size node
+N_SWITCHES_START = 7     # a new single slot goes above this line and moves this number up
 # config[EFFICIENCY_SWITCHES + code] = 1: the efficiency factor of that code applies
 # (physics.efficiency.EFFICIENCY_REGISTRY); room for MAX_EFFICIENCIES factors
 EFFICIENCY_SWITCHES = N_SWITCHES_START
@@ -50,8 +51,7 @@ MAX_EFFICIENCIES = 8
 USE_GEOMETRIC = EFFICIENCY_SWITCHES + 0    # the geometric (accessible binder) factor
 USE_PHYSICAL = EFFICIENCY_SWITCHES + 1     # the viscous Stokes factor
 USE_SATURATION = EFFICIENCY_SWITCHES + 2   # the liquid-saturation factor
-BINDER_NODES = EFFICIENCY_SWITCHES + MAX_EFFICIENCIES  # CQMOM conditional nodes N2 per size node
-N_CONFIG = BINDER_NODES + 1
+N_CONFIG = EFFICIENCY_SWITCHES + MAX_EFFICIENCIES
 
 # ---- cell (float64, per cell) ----------------------------------------------------------
 ALPHA = 0                # solids volume fraction [-]
