@@ -95,6 +95,8 @@ def pack(scene) -> Arrays:
     method = method_of(scene)
     config[P.METHOD] = method.code
     config[P.ORDER] = method.order(scene.method)
+    for slot, value in method.config_slots(scene).items():
+        config[slot] = value
     names = method.state_names(scene)
     config[P.N_STATE] = len(names)
     return Arrays(params=params, config=config, number_scale=n_ref, mass_scale=p_ref,

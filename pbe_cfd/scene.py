@@ -115,6 +115,7 @@ class Method:
     """Numerical method and its accuracy knobs (README.md, "Scenes")."""
     name: str
     nodes: int = 3
+    binder_nodes: int = 2
     order: int = 3
     particles: int = 10000
     replicas: int = 8

@@ -56,7 +56,7 @@ def test_accuracy_quick_uses_the_analytic_reference_and_writes_everything(tmp_pa
     for name in ("accuracy.csv", "accuracy.md", "pareto.png", "accuracy.json"):
         assert (out / name).stat().st_size > 0, name
     rows = _csv(out / "accuracy.csv")
-    assert {r["method"] for r in rows} == {"qmom", "laguerre", "cnmc"}
+    assert {r["method"] for r in rows} == {"qmom", "cqmom", "laguerre", "cnmc"}
     md = (out / "accuracy.md").read_text()
     assert "closed-form moments" in md and "Smoluchowski" in md
     for r in rows:
@@ -74,6 +74,9 @@ def test_accuracy_quick_uses_the_analytic_reference_and_writes_everything(tmp_pa
         if r["method"] == "qmom" and r["knob"] in ("N=2", "N=3"):
             assert abs(float(r["err_M00"])) < 1e-6
             assert abs(float(r["err_M20"])) < 1e-6
+        if r["method"] == "cqmom":          # and CQMOM's every carried moment
+            for q in ("M00", "M20", "M11", "M02"):
+                assert abs(float(r[f"err_{q}"])) < 1e-6, q
     assert "qmom" in capsys.readouterr().out
 
 
@@ -128,12 +131,12 @@ def test_numpy_baseline_computes_the_same_rhs(nodes):
 
 def test_throughput_tiny(tmp_path):
     res = bench.throughput_study(tmp_path / "tp", quick=True, cells=(40, 80), threads=(1,),
-                                 methods=(("qmom", 2), ("laguerre", 2)), interval=0.05,
-                                 quiet=True)
+                                 methods=(("qmom", 2), ("laguerre", 2), ("qmom", 3),
+                                          ("cqmom", (2, 2))), interval=0.05, quiet=True)
     for name in ("throughput.csv", "throughput.md", "throughput.png", "machine.json"):
         assert (tmp_path / "tp" / name).stat().st_size > 0, name
     labels = {r["label"] for r in res["rows"]}
-    assert labels == {"QMOM N = 2", "Laguerre m = 2"}
+    assert labels == {"QMOM N = 2", "Laguerre m = 2", "QMOM N = 3", "CQMOM N1 x N2 = 2 x 2"}
     for r in res["rows"]:
         for key in ("rhs_per_s", "cell_steps_per_s", "ceiling_per_s", "share_of_ceiling"):
             assert math.isfinite(r[key]) and r[key] > 0, (r["label"], key)
@@ -142,6 +145,7 @@ def test_throughput_tiny(tmp_path):
     assert base["rhs_per_s"] > 0 and base["cell_steps_per_s"] > 0
     md = (tmp_path / "tp" / "throughput.md").read_text()
     assert "NumPy/SciPy" in md and "speed-up" in md
+    assert "CQMOM against QMOM N = 3" in md
     rows = _csv(tmp_path / "tp" / "throughput.csv")
     assert rows[-1]["method"] == "numpy-scipy-qmom"
 

@@ -84,7 +84,7 @@ def cnmc_reference(scene, particles, replicas, seed=97, use_cache=True, quiet=Tr
 @dataclasses.dataclass
 class Variant:
     """One method at one setting of its accuracy knob."""
-    method: str          # qmom | laguerre | cnmc
+    method: str          # qmom | cqmom | laguerre | cnmc
     label: str           # short knob label, e.g. "N=3", "m=3 fine consistent", "1e4 x 4"
     changes: dict        # Method fields for Scene.with_method
 
@@ -98,6 +98,9 @@ def accuracy_variants(quick=False) -> list:
     out = []
     for n in ((1, 2, 3) if quick else (1, 2, 3, 4)):
         out.append(Variant("qmom", f"N={n}", {"name": "qmom", "nodes": n}))
+    for n1, n2 in (((2, 2),) if quick else ((2, 2), (3, 2), (3, 3), (4, 2))):
+        out.append(Variant("cqmom", f"N1={n1} N2={n2}",
+                           {"name": "cqmom", "nodes": n1, "binder_nodes": n2}))
     grids = {"coarse": 8, "fine": 12} if quick else {"coarse": 20, "fine": 40}
     orders = (2, 3) if quick else (2, 3, 4)
     for m in orders:

@@ -117,7 +117,8 @@ def plot_pareto(path, result):
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
-    style = {"qmom": ("o", "C0"), "laguerre": ("s", "C1"), "cnmc": ("^", "C2")}
+    style = {"qmom": ("o", "C0"), "laguerre": ("s", "C1"), "cnmc": ("^", "C2"),
+             "cqmom": ("D", "C3")}
     for ax, quantities, what in ((axes[0], QUANTITIES,
                                   "M00, M20, M11, M02, d43, binder fraction"),
                                  (axes[1], SIZE_QUANTITIES, "M00, M20, d43")):

@@ -4,6 +4,7 @@ ROM (the bare quadratic form)."""
 import numba as nb
 import numpy as np
 
+from ..methods import cqmom as _cqmom
 from ..methods.dispatch import WORK_SIZE, method_rhs
 from ..methods.qmom import invert as _qmom_invert
 from ..physics import parameters as P
@@ -71,6 +72,59 @@ def qmom_kernel_sweep(props, counts, cells, factors, params, config, reps, out):
                     acc += pair_rate(pr, a, b, f, u0, params, config)
                 if separate:
                     acc += pair_rate(pr, a, n_max, f, u0, params, config)
+        out[c] = acc
+
+
+@nb.njit(cache=True, parallel=True)
+def cqmom_point_properties(states, cells, params, config, props, counts, factors):
+    """Per cell: the property rows of the CQMOM points (packed, then the droplet in the last
+    row), the point count and the kernel's cell factor (setup of the kernel-only sweep)."""
+    n_max = config[P.ORDER]
+    m = config[P.BINDER_NODES]
+    drop = props.shape[1] - 1
+    op = 3 * n_max
+    npt = n_max * m
+    for c in nb.prange(states.shape[0]):
+        work = np.empty(WORK_SIZE)
+        n = _cqmom.invert(states[c], config, work)
+        num = 0.0
+        den = 0.0
+        k = 0
+        for a in range(n):
+            for b in range(int(work[_cqmom.off_counts(n_max, m) + a])):
+                i = a * m + b
+                particle_properties(work[op + i] * params[P.MASS_SCALE],
+                                    work[op + npt + i] * params[P.MASS_SCALE], params, config,
+                                    props[c], k)
+                num += work[op + 2 * npt + i] * work[op + i] * props[c][k, DIAMETER]
+                den += work[op + 2 * npt + i] * work[op + i]
+                k += 1
+        counts[c] = k
+        pd = params[P.DROPLET_MASS]
+        particle_properties(pd, pd, params, config, props[c], drop)
+        factors[c] = kernel_cell_factor(config[P.KERNEL], cells[c, P.ALPHA], cells[c, P.THETA],
+                                        num / den if den > 0 else 0.0, params)
+
+
+@nb.njit(cache=True, parallel=True)
+def points_kernel_sweep(props, counts, cells, factors, params, config, reps, out):
+    """Kernel-only ceiling of the CQMOM RHS: per cell and repetition, the registry's
+    ``pair_rate`` of every pair of points and, with separate droplets, of every point with the
+    droplet (last row) -- what a quadrature over the points costs in pair physics alone."""
+    separate = config[P.SEPARATE_DROPLETS] == 1
+    drop = props.shape[1] - 1
+    for c in nb.prange(props.shape[0]):
+        pr = props[c]
+        n = counts[c]
+        u0 = cells[c, P.COLLISION_VELOCITY]
+        acc = 0.0
+        for r in range(reps):
+            f = factors[c] * (1.0 + 1e-15 * r)
+            for a in range(n):
+                for b in range(a, n):
+                    acc += pair_rate(pr, a, b, f, u0, params, config)
+                if separate:
+                    acc += pair_rate(pr, a, drop, f, u0, params, config)
         out[c] = acc
 
 

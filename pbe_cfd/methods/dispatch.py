@@ -9,12 +9,15 @@ graph, so the choice is an if-chain on the method code rather than a function ar
 import numba as nb
 
 from ..physics import parameters as P
+from .cqmom import cqmom_project, cqmom_realizable
+from .cqmom_sources import cqmom_rhs
 from .laguerre import laguerre_project, laguerre_realizable, laguerre_rhs
 from .qmom import qmom_project, qmom_realizable, qmom_rhs
 
 #: method codes (config[P.METHOD]); the registry of methods is ``pbe_cfd.methods.registry``
 QMOM = 0
 LAGUERRE = 1
+CQMOM = 2
 
 
 #: length of the per-cell float work array handed to every method function
@@ -26,6 +29,8 @@ def method_rhs(state, out, cell, aux, params, config, work):
     """d(state)/dt [scaled units per s] of one cell for the method config[METHOD]."""
     if config[P.METHOD] == LAGUERRE:
         laguerre_rhs(state, out, cell, aux, params, config, work)
+    elif config[P.METHOD] == CQMOM:
+        cqmom_rhs(state, out, cell, aux, params, config, work)
     else:
         qmom_rhs(state, out, cell, aux, params, config, work)
 
@@ -35,6 +40,8 @@ def method_realizable(state, aux, params, config, work):
     """True if the state is a realizable moment set for the method config[METHOD]."""
     if config[P.METHOD] == LAGUERRE:
         return laguerre_realizable(state, aux, params, config, work)
+    if config[P.METHOD] == CQMOM:
+        return cqmom_realizable(state, aux, params, config, work)
     return qmom_realizable(state, aux, params, config, work)
 
 
@@ -43,5 +50,7 @@ def method_project(state, aux, params, config, work):
     """Re-project an accepted state onto the method's realizable set, in place."""
     if config[P.METHOD] == LAGUERRE:
         laguerre_project(state, aux, params, config, work)
+    elif config[P.METHOD] == CQMOM:
+        cqmom_project(state, aux, params, config, work)
     else:
         qmom_project(state, aux, params, config, work)

@@ -208,6 +208,10 @@ def _solve_binder(state, n_max, n, nodes, weights, binder, work):
     return n_fixed
 
 
+#: public name of the bounded per-node binder solve (reused by the conditional quadrature)
+solve_node_binder = _solve_binder
+
+
 @nb.njit(cache=True, error_model="numpy")
 def invert(state, config, nodes, weights, binder, work):
     """Quadrature of one cell's state: fills nodes (scaled mass), weights (scaled number) and

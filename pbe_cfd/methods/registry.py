@@ -22,8 +22,8 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ..physics import parameters as P
-from . import laguerre_tensor, qmom
-from .dispatch import LAGUERRE, QMOM
+from . import cqmom, laguerre_tensor, qmom
+from .dispatch import CQMOM, LAGUERRE, QMOM
 
 #: config[P.METHOD] of a method that the per-cell integrator does not run (the cNMC)
 NOT_INTEGRATED = -1
@@ -56,6 +56,7 @@ class MethodEntry(NamedTuple):
     ensemble        a method that is not integrated per cell: f(scene, arrays, cell, times
                     [s], progress) -> dict of result columns and statistics (cNMC:
                     ``cnmc.simulate_ensemble``)
+    config_slots    f(scene) -> {config slot: value} of further knobs (CQMOM: BINDER_NODES)
     """
     name: str
     code: int
@@ -72,6 +73,7 @@ class MethodEntry(NamedTuple):
 
     repairs_mixture: Callable = lambda scene: False
     ensemble: Callable | None = None
+    config_slots: Callable = lambda scene: {}
 
     def order(self, method) -> int:
         """config[P.ORDER] of the scene's ``Method`` (nodes, order; 0)."""
@@ -199,6 +201,29 @@ def _cnmc_population(state, aux, arrays):
     raise TypeError("the cNMC carries particles, not a moment state")
 
 
+# ---------------------------------------------------------------------------- CQMOM
+def _cqmom_keys(t, defaults):
+    return {"nodes": t.number("nodes", 2, integer=True, low=1, high=cqmom.MAX_SIZE_NODES),
+            "binder_nodes": t.number("binder_nodes", 2, integer=True, low=1,
+                                     high=cqmom.MAX_BINDER_NODES)}
+
+
+def _cqmom_state_names(scene):
+    m = scene.method
+    return cqmom.state_names(m.nodes, m.binder_nodes, scene.bivariate, scene.separate_droplets)
+
+
+def _cqmom_population(state, aux, arrays):
+    x, w, b = cqmom.quadrature_of(state, arrays.config)
+    return w * arrays.number_scale, x * arrays.mass_scale, b * arrays.mass_scale
+
+
+def _cqmom_plan(scene):
+    m = scene.method
+    return (f"CQMOM with {m.nodes} size nodes x {m.binder_nodes} binder-fraction nodes; "
+            f"state {', '.join(_cqmom_state_names(scene))}; rtol {m.rtol:g}")
+
+
 # ---------------------------------------------------------------------------- the registry
 METHOD_REGISTRY = (
     MethodEntry(name="qmom", code=QMOM, scene_keys=_qmom_keys,
@@ -217,6 +242,12 @@ METHOD_REGISTRY = (
                 order_key=None, order_label="cNMC particles", state_names=lambda s: [], aux=_no_aux,
                 tabulates_theta=False, population=_cnmc_population, failure_hint=_no_hint,
                 diagnostics=_no_diagnostics, plan_line=_cnmc_plan, ensemble=_cnmc_ensemble),
+    MethodEntry(name="cqmom", code=CQMOM, scene_keys=_cqmom_keys,
+                order_key="nodes", order_label="CQMOM N1", state_names=_cqmom_state_names,
+                aux=_no_aux, tabulates_theta=False, population=_cqmom_population,
+                failure_hint=_no_hint, diagnostics=_no_diagnostics, plan_line=_cqmom_plan,
+                repairs_mixture=lambda scene: scene.bivariate,
+                config_slots=lambda scene: {P.BINDER_NODES: scene.method.binder_nodes}),
 )
 
 #: name -> entry

@@ -42,7 +42,8 @@ BIVARIATE = 2            # 1 if binder mass is a coordinate (otherwise univariat
 METHOD = 3               # code of the moment method (methods.dispatch)
 ORDER = 4                # QMOM nodes N, or Laguerre order m
 N_STATE = 5              # length of one cell's state vector
-N_SWITCHES_START = 6     # a new single slot goes above this line and moves this number up
+BINDER_NODES = 6         # CQMOM conditional nodes N2 per size node
+N_SWITCHES_START = 7     # a new single slot goes above this line and moves this number up
 # config[EFFICIENCY_SWITCHES + code] = 1: the efficiency factor of that code applies
 # (physics.efficiency.EFFICIENCY_REGISTRY); room for MAX_EFFICIENCIES factors
 EFFICIENCY_SWITCHES = N_SWITCHES_START
