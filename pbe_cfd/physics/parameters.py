@@ -33,7 +33,13 @@ NUMBER_SCALE = 17        # number-density scale N_ref [1/m3] (non-dimensionalisa
 MASS_SCALE = 18          # particle-mass scale p_ref [kg] (non-dimensionalisation)
 STEP_FLOOR = 19          # smallest step the integrator may take before it reports a stall [s]
 ALPHA_MIN_FRICTION = 20  # g0 is evaluated at min(alpha, this) as OpenFOAM's radial models do [-]
-N_PARAMS = 21
+BREAKAGE_RATE = 21       # s0 of the breakage selection [1/s] (physics.breakage)
+BREAKAGE_EXPONENT = 22   # a of S = s0 (p / p_ref)^a [-]
+BREAKAGE_REFERENCE_MASS = 23    # p_ref of the selection [kg]
+BREAKAGE_REFERENCE_THETA = 24   # Theta_ref of the collisional selection [m2/s2]
+YIELD_STRENGTH = 25      # granule yield strength Y of the Stokes deformation number [Pa] (0: no gate)
+CRITICAL_DEFORMATION = 26       # critical Stokes deformation number St_def* [-]
+N_PARAMS = 27
 
 # ---- config (int64) ---------------------------------------------------------------------
 KERNEL = 0               # code of the collision kernel (physics.kernels.KERNEL_REGISTRY)
@@ -47,7 +53,10 @@ MAX_EFFICIENCIES = 8     #   that code applies (physics.efficiency.EFFICIENCY_RE
 USE_GEOMETRIC = EFFICIENCY_SWITCHES + 0    # the geometric (accessible binder) factor
 USE_PHYSICAL = EFFICIENCY_SWITCHES + 1     # the viscous Stokes factor
 USE_SATURATION = EFFICIENCY_SWITCHES + 2   # the liquid-saturation factor
-N_CONFIG = EFFICIENCY_SWITCHES + MAX_EFFICIENCIES
+BREAKAGE = EFFICIENCY_SWITCHES + MAX_EFFICIENCIES   # 1 if a [breakage] table is present
+BREAKAGE_SELECTION = BREAKAGE + 1    # code of the selection function (physics.breakage)
+BREAKAGE_DAUGHTERS = BREAKAGE + 2    # code of the daughter rule (physics.breakage)
+N_CONFIG = BREAKAGE + 3
 
 # ---- cell (float64, per cell) ----------------------------------------------------------
 ALPHA = 0                # solids volume fraction [-]
