@@ -84,10 +84,15 @@ def _breakage_lines(scene, brk):
     """The plan's breakage lines: selection, daughters, the gate, who does not break."""
     sel = SELECTION_BY_NAME[brk.selection]
     lines = [f"  breakage: selection {brk.selection}, {sel.formula}, s0 = {brk.rate:g} 1/s"]
+    refs = []
     if "exponent" in sel.keys:
+        refs.append(f"a = {brk.exponent:g}")
+    if "reference_mass" in sel.keys:
         p_ref = brk.reference_mass if brk.reference_mass is not None else scene.initial.mean_mass
-        lines.append(f"    a = {brk.exponent:g}, p_ref = {p_ref:g} kg"
-                     + (" (the initial mean granule mass)" if brk.reference_mass is None else ""))
+        refs.append(f"p_ref = {p_ref:g} kg" + (" (the initial mean granule mass)"
+                                              if brk.reference_mass is None else ""))
+    if refs:
+        lines.append("    " + ", ".join(refs))
     if brk.reference_granular_temperature is not None:
         lines.append(f"    Theta_ref = {brk.reference_granular_temperature:g} m2/s2")
         if brk.yield_strength is not None:

@@ -406,30 +406,34 @@ def _aggregation(path, data):
     return agg
 
 
+#: [breakage] keys a selection may read: (default (... = required), number options)
+_BREAKAGE_KEYS = {
+    "exponent": (1.0, dict(non_negative=True)),
+    "reference_mass": (None, dict(positive=True, unit="kg")),
+    "reference_granular_temperature": (..., dict(positive=True, unit="m2/s2")),
+    "yield_strength": (None, dict(positive=True, unit="Pa")),
+    "critical_deformation_number": (None, dict(positive=True)),
+}
+
+
 def _breakage(path, data, domain):
     """The [breakage] table: only the keys its selection function reads (physics.breakage)."""
     t = _Table(path, "breakage", data)
     entry = SELECTION_BY_NAME[t.choice("selection", SELECTION_NAMES)]
     kw = dict(selection=entry.name, rate=t.number("rate", non_negative=True, unit="1/s"),
               daughters=t.choice("daughters", DAUGHTER_NAMES, "uniform"))
-    if "exponent" in entry.keys:
-        kw["exponent"] = t.number("exponent", 1.0, non_negative=True)
-        kw["reference_mass"] = t.number("reference_mass", None, positive=True, unit="kg")
-    if "reference_granular_temperature" in entry.keys:
-        kw["reference_granular_temperature"] = t.number("reference_granular_temperature",
-                                                        positive=True, unit="m2/s2")
-        kw["yield_strength"] = t.number("yield_strength", None, positive=True, unit="Pa")
-        kw["critical_deformation_number"] = t.number("critical_deformation_number", None,
-                                                     positive=True)
-        if (kw["yield_strength"] is None) != (kw["critical_deformation_number"] is None):
-            raise SceneError(path, "breakage.critical_deformation_number",
-                             "the Stokes deformation gate needs both yield_strength (Pa) and "
-                             "critical_deformation_number (or neither: no gate)")
-        if domain.type == "well-mixed" and (domain.granular_temperature is None
-                                            or domain.solids_fraction is None):
-            raise SceneError(path, "domain.granular_temperature",
-                             f"the {entry.name} breakage selection needs granular_temperature "
-                             "(m2/s2) and solids_fraction of the well-mixed domain")
+    for key in entry.keys:
+        default, options = _BREAKAGE_KEYS[key]
+        kw[key] = t.number(key, default, **options)
+    if (kw.get("yield_strength") is None) != (kw.get("critical_deformation_number") is None):
+        raise SceneError(path, "breakage.critical_deformation_number",
+                         "the Stokes deformation gate needs both yield_strength (Pa) and "
+                         "critical_deformation_number (or neither: no gate)")
+    if (entry.cell_fields and domain.type == "well-mixed"
+            and (domain.granular_temperature is None or domain.solids_fraction is None)):
+        raise SceneError(path, "domain.granular_temperature",
+                         f"the {entry.name} breakage selection needs granular_temperature "
+                         "(m2/s2) and solids_fraction of the well-mixed domain")
     t.finish()
     return Breakage(**kw)
 
