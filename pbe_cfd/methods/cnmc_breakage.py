@@ -38,7 +38,7 @@ def selection_bound(lo, hi, factor, params, config):
     return max(s_lo, s_hi) * _BOUND_SAFETY
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def breakage_weights(bcnt, lo, hi, occ, n_occ, factor, params, config, bound, brow):
     """Per occupied class a: bound[a] = B_a [1/s] and brow[a] = n_a B_a; returns their sum
     [1/s], the proposal rate of breakage in the box (0 when nothing breaks)."""
@@ -53,7 +53,7 @@ def breakage_weights(bcnt, lo, hi, occ, n_occ, factor, params, config, bound, br
     return total
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def pick_breakage(w_br, n_occ, occ, brow, bcnt, members):
     """Propose a granule to break: class a by n_a B_a, then a member uniformly. Returns
     (slot i, class a)."""
@@ -72,7 +72,7 @@ def pick_breakage(w_br, n_occ, occ, brow, bcnt, members):
     return members[a, np.random.randint(bcnt[a])], a
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def daughter_masses(p, b, config):
     """The two daughters ((p1, b1), (p2, b2)) [kg] of a granule (p, b): mass share u of the
     daughter rule for a uniform random number in (0, 1), binder in proportion to mass; both
@@ -90,7 +90,7 @@ def daughter_masses(p, b, config):
             return p1, b1, p2, b - b1
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def breakage_trial(w_br, n_occ, occ, brow, bbound, factor, p, b, isdrop, rho, m_ref, ptot, s4,
                     bin_of, bpos, members, bcnt, lo, hi, dirty, dlist, dpos, dcnt, params,
                     config):
@@ -106,7 +106,7 @@ def breakage_trial(w_br, n_occ, occ, brow, bbound, factor, p, b, isdrop, rho, m_
     return ptot, s4, 0, above
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def split(i, p, b, isdrop, rho, m_ref, ptot, s4, bin_of, bpos, members, bcnt, lo, hi, dirty,
            dlist, dpos, dcnt, config):
     """Accepted breakage of granule i (constant number, ``methods.cnmc_breakage``): the first

@@ -48,15 +48,18 @@ BIVARIATE = 2            # 1 if binder mass is a coordinate (otherwise univariat
 METHOD = 3               # code of the moment method (methods.dispatch)
 ORDER = 4                # QMOM nodes N, or Laguerre order m
 N_STATE = 5              # length of one cell's state vector
-EFFICIENCY_SWITCHES = 6  # config[EFFICIENCY_SWITCHES + code] = 1: the efficiency factor of
-MAX_EFFICIENCIES = 8     #   that code applies (physics.efficiency.EFFICIENCY_REGISTRY)
+BREAKAGE = 6             # 1 if a [breakage] table is present (physics.breakage)
+BREAKAGE_SELECTION = 7   # code of the breakage selection function (physics.breakage)
+BREAKAGE_DAUGHTERS = 8   # code of the breakage daughter rule (physics.breakage)
+N_SWITCHES_START = 9     # a new single slot goes above this line and moves this number up
+# config[EFFICIENCY_SWITCHES + code] = 1: the efficiency factor of that code applies
+# (physics.efficiency.EFFICIENCY_REGISTRY); room for MAX_EFFICIENCIES factors
+EFFICIENCY_SWITCHES = N_SWITCHES_START
+MAX_EFFICIENCIES = 8
 USE_GEOMETRIC = EFFICIENCY_SWITCHES + 0    # the geometric (accessible binder) factor
 USE_PHYSICAL = EFFICIENCY_SWITCHES + 1     # the viscous Stokes factor
 USE_SATURATION = EFFICIENCY_SWITCHES + 2   # the liquid-saturation factor
-BREAKAGE = EFFICIENCY_SWITCHES + MAX_EFFICIENCIES   # 1 if a [breakage] table is present
-BREAKAGE_SELECTION = BREAKAGE + 1    # code of the selection function (physics.breakage)
-BREAKAGE_DAUGHTERS = BREAKAGE + 2    # code of the daughter rule (physics.breakage)
-N_CONFIG = BREAKAGE + 3
+N_CONFIG = EFFICIENCY_SWITCHES + MAX_EFFICIENCIES
 
 # ---- cell (float64, per cell) ----------------------------------------------------------
 ALPHA = 0                # solids volume fraction [-]
