@@ -14,6 +14,7 @@ import numpy as np
 
 from .methods.registry import method_of
 from .physics import parameters as P
+from .physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
 from .physics.efficiency import switch_on
 from .physics.injection import droplet_mass
 from .physics.kernels import KERNEL_BY_NAME
@@ -64,6 +65,23 @@ def _material_params(scene, params):
     params[P.STOKES_WIDTH] = mat.stokes_switch_width
 
 
+def _breakage_params(scene, params, config):
+    """Slots of the [breakage] table (physics.breakage); nothing without the table."""
+    brk = scene.breakage
+    if brk is None:
+        return
+    config[P.BREAKAGE] = 1
+    config[P.BREAKAGE_SELECTION] = SELECTION_BY_NAME[brk.selection].code
+    config[P.BREAKAGE_DAUGHTERS] = DAUGHTERS_BY_NAME[brk.daughters].code
+    params[P.BREAKAGE_RATE] = brk.rate
+    params[P.BREAKAGE_EXPONENT] = brk.exponent
+    params[P.BREAKAGE_REFERENCE_MASS] = (brk.reference_mass if brk.reference_mass is not None
+                                         else scene.initial.mean_mass)
+    params[P.BREAKAGE_REFERENCE_THETA] = brk.reference_granular_temperature or 0.0
+    params[P.YIELD_STRENGTH] = brk.yield_strength or 0.0
+    params[P.CRITICAL_DEFORMATION] = brk.critical_deformation_number or 0.0
+
+
 def pack(scene) -> Arrays:
     """Pack the scene into the params/config arrays (see ``physics.parameters``)."""
     params = np.zeros(P.N_PARAMS)
@@ -92,6 +110,7 @@ def pack(scene) -> Arrays:
     params[P.NUMBER_SCALE] = n_ref
     params[P.MASS_SCALE] = p_ref
     params[P.STEP_FLOOR] = 1.0e-12 * scene.end_time
+    _breakage_params(scene, params, config)
     method = method_of(scene)
     config[P.METHOD] = method.code
     config[P.ORDER] = method.order(scene.method)

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from . import model
 from .methods.registry import method_of
+from .physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
 from .physics.efficiency import EFFICIENCY_BY_NAME
 from .physics.kernels import KERNEL_BY_NAME
 
@@ -50,6 +51,12 @@ def describe_plan(scene) -> str:
         where = "spray-zone cells" if inj.zone is not None else "every cell"
         lines.append(f"  binder injection: {inj.rate:g} droplets/(m3 s) of "
                      f"{inj.droplet_diameter * 1e6:g} um into {where}")
+    brk = scene.breakage
+    if brk is None:
+        left_out.append("breakage (no [breakage] table)")
+    else:
+        lines.extend(_breakage_lines(scene, brk))
+        fields.update(SELECTION_BY_NAME[brk.selection].cell_fields)
     if scene.transport is None:
         if dom.type == "openfoam":
             left_out.append("transport between cells (no [transport] table)")
@@ -71,3 +78,28 @@ def describe_plan(scene) -> str:
             lines.append(f"  transport plan unavailable: {exc}")
     lines.append("  left out: " + ("; ".join(left_out) if left_out else "nothing"))
     return "\n".join(lines)
+
+
+def _breakage_lines(scene, brk):
+    """The plan's breakage lines: selection, daughters, the gate, who does not break."""
+    sel = SELECTION_BY_NAME[brk.selection]
+    lines = [f"  breakage: selection {brk.selection}, {sel.formula}, s0 = {brk.rate:g} 1/s"]
+    refs = []
+    if "exponent" in sel.keys:
+        refs.append(f"a = {brk.exponent:g}")
+    if "reference_mass" in sel.keys:
+        p_ref = brk.reference_mass if brk.reference_mass is not None else scene.initial.mean_mass
+        refs.append(f"p_ref = {p_ref:g} kg" + (" (the initial mean granule mass)"
+                                              if brk.reference_mass is None else ""))
+    if refs:
+        lines.append("    " + ", ".join(refs))
+    if brk.reference_granular_temperature is not None:
+        lines.append(f"    Theta_ref = {brk.reference_granular_temperature:g} m2/s2")
+        if brk.yield_strength is not None:
+            lines.append(f"    only where St_def = rho_g u0^2 / (2 Y) > "
+                         f"{brk.critical_deformation_number:g} (Y = {brk.yield_strength:g} Pa, "
+                         "u0 = 4 sqrt(Theta/pi); Tardos, Khan and Mort 1997)")
+    lines.append(f"    daughters: {DAUGHTERS_BY_NAME[brk.daughters].formula}, binder in "
+                 "proportion to mass" + ("; free droplets never break"
+                                         if scene.separate_droplets else ""))
+    return lines

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from .methods.registry import METHOD_NAMES, METHODS, MOMENT_METHODS
+from .physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
 from .physics.efficiency import EFFICIENCY_BY_NAME
 from .physics.kernels import KERNEL_BY_NAME
 
@@ -21,6 +22,8 @@ from .physics.kernels import KERNEL_BY_NAME
 #: methods.registry)
 KERNEL_NAMES = tuple(KERNEL_BY_NAME)
 EFFICIENCY_NAMES = tuple(EFFICIENCY_BY_NAME)
+SELECTION_NAMES = tuple(SELECTION_BY_NAME)
+DAUGHTER_NAMES = tuple(DAUGHTERS_BY_NAME)
 
 
 class SceneError(ValueError):
@@ -103,6 +106,22 @@ class Aggregation:
 
 
 @dataclass(frozen=True)
+class Breakage:
+    """Breakage (physics.breakage): selection and daughters names, rate s0 [1/s], exponent a
+    [-], reference_mass p_ref [kg] (None: the initial mean granule mass),
+    reference_granular_temperature Theta_ref [m2/s2], yield_strength Y [Pa] and
+    critical_deformation_number St_def* [-] of the optional Stokes deformation gate."""
+    selection: str
+    rate: float
+    daughters: str = "uniform"
+    exponent: float = 1.0
+    reference_mass: float | None = None
+    reference_granular_temperature: float | None = None
+    yield_strength: float | None = None
+    critical_deformation_number: float | None = None
+
+
+@dataclass(frozen=True)
 class BinderInjection:
     """Binder droplets: rate [droplets/(m3 s)], droplet_diameter [m], zone (OpenFOAM only)."""
     rate: float
@@ -158,6 +177,7 @@ class Scene:
     aggregation: Aggregation | None = None
     binder_injection: BinderInjection | None = None
     transport: Transport | None = None
+    breakage: Breakage | None = None
     source: str = ""
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -179,7 +199,7 @@ class Scene:
 
 # ------------------------------------------------------------------------------ validation
 _TABLES = ("scene", "domain", "material", "initial", "aggregation", "binder_injection",
-           "method", "transport")
+           "method", "transport", "breakage")
 
 
 class _Table:
@@ -330,9 +350,11 @@ def scene_from_dict(data: dict, path="<scene>") -> Scene:
             raise SceneError(path, "transport",
                              "transport needs a domain with cells: expected domain.type = \"openfoam\"")
 
+    breakage = _breakage(path, data["breakage"], domain) if "breakage" in data else None
     scene = Scene(name=name, end_time=end_time, output_interval=output_interval, domain=domain,
                   material=material, initial=initial, method=method, aggregation=aggregation,
-                  binder_injection=injection, transport=transport, source=str(path), raw=data)
+                  binder_injection=injection, transport=transport, breakage=breakage,
+                  source=str(path), raw=data)
     _cross_checks(path, scene)
     return scene
 
@@ -383,6 +405,38 @@ def _aggregation(path, data):
                                                   unit="m"))
     t.finish()
     return agg
+
+
+#: [breakage] keys a selection may read: (default (... = required), number options)
+_BREAKAGE_KEYS = {
+    "exponent": (1.0, dict(non_negative=True)),
+    "reference_mass": (None, dict(positive=True, unit="kg")),
+    "reference_granular_temperature": (..., dict(positive=True, unit="m2/s2")),
+    "yield_strength": (None, dict(positive=True, unit="Pa")),
+    "critical_deformation_number": (None, dict(positive=True)),
+}
+
+
+def _breakage(path, data, domain):
+    """The [breakage] table: only the keys its selection function reads (physics.breakage)."""
+    t = _Table(path, "breakage", data)
+    entry = SELECTION_BY_NAME[t.choice("selection", SELECTION_NAMES)]
+    kw = dict(selection=entry.name, rate=t.number("rate", non_negative=True, unit="1/s"),
+              daughters=t.choice("daughters", DAUGHTER_NAMES, "uniform"))
+    for key in entry.keys:
+        default, options = _BREAKAGE_KEYS[key]
+        kw[key] = t.number(key, default, **options)
+    if (kw.get("yield_strength") is None) != (kw.get("critical_deformation_number") is None):
+        raise SceneError(path, "breakage.critical_deformation_number",
+                         "the Stokes deformation gate needs both yield_strength (Pa) and "
+                         "critical_deformation_number (or neither: no gate)")
+    if (entry.cell_fields and domain.type == "well-mixed"
+            and (domain.granular_temperature is None or domain.solids_fraction is None)):
+        raise SceneError(path, "domain.granular_temperature",
+                         f"the {entry.name} breakage selection needs granular_temperature "
+                         "(m2/s2) and solids_fraction of the well-mixed domain")
+    t.finish()
+    return Breakage(**kw)
 
 
 def _injection(path, data, domain):

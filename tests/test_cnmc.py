@@ -361,7 +361,7 @@ def test_box_coalescing_to_few_particles_stays_finite(kernel, rate, t_end, disti
     b = 0.3 * p
     isdrop = np.zeros(n, np.int64)
     out = np.empty((t.size, cnmc.N_QUANTITIES))
-    trials, accepted, inj, viol, status, t_reached = cnmc.run_box(
+    trials, accepted, inj, viol, status, t_reached, *_ = cnmc.run_box(
         p, b, isdrop, n / N0, t, cell, params, config, 9, 0, 10 ** 8, out)
     assert status == cnmc.STATUS_OK and viol == 0
     assert np.all(np.isfinite(out))

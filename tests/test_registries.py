@@ -188,3 +188,95 @@ def test_a_moment_method_packs_its_code_order_and_state(name):
     assert arrays.state_names == entry.state_names(scene)
     assert arrays.config[P.N_STATE] == len(arrays.state_names)
     assert entry.plan_line(scene)
+
+
+# ------------------------------------------------------------------------------ breakage
+from pbe_cfd.physics import breakage as B  # noqa: E402
+
+SELECTION_NAMES = [s.name for s in B.SELECTION_REGISTRY]
+DAUGHTER_NAMES = [d.name for d in B.DAUGHTER_REGISTRY]
+
+
+def breakage_params(exponent):
+    params = avicel_params()
+    params[P.BREAKAGE_RATE] = 0.07
+    params[P.BREAKAGE_EXPONENT] = exponent
+    params[P.BREAKAGE_REFERENCE_MASS] = 5e-10
+    params[P.BREAKAGE_REFERENCE_THETA] = 1e-3
+    return params
+
+
+def test_breakage_names_codes_and_slots_agree_with_the_scene_and_the_layout():
+    for registry, names in ((B.SELECTION_REGISTRY, S.SELECTION_NAMES),
+                            (B.DAUGHTER_REGISTRY, S.DAUGHTER_NAMES)):
+        codes = [e.code for e in registry]
+        assert len(set(codes)) == len(codes) and min(codes) >= 0
+        assert names == tuple(e.name for e in registry)
+    fields = {f.name for f in dataclasses.fields(S.Breakage)}
+    for s in B.SELECTION_REGISTRY:
+        assert set(s.keys) <= fields & set(S._BREAKAGE_KEYS), s.name
+        assert set(s.cell_fields) <= {"solids_fraction", "granular_temperature"}
+    singles = single_config_slots()
+    for name in ("BREAKAGE", "BREAKAGE_SELECTION", "BREAKAGE_DAUGHTERS"):
+        assert singles[name] == getattr(P, name)
+
+
+@pytest.mark.parametrize("name", SELECTION_NAMES)
+@pytest.mark.parametrize("exponent", [0.0, 0.5, 1.0, 2.0])
+def test_selection_dispatch_is_its_own_function_and_monotone(name, exponent):
+    """Each dispatcher branch gives the entry's own functions; S >= 0, finite, and monotone in
+    p (the cNMC bounds S on a mass interval by its ends)."""
+    s = B.SELECTION_BY_NAME[name]
+    params = breakage_params(exponent)
+    config = np.zeros(P.N_CONFIG, dtype=np.int64)
+    config[P.BREAKAGE], config[P.BREAKAGE_SELECTION] = 1, s.code
+    masses = np.sort(10 ** RNG.uniform(-13, -7, 60))
+    for alpha, theta, _ in CELLS:
+        u0 = 4.0 * math.sqrt(theta / math.pi)
+        factor = B.selection_cell_factor(s.code, alpha, theta, u0, params)
+        assert factor == s.cell_factor(alpha, theta, u0, params)
+        assert math.isfinite(factor) and factor > 0
+        values = []
+        for p in masses:
+            rate = B.selection_function(s.code, p, factor, params)
+            assert rate == s.function(p, factor, params)
+            assert rate == B.selection_rate(p, alpha, theta, u0, params, config)
+            assert math.isfinite(rate) and rate >= 0
+            values.append(rate)
+        steps = np.diff(values)
+        assert np.all(steps >= 0) or np.all(steps <= 0)
+
+
+@pytest.mark.parametrize("name", DAUGHTER_NAMES)
+def test_daughter_rule_dispatch_counts_mass_and_sampling(name):
+    """F(0) = 2 daughters and F(1) = 1 (mass kept) exactly; the Monte Carlo share u(r), r
+    uniform in (0, 1), reproduces F: int_0^1 (u^k + (1 - u)^k) dr = F(k). The integral by the
+    midpoint rule on n and 2n cells (n = 20,000): whatever the rule's order (u(r) may be
+    singular at the ends, e.g. an inverse distribution function), the error of the 2n sum is
+    at most the difference of the two sums once the rule converges (order >= 1); tolerance
+    twice that, plus round-off. A share that samples another distribution converges to
+    another value and fails."""
+    d = B.DAUGHTERS_BY_NAME[name]
+    assert B.daughter_moment_factor(d.code, 0.0) == 2.0 == d.moments(0.0)
+    assert B.daughter_moment_factor(d.code, 1.0) == 1.0 == d.moments(1.0)
+    sums = []
+    for n in (20000, 40000):
+        r = (np.arange(n) + 0.5) / n
+        u = np.array([B.daughter_share(d.code, x) for x in r])
+        assert np.all((u > 0) & (u < 1))
+        assert np.array_equal(u, np.array([d.share(x) for x in r]))
+        sums.append([np.mean(u ** k + (1 - u) ** k) for k in range(7)])
+    for k in range(7):
+        tol = 2.0 * abs(sums[1][k] - sums[0][k]) + 1e-12
+        assert sums[1][k] == pytest.approx(B.daughter_moment_factor(d.code, float(k)),
+                                           abs=tol), k
+
+
+def test_an_unknown_breakage_code_gives_nan():
+    params = breakage_params(1.0)
+    unknown = 1 + max(s.code for s in B.SELECTION_REGISTRY)
+    assert math.isnan(B.selection_function(unknown, 1e-9, 0.1, params))
+    assert math.isnan(B.selection_cell_factor(unknown, 0.3, 1e-3, 0.1, params))
+    unknown = 1 + max(d.code for d in B.DAUGHTER_REGISTRY)
+    assert math.isnan(B.daughter_moment_factor(unknown, 2.0))
+    assert math.isnan(B.daughter_share(unknown, 0.3))

@@ -23,7 +23,12 @@ contains the masses of its members. Events, with their proposal rates [1/s]:
   of the granule <= B_d[a], proposed at n_a N_d B_d[a] / V; droplet-droplet pairs never
   aggregate;
 * injection of one binder droplet (p_d = params[DROPLET_MASS], b = p_d, or b = 0 in a
-  univariate scene) at  R_inj = cell[INJECTION] * V.
+  univariate scene) at  R_inj = cell[INJECTION] * V;
+* breakage of a granule (only with a [breakage] table): proposed per mass class at n_a B_a,
+  B_a the largest selection rate S [1/s] on the class interval, accepted with S(p_i) / B_a;
+  an accepted break keeps the particle count by the constant-number rule of
+  ``methods.cnmc_breakage`` (first daughter in the parent's slot, the second replaces a
+  particle drawn uniformly among the N + 1 after the split, the volume follows the mass).
 
 The box's true aggregation rate is (1/(2V)) sum_{i != j} rate_ij. A trial picks an event class
 by its rate, then a pair uniformly within the class pair, and accepts it with probability
@@ -225,7 +230,8 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
     incl. free droplets, droplet_number_density [1/m3], d32_m [m], d43_m [m],
     binder_fraction [-] = M01/M10 of each replica) the ensemble mean under the name and the
     95% band mean -+ t_{0.975, R-1} std / sqrt(R) under name + "_lo" / "_hi" (zero width when
-    R = 1); "trials", "accepted", "events_injection": totals over the ensemble (int64).
+    R = 1); "trials", "accepted", "events_injection": totals over the ensemble (int64), and with
+    breakage "trials_breakage" (proposals) and "events_breakage" (splits).
     Raises RuntimeError if a replica exhausts MAX_TRIALS trials (e.g. a product kernel past
     gelation), FloatingPointError for an infinite event rate (alpha >= alpha_max).
     """
@@ -239,15 +245,15 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
 
     n_out = output_times.size
     data = np.empty((replicas, n_out, N_QUANTITIES))
-    totals = np.zeros(3, np.int64)
+    totals = np.zeros(5, np.int64)
     children = np.random.SeedSequence(int(seed)).spawn(replicas)
     for r, child in enumerate(children):
         rng = np.random.default_rng(child)
         p, b, isdrop, volume0 = initial_box(params, config, initial, particles, rng)
         box_seed = int(rng.integers(0, 2 ** 31 - 1))
-        trials, accepted, injections, violations, status, t_reached = run_box(
-            p, b, isdrop, volume0, output_times, cell, params, config, box_seed, 0,
-            MAX_TRIALS, data[r])
+        (trials, accepted, injections, violations, status, t_reached, break_trials,
+         splits) = run_box(p, b, isdrop, volume0, output_times, cell, params, config, box_seed,
+                           0, MAX_TRIALS, data[r])
         if violations:
             raise RuntimeError(f"cNMC replica {r}: {violations} pair rates exceeded the "
                                "majorant (bound bug)")
@@ -262,7 +268,7 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
         if status == STATUS_STALLED:
             raise RuntimeError(f"cNMC replica {r}: time step below the resolution of t at "
                                f"t = {t_reached:.6g} s (event rate too high)")
-        totals += (trials, accepted, injections)
+        totals += (trials, accepted, injections, break_trials, splits)
         if progress is not None:
             progress((r + 1) / replicas)
 
@@ -280,4 +286,7 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
     result["trials"] = np.int64(totals[0])
     result["accepted"] = np.int64(totals[1])
     result["events_injection"] = np.int64(totals[2])
+    if int(config[P.BREAKAGE]) == 1:
+        result["trials_breakage"] = np.int64(totals[3])
+        result["events_breakage"] = np.int64(totals[4])
     return result

@@ -7,8 +7,15 @@ import numba as nb
 import numpy as np
 
 from ..physics import parameters as P
+from ..physics.breakage import cell_selection_factor
 from ..physics.kernels import collision_frequency
 from ..physics.rates import aggregation_rate, droplet_capture_rate
+from .cnmc_breakage import breakage_trial, breakage_weights
+from .cnmc_slots import C_D as _C_D
+from .cnmc_slots import N_BINS
+from .cnmc_slots import d4 as _d4
+from .cnmc_slots import insert_slot as _insert
+from .cnmc_slots import remove_slot as _remove
 
 MOMENT_NAMES = ("M00", "M10", "M01", "M20", "M11", "M02")
 QUANTITY_NAMES = MOMENT_NAMES + ("droplet_number_density", "d32_m", "d43_m", "binder_fraction")
@@ -24,8 +31,6 @@ MAX_TRIALS = 10 ** 10      # per replica; ~ minutes of work, then simulate_ensem
 
 _BOUND_SAFETY = 1.0 + 1e-12
 _D43_MARGIN = 1.02         # majorant tables use d43 * 1.02, rebuilt when d43 leaves the margin
-N_BINS = 64                # mass classes of the granules (factor 2 wide)
-_C_D = 6.0 / math.pi
 
 
 # ---------------------------------------------------------------------------------------------
@@ -84,57 +89,6 @@ def interval_pair_bound(lo1, hi1, lo2, hi2, alpha, theta, d43, params, config):
     m = max(m, collision_frequency(code, hi1, lo2, alpha, theta, d43, params))
     m = max(m, collision_frequency(code, hi1, hi2, alpha, theta, d43, params))
     return m * _BOUND_SAFETY
-
-
-@nb.njit(cache=True)
-def _bin_index(p, m_ref):
-    """Mass class of a granule: floor(log2(p / m_ref)) clipped to [0, N_BINS - 1]."""
-    if not p > m_ref:
-        return 0
-    c = int(math.floor(math.log2(p / m_ref)))
-    if c >= N_BINS:
-        return N_BINS - 1
-    return c
-
-
-@nb.njit(cache=True)
-def _remove(k, bin_of, bpos, members, bcnt, dlist, dpos, dcnt):
-    """Take slot k out of its mass class (or out of the droplet list); O(1)."""
-    c = bin_of[k]
-    if c >= 0:
-        last = members[c, bcnt[c] - 1]
-        members[c, bpos[k]] = last
-        bpos[last] = bpos[k]
-        bcnt[c] -= 1
-    else:
-        last = dlist[dcnt[0] - 1]
-        dlist[dpos[k]] = last
-        dpos[last] = dpos[k]
-        dcnt[0] -= 1
-
-
-@nb.njit(cache=True)
-def _insert(k, droplet, p, m_ref, bin_of, bpos, members, bcnt, lo, hi, dirty, dlist, dpos,
-            dcnt):
-    """Put slot k (mass p[k]) into its mass class, widening the class interval if needed
-    (and marking the class dirty), or into the droplet list; O(1)."""
-    if droplet:
-        bin_of[k] = -1
-        dlist[dcnt[0]] = k
-        dpos[k] = dcnt[0]
-        dcnt[0] += 1
-        return
-    c = _bin_index(p[k], m_ref)
-    bin_of[k] = c
-    members[c, bcnt[c]] = k
-    bpos[k] = bcnt[c]
-    bcnt[c] += 1
-    if p[k] < lo[c]:
-        lo[c] = p[k]
-        dirty[c] = True
-    if p[k] > hi[c]:
-        hi[c] = p[k]
-        dirty[c] = True
 
 
 @nb.njit(cache=True)
@@ -212,11 +166,11 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
     [m3]; output_times [s], non-decreasing, from 0; cell: ALPHA [-], THETA [m2/s2],
     COLLISION_VELOCITY [m/s], INJECTION [droplets/(m3 s)]; params, config: physics.parameters;
     rng_seed: seed of numba's generator; exponential_dt: 0 = mean waiting time 1/R per trial
-    (seed 000), 1 = exponential; max_trials: trial budget; out: (len(output_times),
-    N_QUANTITIES) in the order of QUANTITY_NAMES (rows not reached: NaN).
-    Returns (trials, accepted, injections, violations, status, t_reached [s]): aggregation
-    proposals, aggregations done, injections, proposals above their majorant (must be 0), a
-    STATUS_* code.
+    (seed 000), 1 = exponential; max_trials: budget of proposals; out: (len(output_times),
+    N_QUANTITIES), columns QUANTITY_NAMES (rows not reached: NaN). Returns (trials, accepted,
+    injections, violations, status, t_reached [s], break_trials, splits): aggregation
+    proposals and aggregations, injections, proposals above their majorant (must be 0), a
+    STATUS_* code, breakage proposals and breakages (``methods.cnmc_breakage``).
     """
     np.random.seed(rng_seed)
     n = p.size
@@ -225,44 +179,38 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
     rho = params[P.DENSITY]
     pd = params[P.DROPLET_MASS]
     bd = pd if config[P.BIVARIATE] == 1 else 0.0
-    alpha, theta, u0, inj = (cell[P.ALPHA], cell[P.THETA], cell[P.COLLISION_VELOCITY],
-                             cell[P.INJECTION])
+    alpha, theta, u0, inj = cell[P.ALPHA], cell[P.THETA], cell[P.COLLISION_VELOCITY], cell[P.INJECTION]
+    brk_factor = cell_selection_factor(cell, params, config)
     cls = _new_classes(n)
     members, bcnt, bpos, bin_of, lo, hi, dirty, table, tabd, dlist, dpos, dcnt = cls[:12]
-    occ, srow, trow, drow = cls[12:]
+    occ, srow, trow, drow = cls[12:16]
+    bbound, brow = np.zeros(N_BINS), np.zeros(N_BINS)
     m_ref, ptot, s4 = _fill_classes(p, isdrop, sep, rho, bin_of, bpos, members, bcnt, lo, hi,
                                     dirty, dlist, dpos, dcnt)
     conc0 = ptot / volume0
     mass_rate = inj * pd                     # kg/(m3 s) added by injection
-    d43_tab = _kernel_d43(s4, ptot, dcnt[0], pd, rho) * _D43_MARGIN
-    for c in range(N_BINS):
-        _bound_row(c, lo, hi, table, tabd, alpha, theta, d43_tab, params, config)
-        dirty[c] = False
-
-    trials = accepted = injections = violations = 0
-    status = STATUS_OK
-    since_sync = 0
-    t = w_gg = w_dg = 0.0
-    k_out = n_occ = 0
-    changed = True
+    d43_tab = _initial_bounds(rho, dcnt[0], pd, ptot, s4, lo, hi, dirty, table, tabd, alpha,
+                              theta, params, config)
+    trials = accepted = injections = violations = break_trials = splits = since_sync = 0
+    status, t, w_gg, w_dg, w_br, k_out, n_occ, changed = STATUS_OK, 0.0, 0.0, 0.0, 0.0, 0, 0, True
     while k_out < n_out:
         if changed:
             changed = False
             n_occ, w_gg, w_dg = _pair_weights(bcnt, table, tabd, occ, srow, trow, drow)
+            w_br = breakage_weights(bcnt, lo, hi, occ, n_occ, brk_factor, params, config,
+                                    bbound, brow)
         vol = ptot / (conc0 + mass_rate * t)
         nd = dcnt[0]
         r_gg = 0.5 * w_gg / vol
         r_dg = nd * w_dg / vol
         r_inj = inj * vol
-        r = r_gg + r_dg + r_inj
+        r = r_gg + r_dg + r_inj + w_br
         if not (r < np.inf):
             status = STATUS_NONFINITE
             break
         t_next = _next_event_time(t, r, exponential_dt)
-        while k_out < n_out and output_times[k_out] < t_next:
-            box_quantities(p, b, isdrop, conc0 + mass_rate * output_times[k_out], rho,
-                           out[k_out])
-            k_out += 1
+        k_out = _store_outputs(k_out, t_next, output_times, p, b, isdrop, conc0, mass_rate,
+                               rho, out)
         if k_out >= n_out:
             break
         if t_next <= t:
@@ -271,11 +219,19 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
         t = t_next
 
         u = np.random.random() * r
-        if u < r_inj or (r_gg <= 0.0 and r_dg <= 0.0):
+        if u < r_inj or (r_gg <= 0.0 and r_dg <= 0.0 and w_br <= 0.0):
             injections += 1
             ptot, s4 = _inject(p, b, isdrop, pd, bd, sep, rho, m_ref, ptot, s4, bin_of, bpos,
                                members, bcnt, lo, hi, dirty, dlist, dpos, dcnt)
             changed = True
+        elif w_br > 0.0 and (u >= r_inj + r_gg + r_dg or (r_gg <= 0.0 and r_dg <= 0.0)):
+            break_trials += 1
+            ptot, s4, done, above = breakage_trial(
+                w_br, n_occ, occ, brow, bbound, brk_factor, p, b, isdrop, rho, m_ref, ptot, s4,
+                bin_of, bpos, members, bcnt, lo, hi, dirty, dlist, dpos, dcnt, params, config)
+            splits += done
+            violations += above
+            changed = changed or done == 1
         else:
             trials += 1
             d43 = _kernel_d43(s4, ptot, nd, pd, rho)
@@ -290,18 +246,15 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
                 ptot, s4 = _merge(i, j, p, b, isdrop, rho, m_ref, ptot, s4, bin_of, bpos,
                                   members, bcnt, lo, hi, dirty, dlist, dpos, dcnt)
                 changed = True
-            if trials >= max_trials:
-                status = STATUS_MAX_TRIALS
-                break
+        if trials + break_trials >= max_trials:
+            status = STATUS_MAX_TRIALS
+            break
         if changed:
             since_sync, ptot, s4, d43_tab = _refresh_bounds(
                 since_sync, p, rho, dcnt[0], pd, ptot, s4, d43_tab, bin_of, lo, hi, dirty,
                 table, tabd, alpha, theta, params, config)
-
-    for k in range(k_out, n_out):
-        for q in range(out.shape[1]):
-            out[k, q] = np.nan
-    return trials, accepted, injections, violations, status, t
+    out[k_out:] = np.nan
+    return trials, accepted, injections, violations, status, t, break_trials, splits
 
 
 # ---------------------------------------------------------------------------------------------
@@ -341,6 +294,28 @@ def _fill_classes(p, isdrop, sep, rho, bin_of, bpos, members, bcnt, lo, hi, dirt
         ptot += p[k]
         s4 += _d4(p[k], rho)
     return m_ref, ptot, s4
+
+
+@nb.njit(cache=True, inline="always")
+def _initial_bounds(rho, n_free_droplets, pd, ptot, s4, lo, hi, dirty, table, tabd, alpha,
+                    theta, params, config):
+    """Build every class's majorant row at the box's initial granule d43 x margin; returns
+    that d43 [m]."""
+    d43_tab = _kernel_d43(s4, ptot, n_free_droplets, pd, rho) * _D43_MARGIN
+    for c in range(N_BINS):
+        _bound_row(c, lo, hi, table, tabd, alpha, theta, d43_tab, params, config)
+        dirty[c] = False
+    return d43_tab
+
+
+@nb.njit(cache=True, inline="always")
+def _store_outputs(k_out, t_next, output_times, p, b, isdrop, conc0, mass_rate, rho, out):
+    """Store the box at every output time before t_next [s]; returns the next output row."""
+    n_out = output_times.size
+    while k_out < n_out and output_times[k_out] < t_next:
+        box_quantities(p, b, isdrop, conc0 + mass_rate * output_times[k_out], rho, out[k_out])
+        k_out += 1
+    return k_out
 
 
 @nb.njit(cache=True, inline="always")

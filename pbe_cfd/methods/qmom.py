@@ -9,7 +9,8 @@ N_ref = params[NUMBER_SCALE] [1/m3] and p_ref = params[MASS_SCALE] [kg] for both
 
 The N-node quadrature (Wheeler, Golub-Welsch) of the size moments gives masses p_a and weights
 w_a; the binder moments M_k1 = sum_a w_a p_a^k b_a, k < N, give one binder mass b_a per node.
-Moment sources are quadratures of the aggregation integrals over the nodes (and the droplets).
+Moment sources are quadratures of the aggregation integrals over the nodes (and the droplets),
+and of the breakage integrals (``methods.breakage_sources``) where the scene asks for them.
 """
 import math
 
@@ -20,6 +21,7 @@ from ..physics import parameters as P
 from ..physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ..physics.properties import DIAMETER, N_PROPS
 from ..physics.rates import pair_rate, particle_properties
+from .breakage_sources import add_qmom_breakage
 from .quadrature import solve_vandermonde, wheeler_nodes
 
 _as_strided = np.lib.stride_tricks.as_strided
@@ -422,6 +424,8 @@ def qmom_rhs(state, out, cell, aux, params, config, work):
                         pa *= xa
                         pc *= xc
                         out[n_size + k] += pair * (ba * ha + bc * hc)
+    if config[P.BREAKAGE] == 1:
+        add_qmom_breakage(out, nodes, weights, binder, n, cell, params, config)
     _droplet_sources(state, out, cell, params, config, nodes, weights, binder, props, n, factor,
                      u0)
 

@@ -33,7 +33,13 @@ NUMBER_SCALE = 17        # number-density scale N_ref [1/m3] (non-dimensionalisa
 MASS_SCALE = 18          # particle-mass scale p_ref [kg] (non-dimensionalisation)
 STEP_FLOOR = 19          # smallest step the integrator may take before it reports a stall [s]
 ALPHA_MIN_FRICTION = 20  # g0 is evaluated at min(alpha, this) as OpenFOAM's radial models do [-]
-N_PARAMS = 21
+BREAKAGE_RATE = 21       # s0 of the breakage selection [1/s] (physics.breakage)
+BREAKAGE_EXPONENT = 22   # a of S = s0 (p / p_ref)^a [-]
+BREAKAGE_REFERENCE_MASS = 23    # p_ref of the selection [kg]
+BREAKAGE_REFERENCE_THETA = 24   # Theta_ref of the collisional selection [m2/s2]
+YIELD_STRENGTH = 25      # granule yield strength Y of the Stokes deformation number [Pa] (0: no gate)
+CRITICAL_DEFORMATION = 26       # critical Stokes deformation number St_def* [-]
+N_PARAMS = 27
 
 # ---- config (int64) ---------------------------------------------------------------------
 KERNEL = 0               # code of the collision kernel (physics.kernels.KERNEL_REGISTRY)
@@ -43,7 +49,10 @@ METHOD = 3               # code of the moment method (methods.dispatch)
 ORDER = 4                # QMOM nodes N, or Laguerre order m
 N_STATE = 5              # length of one cell's state vector
 BINDER_NODES = 6         # CQMOM conditional nodes N2 per size node
-N_SWITCHES_START = 7     # a new single slot goes above this line and moves this number up
+BREAKAGE = 7             # 1 if a [breakage] table is present (physics.breakage)
+BREAKAGE_SELECTION = 8   # code of the breakage selection function (physics.breakage)
+BREAKAGE_DAUGHTERS = 9   # code of the breakage daughter rule (physics.breakage)
+N_SWITCHES_START = 10    # a new single slot goes above this line and moves this number up
 # config[EFFICIENCY_SWITCHES + code] = 1: the efficiency factor of that code applies
 # (physics.efficiency.EFFICIENCY_REGISTRY); room for MAX_EFFICIENCIES factors
 EFFICIENCY_SWITCHES = N_SWITCHES_START

@@ -9,8 +9,9 @@ is the if-chain one would write by hand, with no branch to forget: adding an ent
 registry adds its branch to every dispatcher built from it.
 
 Each builder takes ``cases``: (code, function or value) pairs in registry order. A new
-registry (for example breakage selection functions) builds its dispatchers with the builders
-here whose call signature matches, or adds one more builder of the same shape.
+registry builds its dispatchers with the builders here whose call signature matches, or adds
+one more builder of the same shape (the breakage registries of ``physics.breakage`` use
+``cell_dispatch``, ``particle_dispatch`` and ``scalar_dispatch``).
 """
 import math
 
@@ -66,7 +67,9 @@ def _pair_link(case_code, function, rest):
 # ---------------------------------------------------------------------------- cell functions
 def cell_dispatch(cases):
     """numba ``f(code, alpha, theta, d43, params)`` calling the case's
-    ``function(alpha, theta, d43, params)``; NaN for an unknown code."""
+    ``function(alpha, theta, d43, params)``; NaN for an unknown code. (The third cell quantity
+    is whatever the registry's functions take there: d43 [m] for kernels, the collision
+    velocity u0 [m/s] for breakage selections.)"""
     @nb.njit(cache=True, inline="always")
     def unknown(code, alpha, theta, d43, params):
         return math.nan
@@ -83,6 +86,52 @@ def _cell_link(case_code, function, rest):
         if code == case_code:
             return function(alpha, theta, d43, params)
         return rest(code, alpha, theta, d43, params)
+    return link
+
+
+# ---------------------------------------------------------------------------- one-particle functions
+def particle_dispatch(cases):
+    """numba ``f(code, x, factor, params)`` calling the case's ``function(x, factor, params)``
+    (one particle's property x and the cell factor, e.g. a breakage selection S(p)); NaN for
+    an unknown code."""
+    @nb.njit(cache=True, inline="always")
+    def unknown(code, x, factor, params):
+        return math.nan
+
+    chain = unknown
+    for case_code, function in reversed(tuple(cases)):
+        chain = _particle_link(case_code, function, chain)
+    return chain
+
+
+def _particle_link(case_code, function, rest):
+    @nb.njit(cache=True, inline="always")
+    def link(code, x, factor, params):
+        if code == case_code:
+            return function(x, factor, params)
+        return rest(code, x, factor, params)
+    return link
+
+
+def scalar_dispatch(cases):
+    """numba ``f(code, x)`` calling the case's ``function(x)`` of one float (e.g. a daughter
+    rule's moment factor of order x); NaN for an unknown code."""
+    @nb.njit(cache=True, inline="always")
+    def unknown(code, x):
+        return math.nan
+
+    chain = unknown
+    for case_code, function in reversed(tuple(cases)):
+        chain = _scalar_link(case_code, function, chain)
+    return chain
+
+
+def _scalar_link(case_code, function, rest):
+    @nb.njit(cache=True, inline="always")
+    def link(code, x):
+        if code == case_code:
+            return function(x)
+        return rest(code, x)
     return link
 
 
