@@ -105,11 +105,9 @@ def pack(scene: Scene) -> Arrays:
 
 
 def laguerre_state_names(order, separate_droplets):
-    """State entry names of the Laguerre ROM: M_ij, i-major over i, j < order."""
-    names = [f"M{i}{j}" for i in range(order) for j in range(order)]
-    if separate_droplets:
-        names.append("droplet_number_density")
-    return names
+    """State entry names of the Laguerre ROM (wet moments, dry moments, free droplets)."""
+    from .methods.laguerre_tensor import state_names
+    return state_names(order, separate_droplets)
 
 
 def well_mixed_cell(scene: Scene) -> np.ndarray:
@@ -144,6 +142,9 @@ def size_moment(scene: Scene, k: int, j: int = 0) -> float:
 
 def initial_moments(scene: Scene, arrays: Arrays, names) -> np.ndarray:
     """Scaled initial state for moment methods whose state entries are named ``names``."""
+    if scene.method.name == "laguerre":     # wet and dry classes: the method places them
+        from .methods.laguerre_tensor import scene_initial_state
+        return scene_initial_state(scene, arrays, lambda i, j: size_moment(scene, i, j))
     state = np.zeros(len(names))
     nd0 = scene.initial.droplet_number_density
     pd = arrays.droplet_mass

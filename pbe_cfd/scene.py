@@ -119,13 +119,21 @@ class Method:
     consistent: bool = True
     weight_mean_mass: float = 1.0e-9
     weight_mean_binder: float = 1.0e-9
-    weight_shape_mass: float = 1.0
-    weight_shape_binder: float = 0.2
+    # the wet class's gamma weights vanish at p = 0 and b = 0 (shape 2): with the Laguerre dry
+    # class holding every granule at b = 0, a wet granule carries at least one droplet
+    weight_shape_mass: float = 2.0
+    weight_shape_binder: float = 2.0
     support_mass: float = 1.0e-8
     support_binder: float = 4.0e-9
     grid_mass: int = 20
     grid_binder: int = 20
     grid_spacing: str = "fraction"
+    dry_class: bool = True
+    dry_weight_mean_mass: float | None = None     # kg; None: the initial mean mass
+    dry_weight_shape_mass: float = 10.0
+    dry_grid_mass: int = 200
+    adaptive_weights: bool = True
+    adaptive_points: int = 9
 
 
 @dataclass(frozen=True)
@@ -484,6 +492,17 @@ def _method(path, data):
         for key in ("grid_mass", "grid_binder"):
             kw[key] = t.number(key, getattr(Method, key), integer=True, low=4, high=400)
         kw["grid_spacing"] = t.choice("grid_spacing", ("fraction", "uniform"), "fraction")
+        kw["dry_class"] = t.boolean("dry_class", True)
+        if t.has("dry_weight_mean_mass"):
+            kw["dry_weight_mean_mass"] = t.number("dry_weight_mean_mass", positive=True,
+                                                  unit="kg")
+        kw["dry_weight_shape_mass"] = t.number("dry_weight_shape_mass",
+                                               Method.dry_weight_shape_mass, positive=True)
+        kw["dry_grid_mass"] = t.number("dry_grid_mass", Method.dry_grid_mass, integer=True,
+                                       low=4, high=4000)
+        kw["adaptive_weights"] = t.boolean("adaptive_weights", True)
+        kw["adaptive_points"] = t.number("adaptive_points", Method.adaptive_points,
+                                         integer=True, low=2, high=33)
     else:
         kw["particles"] = t.number("particles", 10000, integer=True, low=2, high=10_000_000)
         kw["replicas"] = t.number("replicas", 8, integer=True, low=1, high=100_000)

@@ -62,6 +62,10 @@ def moment_outputs(scene: Scene, arrays: model.Arrays, states: np.ndarray, aux,
     """SI output columns (moments, droplets, d32, d43, binder fraction) of scaled states
     (one row per time or per cell). If a list is passed as ``populations``, each row's
     weighted particles (w [1/m3], p [kg], b [kg], from ``population_of``) are appended to it."""
+    if scene.method.name == "laguerre":
+        from .methods import laguerre_tensor
+        return laguerre_tensor.output_columns(states, aux, arrays, scene.bivariate,
+                                              scene.material.density, populations)
     names = arrays.state_names
     bivariate = scene.bivariate
     cols = moment_columns(names, bivariate)
@@ -117,16 +121,7 @@ def failure_hint(scene: Scene, arrays: model.Arrays, state, aux) -> str:
     if scene.method.name != "laguerre":
         return ""
     from .methods import laguerre_tensor
-    m10 = state[int(arrays.config[P.ORDER])]
-    if state[1] <= 1e-6 * max(m10, 0.0):
-        return ("; the Laguerre ROM cannot take a binder-free population that starts receiving "
-                "binder (its reconstruction spreads the first binder over the b-weight, and the "
-                "binder moments turn negative): start with initial.binder_fraction > 0 or "
-                "initial droplets, or use qmom")
-    share, _ = laguerre_tensor.escaped_share_report(np.atleast_2d(state), aux, arrays)
-    return (f"; {share:.1%} of the granule mass had left the Laguerre support (p_max = "
-            f"{scene.method.support_mass:g} kg, b_max = {scene.method.support_binder:g} kg): "
-            "widen the support or use qmom")
+    return laguerre_tensor.failure_hint(state, aux, arrays)
 
 
 def run_well_mixed(scene: Scene, progress=None) -> RunResult:
