@@ -1,5 +1,8 @@
 """The ``pbe-cfd`` command line: run | plan | scenes | compare | couple | case | render | bench.
 
+Argument parsing and one ``*_command`` function per verb, nothing else: each command reads its
+arguments, calls the runs, studies and writers below, and prints what it wrote.
+
 Exit codes: 0 success, 2 bad input (scene, arguments, files), 1 a run that failed.
 """
 from __future__ import annotations
@@ -10,29 +13,6 @@ from pathlib import Path
 
 DEFAULT_WELL_MIXED = "seed-wurster"
 DEFAULT_COUPLED = "fluid-bed"
-
-
-class _Progress:
-    """tqdm progress bar on a terminal; silent otherwise."""
-
-    def __init__(self, label):
-        from tqdm import tqdm
-        self.bar = tqdm(total=1000, desc=label, unit="‰", disable=None, file=sys.stderr,
-                        bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining} {postfix}")
-        self.last = 0
-
-    def __call__(self, fraction, text=""):
-        if self.bar.disable:
-            return
-        pos = int(round(1000 * min(max(fraction, 0.0), 1.0)))
-        if pos > self.last:
-            self.bar.update(pos - self.last)
-            self.last = pos
-        if text:
-            self.bar.set_postfix_str(text)
-
-    def close(self):
-        self.bar.close()
 
 
 def _positive_int(text):
@@ -50,8 +30,10 @@ def _fail(message, code=2):
     return code
 
 
-def cmd_run(args):
+def run_command(args):
+    """``pbe-cfd run [SCENE] --out DIR``: a well-mixed run."""
     from . import output, plotting
+    from .progress import Progress
     from .scene import describe, load_scene
     from .simulate import run_well_mixed
 
@@ -59,7 +41,7 @@ def cmd_run(args):
     if scene.domain.type != "well-mixed":
         return _fail(f"{scene.source}: [domain] type is \"openfoam\"; use `pbe-cfd couple`")
     out = Path(args.out)
-    progress = _Progress(f"{scene.name} ({scene.method.name})")
+    progress = Progress(f"{scene.name} ({scene.method.name})")
     try:
         result = run_well_mixed(scene, progress=progress)
     finally:
@@ -79,7 +61,8 @@ def cmd_run(args):
     return 0
 
 
-def cmd_plan(args):
+def plan_command(args):
+    """``pbe-cfd plan SCENE``: what a scene computes."""
     from .plan import describe_plan
     from .scene import load_scene
 
@@ -88,7 +71,8 @@ def cmd_plan(args):
     return 0
 
 
-def cmd_scenes(args):
+def scenes_command(args):
+    """``pbe-cfd scenes``: the bundled scenes."""
     from .scene import bundled_scenes, load_scene
 
     for name, path in sorted(bundled_scenes().items()):
@@ -100,7 +84,8 @@ def cmd_scenes(args):
     return 0
 
 
-def cmd_compare(args):
+def compare_command(args):
+    """``pbe-cfd compare A B --out F.png``: overlay moment trajectories."""
     from . import plotting
     from .output import read_columns_csv
 
@@ -121,24 +106,142 @@ def cmd_compare(args):
     return 0
 
 
-def cmd_couple(args):
-    from .couple import couple_command
-    return couple_command(args)
+def _cluster_wanted(args) -> bool:
+    return bool(args.scheduler or args.workers or args.resume or args.decompose)
 
 
-def cmd_case(args):
-    from .couple import case_command
-    return case_command(args)
+def _apply_resume(args):
+    """``--resume DIR``: ``--out DIR`` and, when not given, SCENE and ``--chunks`` as the
+    earlier run recorded them."""
+    from .distributed import resume_manifest
+    args.out = args.resume
+    manifest = resume_manifest(args.resume)
+    if not args.scene and manifest.get("scene"):
+        args.scene = manifest["scene"]
+    if args.chunks is None and manifest.get("partition") == "blocks":
+        args.chunks = manifest.get("chunks")      # the same blocks as the first run
 
 
-def cmd_render(args):
-    from .couple import render_command
-    return render_command(args)
+def _fresh_case(scene, mesh: str):
+    """--run-case: run the bundled OpenFOAM case in ./fluid-bed-case and point the scene at
+    it."""
+    import dataclasses
+
+    from .cfd import openfoam as of
+    from .scene import SceneError
+    target = Path("fluid-bed-case")
+    if target.exists() and any(target.iterdir()):
+        raise SceneError(scene.source, "domain.case",
+                         f"--run-case: {target.resolve()} exists; remove it or run "
+                         "`pbe-cfd case run --dir NEW` and point [domain] case at it")
+    of.copy_case(of.default_case_dir(), target)
+    of.run_case(target, mesh=mesh, log=lambda line: print(line, file=sys.stderr))
+    return dataclasses.replace(scene, domain=dataclasses.replace(
+        scene.domain, case=str(target.resolve()), time="latest"))
 
 
-def cmd_bench(args):
-    from .bench import bench_command
-    return bench_command(args)
+def couple_command(args):
+    """``pbe-cfd couple [SCENE] --out DIR``: the per-cell run over an OpenFOAM bed."""
+    from . import output
+    from .couple import run_coupled, write_coupled, write_foam_fields
+    from .domain import BUNDLED_PREFIX, load_domain
+    from .executor import SerialExecutor
+    from .progress import Progress
+    from .scene import SceneError, load_scene
+
+    if args.resume:
+        _apply_resume(args)
+    scene = load_scene(args.scene or DEFAULT_COUPLED)
+    if scene.domain.type != "openfoam":
+        raise SceneError(scene.source, "domain.type",
+                         "`pbe-cfd couple` needs type = \"openfoam\"; use `pbe-cfd run` for "
+                         "well-mixed scenes")
+    if args.run_case:
+        scene = _fresh_case(scene, args.mesh)
+    domain = load_domain(scene, need_flux=scene.transport is not None)
+    executor = SerialExecutor()
+    if _cluster_wanted(args):
+        from .distributed import make_executor
+        executor = make_executor(scene, domain, args.out, scene_arg=args.scene,
+                                 scheduler=args.scheduler, workers=args.workers,
+                                 chunks=args.chunks, decompose=args.decompose,
+                                 resume=bool(args.resume))
+    progress = Progress(f"{scene.name} ({domain.cells.n_cells} cells)")
+    try:
+        result = run_coupled(scene, domain, progress=progress, threads=args.threads,
+                             executor=executor)
+    finally:
+        progress.close()
+        executor.close()
+    for w in result.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    out = Path(args.out)
+    with output.atomic_directory(out) as tmp:
+        write_coupled(tmp, scene, domain, result)
+        if args.foam_fields and not scene.domain.case.startswith(BUNDLED_PREFIX):
+            written = write_foam_fields(scene, domain, result)
+            executor.mirror_to_processors(written)  # a decomposed case: per processor too
+    executor.finish()  # the output is complete: drop what was kept for a resume
+    print(f"{scene.name}: {result.stats['active_cells']} of {result.stats['cells']} cells to "
+          f"t = {scene.end_time:g} s in {result.wall_time_s:.2f} s "
+          f"({result.stats['cell_steps_per_second']:.3g} cell-steps/s); wrote {out}/")
+    return 0
+
+
+def case_command(args):
+    """``pbe-cfd case run --mesh small --dir DIR``: copy and run the fluid-bed case."""
+    from .cfd import openfoam as of
+    target = Path(args.dir)
+    try:
+        of.copy_case(of.default_case_dir(), target)
+        res = of.run_case(target, mesh=args.mesh, log=lambda line: print(line, file=sys.stderr))
+    except of.OpenFOAMError as exc:
+        print(f"pbe-cfd: error: {exc}", file=sys.stderr)
+        return 1
+    print(f"case {target} ({args.mesh}) ran to t = {res.latest_time:g} s; "
+          + ", ".join(f"{k} {v:.1f} s" for k, v in res.wall_times.items()))
+    return 0
+
+
+def render_command(args):
+    """``pbe-cfd render DIR``: PNGs of a coupled run's VTK series."""
+    from .cfd.render import plot_bed_moments, render_series
+    out = Path(args.dir)
+    vtk_dir = out / "vtk" if (out / "vtk").is_dir() else out
+    paths = render_series(vtk_dir, fields=args.fields, times=args.times, png_dir=out / "png")
+    if (out / "bed_moments.csv").is_file():
+        paths.append(plot_bed_moments(out / "bed_moments.csv", out / "png" / "bed_moments.png"))
+    for p in paths:
+        print(p)
+    return 0
+
+
+def bench_command(args):
+    """``pbe-cfd bench STUDY [SCENE] --out DIR [--quick]``."""
+    import time
+
+    from . import bench
+    out = Path(args.out)
+    quick = bool(args.quick)
+    study = args.study
+    start = time.perf_counter()
+    if study == "accuracy":
+        res = bench.accuracy_study(args.scene, out, quick=quick)
+        files = "accuracy.csv, accuracy.md, pareto.png"
+        print(bench.accuracy_markdown(res))
+    elif study == "throughput":
+        res = bench.throughput_study(out, quick=quick,
+                                     scene_name=args.scene or bench.DEFAULT_THROUGHPUT_SCENE)
+        files = "throughput.csv, throughput.md, throughput.png, machine.json"
+        print(bench.throughput_markdown(res))
+    else:
+        study_of = {"cnmc": bench.cnmc_study, "laguerre": bench.laguerre_study,
+                    "couple": bench.couple_study}
+        study_of[study](out, quick=quick)
+        files = f"{study}.csv, {study}.md"
+        print((out / f"{study}.md").read_text())
+    print(f"bench {study}: {time.perf_counter() - start:.1f} s; wrote {out}/{{{files}}}")
+    return 0
 
 
 def build_parser():
@@ -152,19 +255,19 @@ def build_parser():
     p = sub.add_parser("run", help="run a well-mixed scene (default: the bundled seed-wurster)")
     p.add_argument("scene", nargs="?", help="scene TOML file or bundled scene name")
     p.add_argument("--out", default="out", help="output directory (default: out)")
-    p.set_defaults(func=cmd_run)
+    p.set_defaults(func=run_command)
 
     p = sub.add_parser("plan", help="print what a scene computes, without running it")
     p.add_argument("scene", help="scene TOML file or bundled scene name")
-    p.set_defaults(func=cmd_plan)
+    p.set_defaults(func=plan_command)
 
     p = sub.add_parser("scenes", help="list the bundled scenes")
-    p.set_defaults(func=cmd_scenes)
+    p.set_defaults(func=scenes_command)
 
     p = sub.add_parser("compare", help="overlay the moment trajectories of results")
     p.add_argument("results", nargs="+", help="run directories (or moments.csv files)")
     p.add_argument("--out", default="compare.png", help="figure path (default: compare.png)")
-    p.set_defaults(func=cmd_compare)
+    p.set_defaults(func=compare_command)
 
     p = sub.add_parser("couple", help="solve the population balance in every cell of an "
                                       "OpenFOAM fluid bed (default: bundled fluid-bed scene)")
@@ -197,13 +300,13 @@ def build_parser():
                    help="complete the failed or missing chunks of an earlier cluster run "
                         "whose output directory was DIR (implies --out DIR; SCENE defaults "
                         "to that run's)")
-    p.set_defaults(func=cmd_couple)
+    p.set_defaults(func=couple_command)
 
     p = sub.add_parser("case", help="run the bundled OpenFOAM fluid-bed case")
     p.add_argument("action", choices=("run",))
     p.add_argument("--mesh", default="small", choices=("small", "full"))
     p.add_argument("--dir", default="fluid-bed-case", help="where to copy and run the case")
-    p.set_defaults(func=cmd_case)
+    p.set_defaults(func=case_command)
 
     p = sub.add_parser("render", help="render PNGs of a coupled run's VTK series")
     p.add_argument("dir", help="output directory of `pbe-cfd couple`")
@@ -211,20 +314,20 @@ def build_parser():
                    help="fields to draw (default: alpha, Theta, M00, d43_m, binder_fraction)")
     p.add_argument("--times", nargs="*", type=float, default=None,
                    help="output times in s (nearest written; default: first and last)")
-    p.set_defaults(func=cmd_render)
+    p.set_defaults(func=render_command)
 
     p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")
     p.add_argument("study", choices=("accuracy", "throughput", "cnmc", "laguerre", "couple"))
     p.add_argument("scene", nargs="?", help="scene for the accuracy study")
     p.add_argument("--out", default="bench-out")
     p.add_argument("--quick", action="store_true", help="a tiny configuration (plumbing check)")
-    p.set_defaults(func=cmd_bench)
+    p.set_defaults(func=bench_command)
     return parser
 
 
 def main(argv=None):
+    from .batch import SimulationError
     from .scene import SceneError
-    from .simulate import SimulationError
 
     parser = build_parser()
     args = parser.parse_args(argv)

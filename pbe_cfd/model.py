@@ -1,9 +1,9 @@
 """From a scene to the arrays the numba physics and methods run on, and back to SI outputs.
 
-This is orchestration: it decides which effects are computed (only those whose table is
-present), packs ``params``/``config``/``cell`` (``physics.parameters``), builds each method's
-initial state and auxiliary data, and turns states into the SI output columns of DESIGN
-section 4.
+The domain layer: it decides which effects are computed (only those whose table is present),
+packs ``params``/``config``/``cell`` (``physics.parameters``) from the scene and the registries
+(``physics.kernels``, ``physics.efficiency``, ``methods.registry``), builds the scaled initial
+states, and turns scaled states back into the SI output columns of DESIGN section 4.
 """
 from __future__ import annotations
 
@@ -12,12 +12,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .methods.registry import method_of
 from .physics import parameters as P
+from .physics.efficiency import switch_on
 from .physics.injection import droplet_mass
-from .physics.kernels import KERNELS
-from .scene import Scene
+from .physics.kernels import KERNEL_BY_NAME
+from .physics.kernels import collision_velocity as _collision_velocity
+from .population import DERIVED, columns_from_particles, mean_diameters, moment_columns
 
-MOMENT_METHODS = ("qmom", "laguerre")
+__all__ = ["Arrays", "scales", "pack", "well_mixed_cell", "collision_velocity", "size_moment",
+           "initial_moments", "product_gel_time", "moment_outputs", "droplet_mass"]
 
 
 @dataclass
@@ -31,7 +35,7 @@ class Arrays:
     state_names: list = field(default_factory=list)
 
 
-def scales(scene: Scene) -> tuple[float, float]:
+def scales(scene) -> tuple[float, float]:
     """Number-density and mass scales (N_ref [1/m3], p_ref [kg]) used to non-dimensionalise."""
     n_ref = scene.initial.number_density + scene.initial.droplet_number_density
     p_ref = scene.initial.mean_mass
@@ -41,10 +45,7 @@ def scales(scene: Scene) -> tuple[float, float]:
     return float(n_ref), float(p_ref)
 
 
-def pack(scene: Scene) -> Arrays:
-    """Pack the scene into the params/config arrays (see ``physics.parameters``)."""
-    params = np.zeros(P.N_PARAMS)
-    config = np.zeros(P.N_CONFIG, dtype=np.int64)
+def _material_params(scene, params):
     mat = scene.material
     params[P.DENSITY] = mat.density
     params[P.ALPHA_MAX] = scene.domain.alpha_max
@@ -61,23 +62,28 @@ def pack(scene: Scene) -> Arrays:
                         (P.SATURATION_MAX, mat.saturation_max)):
         params[slot] = value if value is not None else 0.0
     params[P.STOKES_WIDTH] = mat.stokes_switch_width
+
+
+def pack(scene) -> Arrays:
+    """Pack the scene into the params/config arrays (see ``physics.parameters``)."""
+    params = np.zeros(P.N_PARAMS)
+    config = np.zeros(P.N_CONFIG, dtype=np.int64)
+    _material_params(scene, params)
     agg = scene.aggregation
     if agg is not None:
         params[P.RATE] = agg.rate
-        config[P.KERNEL] = KERNELS[agg.kernel][0]
-        config[P.USE_GEOMETRIC] = int("geometric" in agg.efficiency)
-        config[P.USE_PHYSICAL] = int("physical" in agg.efficiency)
-        config[P.USE_SATURATION] = int("saturation" in agg.efficiency)
+        config[P.KERNEL] = KERNEL_BY_NAME[agg.kernel].code
+        switch_on(config, agg.efficiency)
         ref_d = agg.reference_diameter
         if ref_d is not None:
             params[P.REFERENCE_VOLUME] = math.pi / 6.0 * ref_d ** 3
         else:
-            params[P.REFERENCE_VOLUME] = scene.initial.mean_mass / mat.density
+            params[P.REFERENCE_VOLUME] = scene.initial.mean_mass / scene.material.density
     else:
         params[P.RATE] = 0.0       # no aggregation table: the kernel is never evaluated
     pd = 0.0
     if scene.binder_injection is not None:
-        pd = droplet_mass(scene.binder_injection.droplet_diameter, mat.binder_density)
+        pd = droplet_mass(scene.binder_injection.droplet_diameter, scene.material.binder_density)
     params[P.DROPLET_MASS] = pd
     config[P.SEPARATE_DROPLETS] = int(scene.separate_droplets)
     params[P.DROPLET_FACTOR] = agg.droplet_factor if scene.separate_droplets else 0.0
@@ -86,31 +92,16 @@ def pack(scene: Scene) -> Arrays:
     params[P.NUMBER_SCALE] = n_ref
     params[P.MASS_SCALE] = p_ref
     params[P.STEP_FLOOR] = 1.0e-12 * scene.end_time
-    method = scene.method
-    if method.name == "qmom":
-        from .methods import qmom
-        config[P.METHOD] = 0
-        config[P.ORDER] = method.nodes
-        names = qmom.state_names(method.nodes, scene.bivariate, scene.separate_droplets)
-    elif method.name == "laguerre":
-        config[P.METHOD] = 1
-        config[P.ORDER] = method.order
-        names = laguerre_state_names(method.order, scene.separate_droplets)
-    else:
-        config[P.METHOD] = -1
-        names = []
+    method = method_of(scene)
+    config[P.METHOD] = method.code
+    config[P.ORDER] = method.order(scene.method)
+    names = method.state_names(scene)
     config[P.N_STATE] = len(names)
     return Arrays(params=params, config=config, number_scale=n_ref, mass_scale=p_ref,
                   droplet_mass=pd, state_names=names)
 
 
-def laguerre_state_names(order, separate_droplets):
-    """State entry names of the Laguerre ROM (wet moments, dry moments, free droplets)."""
-    from .methods.laguerre_tensor import state_names
-    return state_names(order, separate_droplets)
-
-
-def well_mixed_cell(scene: Scene) -> np.ndarray:
+def well_mixed_cell(scene) -> np.ndarray:
     """The single cell row (alpha, theta, u0, injection) of a well-mixed scene (SI)."""
     cell = np.zeros((1, P.N_CELL))
     dom = scene.domain
@@ -127,10 +118,10 @@ def collision_velocity(given, theta):
     """Collision velocity [m/s]: the scene's value, else 4 sqrt(theta / pi) from theta [m2/s2]."""
     if given is not None:
         return float(given)
-    return 4.0 * math.sqrt(max(float(theta), 0.0) / math.pi)
+    return float(_collision_velocity(float(theta)))
 
 
-def size_moment(scene: Scene, k: int, j: int = 0) -> float:
+def size_moment(scene, k: int, j: int = 0) -> float:
     """Initial granule moment M_kj [kg^(k+j)/m3] (free droplets excluded)."""
     init = scene.initial
     n0, p0, y0 = init.number_density, init.mean_mass, init.binder_fraction
@@ -140,11 +131,12 @@ def size_moment(scene: Scene, k: int, j: int = 0) -> float:
     return n0 * p0 ** (k + j) * math.factorial(k + j) * y0 ** j
 
 
-def initial_moments(scene: Scene, arrays: Arrays, names) -> np.ndarray:
-    """Scaled initial state for moment methods whose state entries are named ``names``."""
-    if scene.method.name == "laguerre":     # wet and dry classes: the method places them
-        from .methods.laguerre_tensor import scene_initial_state
-        return scene_initial_state(scene, arrays, lambda i, j: size_moment(scene, i, j))
+def initial_moments(scene, arrays: Arrays, names) -> np.ndarray:
+    """Scaled initial state for moment methods whose state entries are named ``names`` (a
+    method's own ``initial_state`` in the registry takes precedence)."""
+    own = method_of(scene).initial_state
+    if own is not None:
+        return own(scene, arrays, lambda i, j: size_moment(scene, i, j))
     state = np.zeros(len(names))
     nd0 = scene.initial.droplet_number_density
     pd = arrays.droplet_mass
@@ -160,7 +152,7 @@ def initial_moments(scene: Scene, arrays: Arrays, names) -> np.ndarray:
     return state
 
 
-def product_gel_time(scene: Scene) -> float | None:
+def product_gel_time(scene) -> float | None:
     """Gel time [s] of the product kernel from the initial M20 (1/(k0 M20(0))), else None."""
     agg = scene.aggregation
     if agg is None or agg.kernel != "product":
@@ -169,3 +161,52 @@ def product_gel_time(scene: Scene) -> float | None:
     if m20 <= 0.0:
         return None
     return 1.0 / (agg.rate * m20)
+
+
+def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
+                   populations: list | None = None) -> dict:
+    """SI output columns (moments, droplets, d32, d43, binder fraction) of scaled states
+    (one row per time or per cell). If a list is passed as ``populations``, each row's
+    weighted particles (w [1/m3], p [kg], b [kg], from the method's ``population``) are
+    appended to it. A method's own ``columns`` in the registry takes precedence."""
+    own = method_of(scene).columns
+    if own is not None:
+        return own(scene, arrays, states, aux, populations)
+    names = arrays.state_names
+    bivariate = scene.bivariate
+    cols = moment_columns(names, bivariate)
+    separate = scene.separate_droplets
+    n_rows = states.shape[0]
+    out = {c: np.zeros(n_rows) for c in cols}
+    if separate:
+        out["droplet_number_density"] = np.zeros(n_rows)
+    for c in DERIVED:
+        out[c] = np.zeros(n_rows)
+    pd = arrays.droplet_mass
+    n_ref, p_ref = arrays.number_scale, arrays.mass_scale
+    rho = scene.material.density
+    population = method_of(scene).population
+    for r in range(n_rows):
+        state = states[r]
+        w, p, b = population(state, aux, arrays)
+        if populations is not None:
+            populations.append((w, p, b))
+        nd = state[-1] * n_ref if separate else 0.0
+        estimated = columns_from_particles(w, p, b, cols)
+        for c in cols:
+            if c in names:
+                i, j = int(c[1]), int(c[2])
+                value = state[names.index(c)] * n_ref * p_ref ** (i + j)
+            else:
+                value = estimated[c]
+            out[c][r] = value + nd * pd ** (int(c[1]) + int(c[2]))
+        if separate:
+            out["droplet_number_density"][r] = nd
+        ww = np.append(w, nd) if nd > 0 else w
+        pp = np.append(p, pd) if nd > 0 else p
+        d32, d43 = mean_diameters(ww, pp, rho)
+        out["d32_m"][r] = d32
+        out["d43_m"][r] = d43
+        m10 = out["M10"][r]
+        out["binder_fraction"][r] = out["M01"][r] / m10 if bivariate and m10 > 0 else 0.0
+    return out

@@ -2,11 +2,12 @@
 from __future__ import annotations
 
 from . import model
-from .physics.kernels import KERNEL_USES_CELL, KERNELS
-from .scene import Scene
+from .methods.registry import method_of
+from .physics.efficiency import EFFICIENCY_BY_NAME
+from .physics.kernels import KERNEL_BY_NAME
 
 
-def describe_plan(scene: Scene) -> str:
+def describe_plan(scene) -> str:
     """Human-readable plan of a scene: coordinates, kernel, efficiencies, sources, method,
     fields needed, and the effects left out."""
     lines = [f"scene {scene.name!r} from {scene.source}",
@@ -25,12 +26,12 @@ def describe_plan(scene: Scene) -> str:
     if agg is None:
         left_out.append("aggregation (no [aggregation] table)")
     else:
-        lines.append(f"  aggregation: kernel {agg.kernel}, k0 = {agg.rate:g} "
-                     f"{KERNELS[agg.kernel][2]}")
-        fields.update(KERNEL_USES_CELL.get(agg.kernel, ()))
+        kernel = KERNEL_BY_NAME[agg.kernel]
+        lines.append(f"  aggregation: kernel {agg.kernel}, k0 = {agg.rate:g} {kernel.unit}")
+        fields.update(kernel.cell_fields)
         if agg.efficiency:
             lines.append(f"  efficiency: {' x '.join(agg.efficiency)}")
-            if "physical" in agg.efficiency:
+            if any(EFFICIENCY_BY_NAME[f].uses_collision_velocity for f in agg.efficiency):
                 if dom.type == "openfoam" or dom.collision_velocity is None:
                     lines.append("    collision velocity u0 = 4 sqrt(Theta/pi) from the "
                                  "granular temperature")
@@ -55,20 +56,7 @@ def describe_plan(scene: Scene) -> str:
     else:
         lines.append(f"  transport: upwind by the granular face flux, Courant <= "
                      f"{scene.transport.courant:g}")
-    m = scene.method
-    if m.name == "qmom":
-        arrays = model.pack(scene)
-        lines.append(f"  method: QMOM with {m.nodes} nodes; state {', '.join(arrays.state_names)}"
-                     f"; rtol {m.rtol:g}")
-    elif m.name == "laguerre":
-        arrays = model.pack(scene)
-        lines.append(f"  method: Laguerre ROM of order {m.order} "
-                     f"({'moment-consistent' if m.consistent else 'plain projection'}), "
-                     f"support p <= {m.support_mass:g} kg, b <= {m.support_binder:g} kg, grid "
-                     f"{m.grid_mass} x {m.grid_binder}; {len(arrays.state_names)} states")
-    else:
-        lines.append(f"  method: constant-number Monte Carlo, {m.particles} particles x "
-                     f"{m.replicas} replicas, seed {m.seed}")
+    lines.append(f"  method: {method_of(scene).plan_line(scene)}")
     if not scene.bivariate:
         left_out.append("binder coordinate (dry start, no injection)")
     lines.append(f"  cell fields needed: {', '.join(sorted(fields)) or 'none'}")
@@ -77,7 +65,7 @@ def describe_plan(scene: Scene) -> str:
         lines.append(f"  product kernel gel time: {t_gel:.4g} s")
     if dom.type == "openfoam" and scene.transport is not None:
         try:
-            from .couple import transport_plan_lines
+            from .transport import transport_plan_lines
             lines.extend(transport_plan_lines(scene))
         except Exception as exc:  # plan must still print what it can
             lines.append(f"  transport plan unavailable: {exc}")

@@ -13,9 +13,14 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-KERNEL_NAMES = ("constant", "sum", "product", "eke", "ktgf")
-EFFICIENCY_NAMES = ("geometric", "physical", "saturation")
-METHOD_NAMES = ("qmom", "laguerre", "cnmc")
+from .methods.registry import METHOD_NAMES, METHODS, MOMENT_METHODS
+from .physics.efficiency import EFFICIENCY_BY_NAME
+from .physics.kernels import KERNEL_BY_NAME
+
+#: the names the scene accepts, from the registries (physics.kernels, physics.efficiency,
+#: methods.registry)
+KERNEL_NAMES = tuple(KERNEL_BY_NAME)
+EFFICIENCY_NAMES = tuple(EFFICIENCY_BY_NAME)
 
 
 class SceneError(ValueError):
@@ -408,14 +413,6 @@ def _injection(path, data, domain):
     return BinderInjection(rate=rate, droplet_diameter=diameter, zone=zone)
 
 
-_MATERIAL_NEEDS = {
-    "geometric": ("accessible_binder_slope", "accessible_binder_centre"),
-    "physical": ("binder_viscosity", "binder_layer_slope", "binder_layer_centre", "asperity",
-                 "gyration_radius"),
-    "saturation": ("binder_density", "porosity", "saturation_max"),
-}
-
-
 def _material(path, data, aggregation, injection):
     t = _Table(path, "material", data)
     values = dict(
@@ -435,7 +432,7 @@ def _material(path, data, aggregation, injection):
     t.finish()
     factors = aggregation.efficiency if aggregation else ()
     for factor in factors:
-        for key in _MATERIAL_NEEDS[factor]:
+        for key in EFFICIENCY_BY_NAME[factor].material:
             if values[key] is None:
                 raise SceneError(path, f"material.{key}",
                                  f"missing: the {factor} efficiency needs it")
@@ -480,63 +477,40 @@ def _method(path, data):
     kw = dict(name=name)
     kw["rtol"] = t.number("rtol", 1.0e-8, positive=True, high=0.1)
     kw["atol"] = t.number("atol", 1.0e-14, positive=True)
-    if name == "qmom":
-        kw["nodes"] = t.number("nodes", 3, integer=True, low=1, high=5)
-    elif name == "laguerre":
-        kw["order"] = t.number("order", 3, integer=True, low=2, high=5)
-        kw["consistent"] = t.boolean("consistent", True)
-        for key, unit in (("weight_mean_mass", "kg"), ("weight_mean_binder", "kg"),
-                          ("weight_shape_mass", ""), ("weight_shape_binder", ""),
-                          ("support_mass", "kg"), ("support_binder", "kg")):
-            kw[key] = t.number(key, getattr(Method, key), positive=True, unit=unit)
-        for key in ("grid_mass", "grid_binder"):
-            kw[key] = t.number(key, getattr(Method, key), integer=True, low=4, high=400)
-        kw["grid_spacing"] = t.choice("grid_spacing", ("fraction", "uniform"), "fraction")
-        kw["dry_class"] = t.boolean("dry_class", True)
-        if t.has("dry_weight_mean_mass"):
-            kw["dry_weight_mean_mass"] = t.number("dry_weight_mean_mass", positive=True,
-                                                  unit="kg")
-        kw["dry_weight_shape_mass"] = t.number("dry_weight_shape_mass",
-                                               Method.dry_weight_shape_mass, positive=True)
-        kw["dry_grid_mass"] = t.number("dry_grid_mass", Method.dry_grid_mass, integer=True,
-                                       low=4, high=4000)
-        kw["adaptive_weights"] = t.boolean("adaptive_weights", True)
-        kw["adaptive_points"] = t.number("adaptive_points", Method.adaptive_points,
-                                         integer=True, low=2, high=33)
-    else:
-        kw["particles"] = t.number("particles", 10000, integer=True, low=2, high=10_000_000)
-        kw["replicas"] = t.number("replicas", 8, integer=True, low=1, high=100_000)
-        kw["seed"] = t.number("seed", 1, integer=True, low=0)
+    kw.update(METHODS[name].scene_keys(t, Method))
     t.finish()
     return Method(**kw)
 
 
 def _cross_checks(path, scene: Scene):
     agg = scene.aggregation
-    needs_binder = agg is not None and any(f in agg.efficiency for f in _MATERIAL_NEEDS)
-    if needs_binder and not scene.bivariate:
+    factors = [EFFICIENCY_BY_NAME[f] for f in agg.efficiency] if agg is not None else []
+    if any(f.uses_binder for f in factors) and not scene.bivariate:
         raise SceneError(path, "aggregation.efficiency",
                          f"{', '.join(agg.efficiency)} efficiency depends on binder, but the scene "
                          "has none: expected [binder_injection] or initial.binder_fraction > 0")
-    if agg is not None and agg.kernel == "ktgf" and scene.domain.type == "well-mixed":
+    fields = KERNEL_BY_NAME[agg.kernel].cell_fields if agg is not None else ()
+    if (("granular_temperature" in fields or "solids_fraction" in fields)
+            and scene.domain.type == "well-mixed"):
         if scene.domain.granular_temperature is None or scene.domain.solids_fraction is None:
             raise SceneError(path, "domain.granular_temperature",
-                             "the ktgf kernel needs granular_temperature (m2/s2) and "
+                             f"the {agg.kernel} kernel needs granular_temperature (m2/s2) and "
                              "solids_fraction of the well-mixed domain")
-    if (agg is not None and "physical" in agg.efficiency and scene.domain.type == "well-mixed"
-            and scene.domain.collision_velocity is None
-            and scene.domain.granular_temperature is None):
-        raise SceneError(path, "domain.collision_velocity",
-                         "the physical efficiency needs collision_velocity (m/s) or "
-                         "granular_temperature (m2/s2)")
+    for f in factors:
+        if (f.uses_collision_velocity and scene.domain.type == "well-mixed"
+                and scene.domain.collision_velocity is None
+                and scene.domain.granular_temperature is None):
+            raise SceneError(path, "domain.collision_velocity",
+                             f"the {f.name} efficiency needs collision_velocity (m/s) or "
+                             "granular_temperature (m2/s2)")
     if (scene.domain.type == "well-mixed" and scene.initial.number_density == 0.0
             and scene.binder_injection is None):
         raise SceneError(path, "initial.number_density",
                          "expected a positive number density (or a binder injection)")
-    if scene.method.name == "cnmc" and scene.domain.type != "well-mixed":
+    if not METHODS[scene.method.name].integrated and scene.domain.type != "well-mixed":
         raise SceneError(path, "method.name",
-                         "the cnmc reference runs well-mixed scenes: expected qmom or laguerre "
-                         "for an openfoam domain")
+                         f"the {scene.method.name} reference runs well-mixed scenes: expected "
+                         f"{' or '.join(MOMENT_METHODS)} for an openfoam domain")
 
 
 # ------------------------------------------------------------------------------ bundled scenes

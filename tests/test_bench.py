@@ -160,7 +160,7 @@ def test_cnmc_laguerre_couple_studies_write_their_tables(tmp_path):
 
 
 def test_replicated_domain_runs_like_the_original():
-    from pbe_cfd.couple import load_domain
+    from pbe_cfd.domain import load_domain
     scene = load_scene("fluid-bed")
     dom = load_domain(scene)
     big = bench.replicated_domain(dom, 3)

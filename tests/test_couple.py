@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from pbe_cfd.cfd.openfoam import load_snapshot
-from pbe_cfd.couple import Domain, load_domain, run_coupled, write_coupled
+from pbe_cfd.couple import run_coupled, write_coupled
+from pbe_cfd.domain import Domain, load_domain
 from pbe_cfd.physics.injection import droplet_mass
 from pbe_cfd.scene import load_scene
 from pbe_cfd.simulate import run_well_mixed

@@ -13,7 +13,8 @@ distributed = pytest.importorskip("distributed")
 
 from pbe_cfd import distributed as D  # noqa: E402
 from pbe_cfd.cli import main  # noqa: E402
-from pbe_cfd.couple import load_domain, run_coupled  # noqa: E402
+from pbe_cfd.couple import run_coupled  # noqa: E402
+from pbe_cfd.domain import load_domain  # noqa: E402
 from pbe_cfd.output import read_columns_csv  # noqa: E402
 from pbe_cfd.scene import SceneError, bundled_scenes, load_scene  # noqa: E402
 

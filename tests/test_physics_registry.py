@@ -9,7 +9,8 @@ from pbe_cfd.physics.efficiency import (EFFICIENCIES, critical_stokes_number, st
                                         success_probability)
 from pbe_cfd.physics.kernels import (KERNELS, collision_frequency, kernel_cell_factor,
                                      radial_distribution)
-from pbe_cfd.physics.properties import N_PROPS, particle_properties
+from pbe_cfd.physics.properties import N_PROPS
+from pbe_cfd.physics.rates import particle_properties
 from pbe_cfd.physics.rates import aggregation_rate, droplet_capture_rate
 
 

@@ -15,13 +15,14 @@ import pytest
 
 from pbe_cfd import model
 from pbe_cfd.cfd.openfoam import FaceFlux, load_snapshot
-from pbe_cfd.couple import Domain, build_cells, coupled_scales, load_domain, run_coupled
+from pbe_cfd.couple import run_coupled
+from pbe_cfd.domain import Domain, build_cells, coupled_scales, load_domain
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.kernels import radial_distribution
 from pbe_cfd.scene import SceneError, load_scene
 from pbe_cfd.simulate import run_well_mixed
-from pbe_cfd.transport import (build_transport, divergence_free, pair_weighted_average,
-                               unrealizable_cells)
+from pbe_cfd.solids_flux import divergence_free, pair_weighted_average
+from pbe_cfd.transport import build_transport, unrealizable_cells
 
 from conftest import AVICEL, make_scene
 

@@ -12,9 +12,9 @@ from ..physics import parameters as P
 from .laguerre import laguerre_project, laguerre_realizable, laguerre_rhs
 from .qmom import qmom_project, qmom_realizable, qmom_rhs
 
+#: method codes (config[P.METHOD]); the registry of methods is ``pbe_cfd.methods.registry``
 QMOM = 0
 LAGUERRE = 1
-METHOD_CODES = {"qmom": QMOM, "laguerre": LAGUERRE}
 
 
 #: length of the per-cell float work array handed to every method function

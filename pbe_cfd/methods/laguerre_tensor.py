@@ -243,12 +243,34 @@ def scene_initial_state(scene, arrays, granule_moment):
                          n_droplets=scene.initial.droplet_number_density, dry=dry)
 
 
+def scene_keys(t, defaults):
+    """The dry-class and adaptive-weight keys of a scene's ``[method]`` table (read with the
+    scene's table reader ``t``; ``defaults``: the ``scene.Method`` class)."""
+    kw = {"dry_class": t.boolean("dry_class", defaults.dry_class)}
+    if t.has("dry_weight_mean_mass"):
+        kw["dry_weight_mean_mass"] = t.number("dry_weight_mean_mass", positive=True, unit="kg")
+    kw["dry_weight_shape_mass"] = t.number("dry_weight_shape_mass",
+                                           defaults.dry_weight_shape_mass, positive=True)
+    kw["dry_grid_mass"] = t.number("dry_grid_mass", defaults.dry_grid_mass, integer=True,
+                                   low=4, high=4000)
+    kw["adaptive_weights"] = t.boolean("adaptive_weights", defaults.adaptive_weights)
+    kw["adaptive_points"] = t.number("adaptive_points", defaults.adaptive_points, integer=True,
+                                     low=2, high=33)
+    return kw
+
+
+def scene_columns(scene, arrays, states, aux, populations=None):
+    """SI output columns of a scene's scaled states (``output_columns``)."""
+    return output_columns(states, aux, arrays, scene.bivariate, scene.material.density,
+                          populations)
+
+
 def output_columns(states, aux, arrays, bivariate, density, populations=None):
     """SI output columns of scaled states (one row per time or cell): "M{i}{j}" [kg^(i+j)/m3]
     of the whole population (wet + dry granules + free droplets; the standard set first, M20
     and M02 for m = 2 from the reconstruction), "droplet_number_density" [1/m3] if droplets
-    are separate, "dry_number_density" [1/m3] and "dry_mass_fraction" [-] (dry granules' share
-    of the solids mass M10), "d32_m", "d43_m" [m] of granules and droplets, "binder_fraction"
+    are separate, "dry_M{k}0" [kg^k/m3] (the dry granules' moments, k < m; dry_M00 their number
+    density) and "dry_mass_fraction" [-] (their share of the solids mass M10), "d32_m", "d43_m" [m] of granules and droplets, "binder_fraction"
     [-] = M01 / M10. Each row's weighted particles (w [1/m3], p, b [kg]) are appended to
     ``populations`` if a list is passed."""
     from ..population import DERIVED, columns_from_particles, mean_diameters, moment_columns
@@ -258,8 +280,8 @@ def output_columns(states, aux, arrays, bivariate, density, populations=None):
     separate = int(arrays.config[P.SEPARATE_DROPLETS]) == 1 and states.shape[1] > K + m
     carried = [f"M{i}{j}" for i in range(m) for j in range(m)]
     cols = moment_columns(carried, bivariate)
-    extra = (["droplet_number_density"] if separate else []) + ["dry_number_density",
-                                                               "dry_mass_fraction"]
+    extra = ((["droplet_number_density"] if separate else [])
+             + [f"dry_M{k}0" for k in range(m)] + ["dry_mass_fraction"])
     out = {c: np.zeros(len(states)) for c in cols + extra + list(DERIVED)}
     pd, n_ref, p_ref = arrays.droplet_mass, arrays.number_scale, arrays.mass_scale
     for r, state in enumerate(states):
@@ -278,7 +300,8 @@ def output_columns(states, aux, arrays, bivariate, density, populations=None):
             out[c][r] = value + nd * pd ** (i + j)
         if separate:
             out["droplet_number_density"][r] = nd
-        out["dry_number_density"][r] = state[K] * n_ref
+        for k in range(m):
+            out[f"dry_M{k}0"][r] = state[K + k] * n_ref * p_ref ** k
         m10 = out["M10"][r]
         out["dry_mass_fraction"][r] = state[K + 1] * n_ref * p_ref / m10 if m10 > 0 else 0.0
         ww = np.append(w, nd) if nd > 0 else w

@@ -17,9 +17,9 @@ import numba as nb
 import numpy as np
 
 from ..physics import parameters as P
-from ..physics.kernels import kernel_cell_factor
-from ..physics.properties import DIAMETER, N_PROPS, particle_properties
-from ..physics.rates import pair_rate
+from ..physics.kernels import kernel_cell_factor, kernel_uses_d43
+from ..physics.properties import DIAMETER, N_PROPS
+from ..physics.rates import pair_rate, particle_properties
 from .quadrature import solve_vandermonde, wheeler_nodes
 
 _as_strided = np.lib.stride_tricks.as_strided
@@ -33,7 +33,6 @@ PROJECTION_TOLERANCE = 1.0e-8
 #: early aggregates among droplets) has its binder fixed by the moments only to ~1e-6 of M_k1,
 #: so a tighter test would reject sets that are realizable up to integration error.
 BINDER_TOLERANCE = 1.0e-6
-MAX_NODES = 6
 
 
 
@@ -284,6 +283,63 @@ def _props_view(work, n_max):
                        strides=(N_PROPS * 8, 8))
 
 
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _droplet_sources(state, out, cell, params, config, nodes, weights, binder, props, n, factor,
+                     u0):
+    """Add the droplet terms of qmom_rhs to ``out``: with separate droplets their capture by
+    the n nodes (property rows ``props``, the droplet in row n_max) and their injection into
+    the droplet count, otherwise the injection of droplets as ordinary particles (scaled
+    moments per s)."""
+    n_max = config[P.ORDER]
+    bivariate = config[P.BIVARIATE] == 1
+    n_state = config[P.N_STATE]
+    n_size = 2 * n_max
+    number_scale = params[P.NUMBER_SCALE]
+    mass_scale = params[P.MASS_SCALE]
+    inj = cell[P.INJECTION] / number_scale
+    pd = params[P.DROPLET_MASS]
+    xd = pd / mass_scale
+    if config[P.SEPARATE_DROPLETS] == 1:
+        nd = state[n_state - 1]
+        if nd > 0.0 and factor != 0.0 and n > 0:
+            particle_properties(pd, pd, params, config, props, n_max)
+            captured = 0.0
+            droplet_factor = number_scale * params[P.DROPLET_FACTOR]
+            for a in range(n):
+                rate = droplet_factor * pair_rate(props, a, n_max, factor, u0, params, config)
+                flux = nd * weights[a] * rate
+                captured += flux
+                xa = nodes[a]
+                s = xa + xd
+                # H_k = (x_a + x_d)^k - x_a^k
+                h = 0.0
+                pa = 1.0
+                for k in range(1, n_size):
+                    h = s * h + xd * pa
+                    pa *= xa
+                    out[k] += flux * h
+                if bivariate:
+                    ba = binder[a]
+                    h = 0.0
+                    pa = 1.0
+                    total = 1.0     # (x + xd)^k, built up from k = 0
+                    for k in range(n_max):
+                        # (x+xd)^k (b + xd) - x^k b = b H_k + xd (x + xd)^k
+                        out[n_size + k] += flux * (ba * h + xd * total)
+                        h = s * h + xd * pa
+                        pa *= xa
+                        total *= s
+            out[n_state - 1] -= captured
+        out[n_state - 1] += inj
+    elif inj != 0.0:
+        value = inj
+        for k in range(n_size):
+            out[k] += value
+            if bivariate and k < n_max:
+                out[n_size + k] += value * xd
+            value *= xd
+
+
 @nb.njit(cache=True, error_model="numpy")
 def qmom_rhs(state, out, cell, aux, params, config, work):
     """d(state)/dt of one cell [scaled moments per s] (see module docstring for the layout).
@@ -297,7 +353,6 @@ def qmom_rhs(state, out, cell, aux, params, config, work):
     """
     n_max = config[P.ORDER]
     bivariate = config[P.BIVARIATE] == 1
-    separate = config[P.SEPARATE_DROPLETS] == 1
     n_state = config[P.N_STATE]
     for k in range(n_state):
         out[k] = 0.0
@@ -311,13 +366,14 @@ def qmom_rhs(state, out, cell, aux, params, config, work):
     mass_scale = params[P.MASS_SCALE]
     u0 = cell[P.COLLISION_VELOCITY]
     code = config[P.KERNEL]
+    with_d43 = kernel_uses_d43(code)
     num43 = 0.0
     den43 = 0.0
     for a in range(n):
         x = nodes[a]
         b = min(max(binder[a], 0.0), x)
         particle_properties(x * mass_scale, b * mass_scale, params, config, props, a)
-        if code == 4:
+        if with_d43:
             wx = weights[a] * x
             num43 += wx * props[a, DIAMETER]
             den43 += wx
@@ -362,48 +418,8 @@ def qmom_rhs(state, out, cell, aux, params, config, work):
                         pa *= xa
                         pc *= xc
                         out[n_size + k] += pair * (ba * ha + bc * hc)
-    inj = cell[P.INJECTION] / number_scale
-    pd = params[P.DROPLET_MASS]
-    xd = pd / mass_scale
-    if separate:
-        nd = state[n_state - 1]
-        if nd > 0.0 and factor != 0.0 and n > 0:
-            particle_properties(pd, pd, params, config, props, n_max)
-            captured = 0.0
-            droplet_factor = number_scale * params[P.DROPLET_FACTOR]
-            for a in range(n):
-                rate = droplet_factor * pair_rate(props, a, n_max, factor, u0, params, config)
-                flux = nd * weights[a] * rate
-                captured += flux
-                xa = nodes[a]
-                s = xa + xd
-                # H_k = (x_a + x_d)^k - x_a^k
-                h = 0.0
-                pa = 1.0
-                for k in range(1, n_size):
-                    h = s * h + xd * pa
-                    pa *= xa
-                    out[k] += flux * h
-                if bivariate:
-                    ba = binder[a]
-                    h = 0.0
-                    pa = 1.0
-                    total = 1.0     # (x + xd)^k, built up from k = 0
-                    for k in range(n_max):
-                        # (x+xd)^k (b + xd) - x^k b = b H_k + xd (x + xd)^k
-                        out[n_size + k] += flux * (ba * h + xd * total)
-                        h = s * h + xd * pa
-                        pa *= xa
-                        total *= s
-            out[n_state - 1] -= captured
-        out[n_state - 1] += inj
-    elif inj != 0.0:
-        value = inj
-        for k in range(n_size):
-            out[k] += value
-            if bivariate and k < n_max:
-                out[n_size + k] += value * xd
-            value *= xd
+    _droplet_sources(state, out, cell, params, config, nodes, weights, binder, props, n, factor,
+                     u0)
 
 
 @nb.njit(cache=True, error_model="numpy")

@@ -1,19 +1,31 @@
-"""Success probability psi of a collision (DESIGN section 3).
+"""Success probability psi of a collision (DESIGN section 3): the efficiency registry.
 
 Each factor is a numba function ``f(props, a, c, u0, params)`` of two rows of the per-particle
 property array (``physics.properties``: masses p, binder b [kg], diameters [m], eta(y),
 phi(y)^(1/3)) and the collision velocity u0 [m/s]; it returns a probability in [0, 1]. The
-factors that apply multiply; none means psi = 1. A new factor is one function, one entry in
-``EFFICIENCIES`` and one switch in ``parameters``.
+factors a scene lists multiply; none means psi = 1. Factor number ``code`` is switched on by
+``config[P.EFFICIENCY_SWITCHES + code]``.
+
+Adding a factor (see CONTRIBUTING.md): write its numba function (``inline="always"``) and add
+one ``Efficiency`` entry to ``EFFICIENCY_REGISTRY`` with the next code. The scene accepts its
+name and checks the material keys it lists, its switch slot and product branch follow from the
+code, the properties it reads are computed, and the registry tests check it.
 """
 import math
+from typing import Callable, NamedTuple
 
 import numba as nb
 import numpy as np
 
 from . import parameters as P
-from .properties import (ACCESSIBLE_BINDER, BINDER, DIAMETER, LAYER_CBRT, MASS, N_PROPS,
-                         all_properties_config, particle_properties)
+from .properties import (ACCESSIBLE_BINDER, BINDER, BINDER_LAYER, DIAMETER,
+                         DIAMETERS, LAYER_CBRT, MASS, N_PROPS, WETTING, fill_properties)
+from .registry import switched_product, switched_union
+
+# ---- efficiency codes (switch slot: P.EFFICIENCY_SWITCHES + code) ------------------------------
+GEOMETRIC = 0
+PHYSICAL = 1
+SATURATION = 2
 
 
 @nb.njit(cache=True, inline="always")
@@ -75,30 +87,74 @@ def saturation_efficiency(props, a, c, u0, params):
     return min(1.0, s / params[P.SATURATION_MAX])
 
 
-# name -> (config switch, function, material keys it needs)
-EFFICIENCIES = {
-    "geometric": (P.USE_GEOMETRIC, geometric_efficiency,
-                  ("accessible_binder_slope", "accessible_binder_centre")),
-    "physical": (P.USE_PHYSICAL, physical_efficiency,
-                 ("binder_viscosity", "binder_layer_slope", "binder_layer_centre",
-                  "asperity", "gyration_radius")),
-    "saturation": (P.USE_SATURATION, saturation_efficiency,
-                   ("binder_density", "porosity", "saturation_max")),
-}
+# ---- the registry ---------------------------------------------------------------------------
+class Efficiency(NamedTuple):
+    """One success-probability factor of the registry.
+
+    name        the scene's entry in ``[aggregation] efficiency``
+    code        its number: switched on by config[P.EFFICIENCY_SWITCHES + code]
+    function    numba f(props, a, c, u0, params) -> probability in [0, 1]
+    material    ``[material]`` keys it needs (the scene refuses a scene without them)
+    properties  property groups it reads (``physics.properties`` bit flags)
+    uses_binder True if it depends on binder (the scene then needs binder somewhere)
+    uses_collision_velocity  True if it reads u0 (from the scene, or 4 sqrt(Theta/pi))
+    """
+    name: str
+    code: int
+    function: Callable
+    material: tuple = ()
+    properties: int = 0
+    uses_binder: bool = True
+    uses_collision_velocity: bool = False
+
+    @property
+    def switch(self) -> int:
+        """Its slot in ``config``."""
+        return P.EFFICIENCY_SWITCHES + self.code
 
 
-@nb.njit(cache=True, inline="always")
-def pair_success_probability(props, a, c, u0, params, config):
-    """Product of the efficiency factors switched on in ``config`` [-], 1 if none."""
-    psi = 1.0
-    if config[P.USE_GEOMETRIC] == 1:
-        psi *= geometric_efficiency(props, a, c, u0, params)
-    if config[P.USE_PHYSICAL] == 1:
-        if psi > 0.0:
-            psi *= physical_efficiency(props, a, c, u0, params)
-    if config[P.USE_SATURATION] == 1:
-        psi *= saturation_efficiency(props, a, c, u0, params)
-    return psi
+EFFICIENCY_REGISTRY = (
+    Efficiency("geometric", GEOMETRIC, geometric_efficiency,
+               material=("accessible_binder_slope", "accessible_binder_centre"),
+               properties=WETTING),
+    Efficiency("physical", PHYSICAL, physical_efficiency,
+               material=("binder_viscosity", "binder_layer_slope", "binder_layer_centre",
+                         "asperity", "gyration_radius"),
+               properties=DIAMETERS | BINDER_LAYER, uses_collision_velocity=True),
+    Efficiency("saturation", SATURATION, saturation_efficiency,
+               material=("binder_density", "porosity", "saturation_max")),
+)
+
+#: name -> registry entry
+EFFICIENCY_BY_NAME = {e.name: e for e in EFFICIENCY_REGISTRY}
+#: name -> (config switch, function, material keys it needs)
+EFFICIENCIES = {e.name: (e.switch, e.function, e.material) for e in EFFICIENCY_REGISTRY}
+
+# ---- dispatch (numba; one branch per entry) ------------------------------------------------
+#: psi [-] of property rows a, c: product of the factors switched on in config;
+#: pair_success_probability(props, a, c, u0, params, config)
+pair_success_probability = switched_product((e.switch, e.function)
+                                            for e in EFFICIENCY_REGISTRY)
+#: property groups any factor reads
+FACTOR_GROUPS = 0
+for _e in EFFICIENCY_REGISTRY:
+    FACTOR_GROUPS |= _e.properties
+#: property groups the switched-on factors read: efficiency_property_groups(config)
+efficiency_property_groups = switched_union((e.switch, e.properties)
+                                            for e in EFFICIENCY_REGISTRY)
+
+
+def switch_on(config, names):
+    """Set the switches of the named factors in ``config`` (int array) to 1, the others to 0."""
+    for e in EFFICIENCY_REGISTRY:
+        config[e.switch] = int(e.name in names)
+    return config
+
+
+def uses_collision_velocity(config) -> bool:
+    """True if a factor switched on in ``config`` reads the collision velocity u0."""
+    return any(int(config[e.switch]) == 1 and e.uses_collision_velocity
+               for e in EFFICIENCY_REGISTRY)
 
 
 @nb.njit(cache=True)
@@ -106,23 +162,6 @@ def success_probability(p1, b1, p2, b2, u0, params, config):
     """Success probability [-] of two particles (p, b in kg) at collision velocity u0 [m/s]:
     the single-pair form of ``pair_success_probability``."""
     props = np.empty((2, N_PROPS))
-    full = all_properties_config(config)
-    particle_properties(p1, b1, params, full, props, 0)
-    particle_properties(p2, b2, params, full, props, 1)
+    fill_properties(p1, b1, params, FACTOR_GROUPS, props, 0)
+    fill_properties(p2, b2, params, FACTOR_GROUPS, props, 1)
     return pair_success_probability(props, 0, 1, u0, params, config)
-
-
-@nb.njit(cache=True)
-def single_pair(fn_code, p1, b1, p2, b2, u0, params):
-    """One named factor (code = position in EFFICIENCIES) of two particles; for tests/tools."""
-    props = np.empty((2, N_PROPS))
-    config = np.zeros(P.N_CONFIG, dtype=np.int64)
-    config[P.USE_GEOMETRIC] = 1
-    config[P.USE_PHYSICAL] = 1
-    particle_properties(p1, b1, params, config, props, 0)
-    particle_properties(p2, b2, params, config, props, 1)
-    if fn_code == 0:
-        return geometric_efficiency(props, 0, 1, u0, params)
-    elif fn_code == 1:
-        return physical_efficiency(props, 0, 1, u0, params)
-    return saturation_efficiency(props, 0, 1, u0, params)

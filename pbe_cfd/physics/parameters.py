@@ -36,16 +36,18 @@ ALPHA_MIN_FRICTION = 20  # g0 is evaluated at min(alpha, this) as OpenFOAM's rad
 N_PARAMS = 21
 
 # ---- config (int64) ---------------------------------------------------------------------
-KERNEL = 0               # code of the collision kernel (physics.kernels.KERNELS)
-USE_GEOMETRIC = 1        # 1 if the geometric (accessible binder) factor applies
-USE_PHYSICAL = 2         # 1 if the viscous Stokes factor applies
-USE_SATURATION = 3       # 1 if the liquid-saturation factor applies
-SEPARATE_DROPLETS = 4    # 1 if droplets are a population of their own (droplet_factor set)
-BIVARIATE = 5            # 1 if binder mass is a coordinate (otherwise univariate in p)
-METHOD = 6               # code of the moment method (methods.dispatch)
-ORDER = 7                # QMOM nodes N, or Laguerre order m
-N_STATE = 8              # length of one cell's state vector
-N_CONFIG = 9
+KERNEL = 0               # code of the collision kernel (physics.kernels.KERNEL_REGISTRY)
+SEPARATE_DROPLETS = 1    # 1 if droplets are a population of their own (droplet_factor set)
+BIVARIATE = 2            # 1 if binder mass is a coordinate (otherwise univariate in p)
+METHOD = 3               # code of the moment method (methods.dispatch)
+ORDER = 4                # QMOM nodes N, or Laguerre order m
+N_STATE = 5              # length of one cell's state vector
+EFFICIENCY_SWITCHES = 6  # config[EFFICIENCY_SWITCHES + code] = 1: the efficiency factor of
+MAX_EFFICIENCIES = 8     #   that code applies (physics.efficiency.EFFICIENCY_REGISTRY)
+USE_GEOMETRIC = EFFICIENCY_SWITCHES + 0    # the geometric (accessible binder) factor
+USE_PHYSICAL = EFFICIENCY_SWITCHES + 1     # the viscous Stokes factor
+USE_SATURATION = EFFICIENCY_SWITCHES + 2   # the liquid-saturation factor
+N_CONFIG = EFFICIENCY_SWITCHES + MAX_EFFICIENCIES
 
 # ---- cell (float64, per cell) ----------------------------------------------------------
 ALPHA = 0                # solids volume fraction [-]

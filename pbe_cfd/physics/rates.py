@@ -1,18 +1,29 @@
 """Aggregation rate of a pair: collision frequency times success probability [m3/s].
 
-Combines ``kernels`` and ``efficiency`` with the droplet rules of DESIGN section 3: where droplets
-are a population of their own, droplets never aggregate with each other and a droplet meets a
-granule at ``droplet_factor`` times the kernel. ``pair_rate`` works on precomputed property rows
-(the fast path of the moment methods); ``aggregation_rate`` and ``droplet_capture_rate`` are the
-single-pair forms used where particles come one pair at a time (Monte Carlo, tensor builds).
+Combines the two registries (``kernels``, ``efficiency``) with the droplet rules of DESIGN
+section 3: where droplets are a population of their own, droplets never aggregate with each
+other and a droplet meets a granule at ``droplet_factor`` times the kernel. ``pair_rate`` works
+on precomputed property rows (the fast path of the moment methods; ``particle_properties``
+fills them with what the scene's kernel and factors read); ``aggregation_rate`` and
+``droplet_capture_rate`` are the single-pair forms used where particles come one pair at a time
+(Monte Carlo, tensor builds).
 """
 import numba as nb
 import numpy as np
 
 from . import parameters as P
-from .efficiency import pair_success_probability
-from .kernels import kernel_cell_factor, pair_collision_frequency
-from .properties import N_PROPS, particle_properties
+from .efficiency import efficiency_property_groups, pair_success_probability
+from .kernels import kernel_cell_factor, kernel_property_groups, pair_collision_frequency
+from .properties import N_PROPS, fill_properties
+
+
+@nb.njit(cache=True, inline="always")
+def particle_properties(p, b, params, config, props, row):
+    """Fill ``props[row]`` for a particle of mass p [kg] holding binder b [kg]: the property
+    columns the kernel config[KERNEL] and the efficiency factors switched on in ``config`` read
+    (others 0; see ``physics.properties``)."""
+    groups = kernel_property_groups(config[P.KERNEL]) | efficiency_property_groups(config)
+    fill_properties(p, b, params, groups, props, row)
 
 
 @nb.njit(cache=True, inline="always")

@@ -1,0 +1,172 @@
+"""The run state of the per-cell integration, shared by every run.
+
+A ``CellBatch`` holds what ``integrate.integrate_cells`` works on -- the packed parameters and
+switches, the method's auxiliary data, one row of local fields and one scaled state per cell,
+and the per-cell work arrays (step memory [s], counters, status, time reached [s]) -- and
+advances them: ``advance(t0, t1)``, ``raise_if_failed()``, ``stats()``. The well-mixed run is
+a batch of one cell, the coupled run one of all active cells, a cluster task one of a chunk's
+cells, a benchmark one of synthetic cells.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import integrate, model
+from .methods.registry import method_of
+from .physics import parameters as P
+
+
+class SimulationError(RuntimeError):
+    """The run could not reach its end time; the message says which cell, when and why."""
+
+
+def output_times(scene) -> np.ndarray:
+    """Output times [s]: 0, every output_interval, and end_time."""
+    n = int(math.floor(scene.end_time / scene.output_interval + 1e-9))
+    times = [k * scene.output_interval for k in range(n + 1)]
+    if scene.end_time - times[-1] > 1e-9 * scene.end_time:
+        times.append(scene.end_time)
+    return np.array(times)
+
+
+def check_physics(scene):
+    """Refuse runs whose answer would be meaningless (product-kernel gelation)."""
+    t_gel = model.product_gel_time(scene)
+    if t_gel is not None and scene.end_time >= t_gel:
+        raise SimulationError(
+            f"{scene.source}: the product kernel gels at t = {t_gel:.6g} s "
+            f"(1/(k0 M20(0))); moments diverge there. Expected scene.end_time below it, "
+            f"got {scene.end_time:g} s")
+
+
+@dataclass
+class CellBatch:
+    """Cells integrated together by ``integrate.integrate_cells`` (arrays modified in place).
+
+    params, config  packed arrays (``physics.parameters``)
+    aux             method data (``methods.registry``)
+    rows            (n, N_CELL) local fields per cell (SI)
+    states          (n, n_state) scaled states
+    rtol, atol      tolerances of the step control on the scaled state [-]
+    steps           (n,) step memory [s]; stats (n, N_STATS) counters; status (n,) codes;
+    reached         (n,) time each cell got to [s]
+    For messages: ``scene`` (source, method hints), ``cell_ids`` the global number of each
+    row (None: a well-mixed run, one cell), ``arrays`` the scene's packed arrays.
+    """
+    params: np.ndarray
+    config: np.ndarray
+    aux: np.ndarray
+    rows: np.ndarray
+    states: np.ndarray
+    rtol: float
+    atol: float
+    steps: np.ndarray
+    max_steps: int = integrate.MAX_STEPS_PER_INTERVAL
+    stats_counts: np.ndarray = None
+    status: np.ndarray = None
+    reached: np.ndarray = None
+    scene: object = None
+    arrays: object = None
+    cell_ids: np.ndarray | None = None
+    hints: bool = True
+
+    def __post_init__(self):
+        n = self.states.shape[0]
+        if self.stats_counts is None:
+            self.stats_counts = np.zeros((n, integrate.N_STATS), dtype=np.int64)
+        if self.status is None:
+            self.status = np.zeros(n, dtype=np.int64)
+        if self.reached is None:
+            self.reached = np.zeros(n)
+
+    @classmethod
+    def for_scene(cls, scene, arrays, aux, rows, states, cell_ids=None) -> "CellBatch":
+        """A batch of the scene's method and tolerances; the first step of every cell is
+        1e-3 of the output interval [s]."""
+        n = states.shape[0]
+        return cls(params=arrays.params, config=arrays.config, aux=aux, rows=rows,
+                   states=states, rtol=scene.method.rtol, atol=scene.method.atol,
+                   steps=np.full(n, scene.output_interval * 1e-3), scene=scene,
+                   arrays=arrays, cell_ids=cell_ids)
+
+    @property
+    def n_cells(self) -> int:
+        """Number of cells [-]."""
+        return self.states.shape[0]
+
+    # -- integration ---------------------------------------------------------------------
+    def advance(self, t0: float, t1: float, states: np.ndarray | None = None):
+        """Integrate every cell still running from t0 to t1 [s] in place (``states``: the
+        batch's own by default, or an array of the same shape). Cells that stop keep their
+        status; see ``raise_if_failed``."""
+        integrate.integrate_cells(self.states if states is None else states, self.rows,
+                                  self.aux, self.params, self.config, t0, t1, self.steps,
+                                  self.rtol, self.atol, self.max_steps, self.stats_counts,
+                                  self.status, self.reached)
+
+    def step(self, t0: float, t1: float, states: np.ndarray | None = None):
+        """``advance`` then ``raise_if_failed``: the source step of a run."""
+        self.advance(t0, t1, states)
+        self.raise_if_failed(states)
+
+    def source_step(self, states: np.ndarray, t0: float, t1: float):
+        """``step`` with the signature of ``Transport.advance``'s source step."""
+        self.step(t0, t1, states)
+
+    def failed(self) -> np.ndarray:
+        """Positions of the cells that stopped."""
+        return np.flatnonzero(self.status != integrate.OK)
+
+    def raise_if_failed(self, states: np.ndarray | None = None, failed=None):
+        """Raise SimulationError naming the first stopped cell (of ``failed``, default all
+        stopped cells), the time it reached and why, with the method's hint."""
+        bad = self.failed() if failed is None else np.asarray(failed)
+        if bad.size == 0:
+            return
+        c = int(bad[0])
+        states = self.states if states is None else states
+        source = self.scene.source if self.scene is not None else ""
+        text = integrate.STATUS_TEXT[int(self.status[c])]
+        if self.cell_ids is None:
+            message = (f"{source}: cell {c} stopped at t = {self.reached[c]:.6g} s: {text} "
+                       f"(floor {self.params[P.STEP_FLOOR]:.3g} s)")
+        else:
+            message = (f"{source}: cell {int(self.cell_ids[c])} (alpha "
+                       f"{self.rows[c, P.ALPHA]:.4g}, Theta {self.rows[c, P.THETA]:.3g} m2/s2) "
+                       f"stopped at t = {self.reached[c]:.6g} s: {text}; {bad.size} cell(s) "
+                       "affected")
+        if self.hints and self.scene is not None:
+            message += method_of(self.scene).failure_hint(self.scene, self.arrays, states[c],
+                                                          self.aux)
+        raise SimulationError(message)
+
+    # -- accounting ----------------------------------------------------------------------
+    def stats(self) -> dict:
+        """Counters summed over the cells: accepted steps, steps rejected by the error control
+        and by realizability, right-hand-side calls."""
+        st = self.stats_counts.sum(axis=0)
+        return {"accepted_steps": int(st[integrate.ACCEPTED]),
+                "rejected_error": int(st[integrate.REJECTED_ERROR]),
+                "rejected_realizability": int(st[integrate.REJECTED_REALIZABILITY]),
+                "rhs_calls": int(st[integrate.RHS_CALLS])}
+
+    def shared(self) -> dict:
+        """What every chunk of this batch shares (aux, params, config, tolerances, step
+        budget): the arguments of ``CellBatch.of_chunk``."""
+        return {"aux": np.asarray(self.aux), "params": np.asarray(self.params),
+                "config": np.asarray(self.config), "rtol": float(self.rtol),
+                "atol": float(self.atol), "max_steps": int(self.max_steps)}
+
+    @classmethod
+    def of_chunk(cls, shared: dict, rows, states, steps) -> "CellBatch":
+        """A batch of some cells (copies of ``states`` and ``steps``) with the ``shared``
+        data of the whole run (``shared()``); no messages context."""
+        return cls(params=shared["params"], config=shared["config"], aux=shared["aux"],
+                   rows=np.ascontiguousarray(rows),
+                   states=np.array(states, dtype=np.float64, order="C", copy=True),
+                   rtol=shared["rtol"], atol=shared["atol"],
+                   steps=np.array(steps, dtype=np.float64, copy=True),
+                   max_steps=shared["max_steps"], hints=False)

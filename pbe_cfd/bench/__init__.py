@@ -1,0 +1,52 @@
+"""What accuracy costs in time: ``pbe-cfd bench accuracy | throughput | cnmc | laguerre | couple``.
+
+accuracy (``accuracy_study``)
+    Each method over its accuracy knob -- QMOM nodes 1-4; Laguerre ROM order 2-4 on a coarse
+    and a fine grid, moment-consistent and plain; cNMC particles 1e3-1e5 with replicas -- run on
+    one well-mixed scene. Relative errors of M00, M20, M11, M02, d43 and the mean binder fraction
+    M01/M10 at chosen times against a reference: the analytic solution where the scene has one
+    (``analytic_reference``: constant kernel, droplets as ordinary particles), otherwise a cNMC
+    ensemble far larger than any tested one, whose own 95% band is reported beside it. Wall time
+    is the median of repeated runs; the first call (numba compilation or cache load, Laguerre
+    tensor build) is reported apart. Writes accuracy.csv, accuracy.md, pareto.png, accuracy.json.
+
+throughput (``throughput_study``)
+    Cell-RHS evaluations per second and cell-steps per second of the shared integrator against
+    the number of cells and numba threads, for QMOM N = 2, 3, 4 and the Laguerre ROM m = 2, 3, 4
+    (Theta-interpolated tensor) with the ktgf kernel and the geometric and physical efficiency;
+    the kernel-only rate (QMOM: the pair-rate evaluations its RHS needs; Laguerre: the bare
+    quadratic-form contraction) as the ceiling and each method's share of it; and a plain
+    NumPy/SciPy QMOM (``NumpyQMOM``: Wheeler and ``numpy.linalg.eigh`` per call, Python loops)
+    integrated per cell by ``scipy.integrate.solve_ivp``, giving the speed-up as a ratio.
+    Writes throughput.csv, throughput.md, throughput.png, machine.json.
+
+cnmc, laguerre, couple
+    Seed-scenario cNMC speed per replica (trials and accepted events per second); Laguerre
+    tensor build time per order and grid and its RHS rate; cell-steps per second of
+    ``run_coupled`` on the bundled small bed and on its cells replicated to ~3600 cells.
+
+Modules: ``common`` (machine, writers), ``analytic`` (closed-form references), ``accuracy``
+and ``accuracy_report``, ``throughput`` with ``sweeps`` (numba) and ``numpy_baseline`` (the
+plain NumPy/SciPy QMOM), ``cnmc``, ``laguerre``, ``couple``, ``cluster`` (the Dask path).
+
+Every study accepts ``quick`` (a tiny configuration for tests: well under a minute once numba's
+cache is warm). Numbers are measured, never asserted.
+"""
+from .. import model  # noqa: F401 - bench.model: the domain layer the studies build on
+from .accuracy import (DEFAULT_ACCURACY_SCENE, QUANTITIES, TIME_FRACTIONS, Variant,
+                       accuracy_study, accuracy_variants, chosen_times, cnmc_reference,
+                       laguerre_build_time, run_variant)
+from .accuracy_report import accuracy_markdown, pareto_front, plot_pareto
+from .analytic import (analytic_applicable, analytic_moments, analytic_reference,
+                       smoluchowski_d43)
+from .cnmc import cnmc_study, seed_scenario_benchmark, seed_scenario_setup
+from .common import machine_info
+from .couple import couple_study, replicated_domain
+from .laguerre import laguerre_study
+from .numpy_baseline import NumpyQMOM
+from .sweeps import (laguerre_contraction_sweep, qmom_kernel_sweep, qmom_node_properties,
+                     rhs_sweep)
+from .throughput import (DEFAULT_THROUGHPUT_SCENE, ThroughputCase, cell_states,
+                         measure_baseline, measure_ceiling, measure_rhs_rate, measure_steps,
+                         synthetic_cells, throughput_case, throughput_markdown,
+                         throughput_scene, throughput_study, trajectory_states)

@@ -1,0 +1,94 @@
+"""Finding OpenFOAM: its tools on PATH and its project directory; the error every OpenFOAM
+problem is reported as."""
+from __future__ import annotations
+
+import dataclasses
+import os
+import shutil
+from pathlib import Path
+
+
+
+
+TOOLS = ("blockMesh", "setFields", "twoPhaseEulerFoam", "foamToVTK")
+
+#: Field names tried, in order, for the solids fraction and the granular temperature.
+ALPHA_FIELDS = ("alpha.particlesMean", "alpha.particles")
+THETA_FIELDS = ("Theta.particlesMean", "Theta.particles")
+#: Face flux of the solids volume (m3/s), averaged and instantaneous.
+FLUX_FIELDS = ("alphaPhi.particlesMean", "alphaPhi.particles")
+
+_DEFAULT_PROJECT_DIRS = (
+    "/usr/share/openfoam",
+    "/usr/lib/openfoam/openfoam1912",
+    "/opt/openfoam1912",
+    "/opt/OpenFOAM/OpenFOAM-v1912",
+)
+
+
+class OpenFOAMError(RuntimeError):
+    """OpenFOAM is missing, a tool failed, or a case file is not what was expected.
+
+    Attributes: ``tool`` (the failing OpenFOAM tool or None), ``log_path`` (its log file or
+    None) and ``log_tail`` (the last lines of that log, or "").
+    """
+
+    def __init__(self, message: str, tool: str | None = None,
+                 log_path: Path | None = None, log_tail: str = ""):
+        full = message
+        if log_tail:
+            full += f"\n--- last lines of {log_path} ---\n{log_tail}"
+        super().__init__(full)
+        self.tool = tool
+        self.log_path = log_path
+        self.log_tail = log_tail
+
+
+# --------------------------------------------------------------------------- install / run
+
+@dataclasses.dataclass(frozen=True)
+class OpenFOAMInstall:
+    """Where OpenFOAM lives: ``project_dir`` (WM_PROJECT_DIR), ``tools`` (name -> executable)."""
+
+    project_dir: Path
+    tools: dict[str, Path]
+
+    def env(self) -> dict[str, str]:
+        """The process environment to run OpenFOAM tools in (WM_PROJECT_DIR set)."""
+        env = dict(os.environ)
+        env["WM_PROJECT_DIR"] = str(self.project_dir)
+        return env
+
+
+def find_openfoam(tools: tuple[str, ...] = TOOLS + ("postProcess",)) -> OpenFOAMInstall:
+    """Locate the OpenFOAM tools on PATH and a WM_PROJECT_DIR holding ``etc/controlDict``.
+
+    Raises OpenFOAMError naming the missing tool or project directory.
+    """
+    found: dict[str, Path] = {}
+    for tool in tools:
+        exe = shutil.which(tool)
+        if exe is None:
+            raise OpenFOAMError(
+                f"OpenFOAM tool '{tool}' not found on PATH; install OpenFOAM v1912 "
+                "(Debian/Ubuntu: apt-get install -y openfoam)", tool=tool)
+        found[tool] = Path(exe)
+    candidates = []
+    if os.environ.get("WM_PROJECT_DIR"):
+        candidates.append(os.environ["WM_PROJECT_DIR"])
+    candidates.extend(_DEFAULT_PROJECT_DIRS)
+    for cand in candidates:
+        if (Path(cand) / "etc" / "controlDict").is_file():
+            return OpenFOAMInstall(Path(cand), found)
+    raise OpenFOAMError(
+        "OpenFOAM tools found but no project directory with etc/controlDict; set "
+        f"WM_PROJECT_DIR (tried {', '.join(candidates)})")
+
+
+def have_openfoam() -> bool:
+    """True when find_openfoam() succeeds."""
+    try:
+        find_openfoam()
+    except OpenFOAMError:
+        return False
+    return True

@@ -1,0 +1,166 @@
+"""The CFD domain of a coupled run: the mesh cells, their fields and their initial states.
+
+Reads the time-averaged fields of an OpenFOAM fluid bed (a bundled snapshot, a snapshot .vtu or
+a case directory), builds one cell row per mesh cell (alpha [-], Theta [m2/s2], collision
+velocity [m/s] from Theta, spray-zone injection [droplets/(m3 s)]), marks the cells that hold
+granules (alpha >= alpha_min), sets the scales of the non-dimensional states and builds each
+cell's initial state. All SI.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import model
+from .physics import parameters as P
+from .physics.kernels import collision_velocity
+from .scene import SceneError
+
+BUNDLED_PREFIX = "bundled:"
+#: alpha is kept this far (relative) below alpha_max so that g0 stays finite; cells moved are
+#: counted in the summary.
+PACKING_MARGIN = 1.0e-6
+
+
+@dataclass
+class Domain:
+    """The mesh cells the population lives in (OpenFOAM cell order)."""
+    cells: object                  # pbe_cfd.cfd.openfoam.CellData
+    flux: object | None            # pbe_cfd.cfd.openfoam.FaceFlux or None
+    description: str
+
+
+def _case_path(scene) -> Path:
+    path = Path(scene.domain.case)
+    if not path.is_absolute() and scene.source:
+        cand = Path(scene.source).parent / path
+        path = cand if cand.exists() else path
+    return path
+
+
+def load_domain(scene, need_flux: bool = False) -> Domain:
+    """Read the CFD fields named by ``[domain] case`` (a bundled snapshot, a snapshot .vtu, or
+    an OpenFOAM case directory whose foamToVTK output exists); with ``need_flux`` also the
+    solids face flux [m3/s]."""
+    from .cfd import openfoam as of
+
+    case = scene.domain.case
+    flux = None
+    try:
+        if case.startswith(BUNDLED_PREFIX):
+            name = case[len(BUNDLED_PREFIX):]
+            path = of.default_snapshot_path().with_name(name + ".vtu")
+            if not path.is_file():
+                raise SceneError(scene.source, "domain.case",
+                                 f"no bundled snapshot {name!r} (expected bundled:fluid_bed_small)")
+            loaded = of.load_snapshot(path, with_flux=need_flux)
+            desc = f"bundled snapshot {path.name}"
+        else:
+            path = _case_path(scene)
+            if path.suffix == ".vtu":
+                loaded = of.load_snapshot(path, with_flux=need_flux)
+                desc = f"snapshot {path}"
+            elif path.is_dir():
+                t = scene.domain.time
+                t = "latest" if t == "latest" else float(t)
+                cells = of.read_cell_fields(path, t)
+                flux = of.read_face_flux(path, cells.time) if need_flux else None
+                loaded = (cells, flux) if need_flux else cells
+                desc = f"OpenFOAM case {path} at t = {cells.time:g} s"
+            else:
+                raise SceneError(scene.source, "domain.case",
+                                 f"{case!r}: expected an OpenFOAM case directory, a snapshot "
+                                 f".vtu or bundled:fluid_bed_small")
+    except of.OpenFOAMError as exc:
+        raise SceneError(scene.source, "domain.case", str(exc)) from None
+    if need_flux:
+        cells, flux = loaded
+    else:
+        cells = loaded
+    return Domain(cells=cells, flux=flux, description=desc)
+
+
+def spray_zone(scene, cells) -> np.ndarray:
+    """Boolean mask of the spray-zone cells: alpha window and box of ``[binder_injection]
+    zone`` (all cells when no zone is given)."""
+    inj = scene.binder_injection
+    n = cells.n_cells
+    if inj is None:
+        return np.zeros(n, dtype=bool)
+    zone = inj.zone
+    if zone is None:
+        return np.ones(n, dtype=bool)
+    centre = cells.cell_centre
+    inside = np.all((centre >= np.array(zone.box_min)) & (centre <= np.array(zone.box_max)),
+                    axis=1)
+    window = (cells.alpha >= zone.alpha_low) & (cells.alpha <= zone.alpha_high)
+    return inside & window
+
+
+def build_cells(scene, cells) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
+    """Cell rows (n, N_CELL) for every mesh cell, the active mask (alpha >= alpha_min), the
+    spray mask, and notes (cells whose alpha was kept below alpha_max)."""
+    n = cells.n_cells
+    rows = np.zeros((n, P.N_CELL))
+    alpha = np.asarray(cells.alpha, dtype=float).copy()
+    alpha_max = scene.domain.alpha_max
+    cap = alpha_max * (1.0 - PACKING_MARGIN)
+    capped = int(np.count_nonzero(alpha > cap))
+    alpha = np.minimum(alpha, cap)
+    theta = np.maximum(np.asarray(cells.theta, dtype=float), 0.0)
+    rows[:, P.ALPHA] = alpha
+    rows[:, P.THETA] = theta
+    rows[:, P.COLLISION_VELOCITY] = collision_velocity(theta)
+    active = np.asarray(cells.alpha) >= scene.domain.alpha_min
+    spray = spray_zone(scene, cells) & active
+    if scene.binder_injection is not None:
+        rows[spray, P.INJECTION] = scene.binder_injection.rate
+    notes = {"cells_capped_below_alpha_max": capped}
+    return rows, active, spray, notes
+
+
+def cell_number_densities(scene, alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Initial granule and free-droplet number densities per m3 of bed [1/m3] per cell.
+
+    Granules fill the solids fraction: n = alpha rho_s / p0. Free droplets follow alpha too:
+    ``initial.droplet_number_density`` is read per m3 of solids, n_d = alpha * value.
+    """
+    p0 = scene.initial.mean_mass
+    granules = alpha * scene.material.density / p0
+    droplets = alpha * scene.initial.droplet_number_density
+    return granules, droplets
+
+
+def initial_states(scene, arrays: model.Arrays, alpha: np.ndarray) -> np.ndarray:
+    """Scaled initial states (n_cells, n_state): the scene's initial distribution with the
+    number density of each cell (``cell_number_densities``). The state is linear in the
+    granule and droplet densities, so it is built from two unit states."""
+    granules, droplets = cell_number_densities(scene, alpha)
+
+    def unit(n_granules, n_droplets):
+        local = dataclasses.replace(
+            scene, initial=dataclasses.replace(scene.initial, number_density=n_granules,
+                                               droplet_number_density=n_droplets))
+        return model.initial_moments(local, arrays, arrays.state_names)
+
+    return granules[:, None] * unit(1.0, 0.0) + droplets[:, None] * unit(0.0, 1.0)
+
+
+def coupled_scales(scene, alpha_active: np.ndarray):
+    """The scene with the number density set to the bed's largest cell value, so that the
+    non-dimensional states of all cells are O(1) or below."""
+    granules, droplets = cell_number_densities(scene, alpha_active)
+    n_max = float(granules.max()) if granules.size else 1.0
+    nd_max = float(droplets.max()) if droplets.size else 0.0
+    return dataclasses.replace(scene, initial=dataclasses.replace(
+        scene.initial, number_density=max(n_max, 1.0), droplet_number_density=nd_max))
+
+
+def theta_grid(theta_active: np.ndarray, points: int = 24) -> np.ndarray:
+    """Log-spaced granular temperatures [m2/s2] spanning the active cells' Theta, for methods
+    whose auxiliary data is tabulated in Theta (``MethodEntry.tabulates_theta``)."""
+    lo = max(float(theta_active.min()), 1e-12)
+    return np.geomspace(lo, max(float(theta_active.max()), lo * 1.0001), points)

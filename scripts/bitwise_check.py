@@ -1,0 +1,178 @@
+"""Prove that a change of code leaves the results bitwise the same.
+
+Runs the same commands with the package of a base commit (``git archive``, into a temporary
+directory) and with the working tree, then compares every written result file byte for byte:
+``moments.csv``, ``bed_moments.csv``, every ``.vtu``/``.pvd`` of the VTK series, and
+``summary.json`` without its wall-clock entries. Exit status 0 when every file agrees.
+
+    python scripts/bitwise_check.py --base 16e56e6            # all cases
+    python scripts/bitwise_check.py --base 16e56e6 --only seed-wurster fluid-bed
+
+The base runs are kept under ``--work`` (default /tmp/pbe_cfd_bitwise/<base>) and reused when
+present, so a second check after more edits only reruns the working tree.
+"""
+from __future__ import annotations
+
+import argparse
+import filecmp
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+#: name -> (command words after ``pbe-cfd``, extra scene TOML text or None)
+CASES = {
+    "seed-wurster": (["run", "seed-wurster"], None),
+    "seed-wurster-laguerre": (["run", "seed-wurster-laguerre"], None),
+    "seed-wurster-cnmc": (["run", "seed-wurster-cnmc"], None),
+    "constant-kernel": (["run", "constant-kernel"], None),
+    "study-analytic": (["run", "study-analytic"], None),
+    "fluid-bed": (["couple"], None),
+    "fluid-bed-transport": (["couple", "fluid-bed-transport"], None),
+    "fluid-bed-qmom3": (["couple", "{scene}"], ("fluid-bed", {"nodes": 3}, None, 20.0)),
+    "fluid-bed-laguerre": (["couple", "{scene}"],
+                           ("fluid-bed", {"name": "laguerre", "order": 3},
+                            {"droplet_number_density": 8.5e10}, 10.0)),
+    "fluid-bed-workers": (["couple", "--workers", "2"], None),
+}
+
+WALL_KEYS = ("wall_time_s", "cell_steps_per_second", "cluster", "threads", "source",
+             "transport_wall_s", "source_wall_s", "transport_first_call_s",
+             "transport_s_per_cell_substep", "source_s_per_cell_split_step")
+
+
+def _derived_scene(work: Path, name: str, spec) -> Path:
+    """A scene TOML: a bundled scene with [method] / [initial] entries replaced."""
+    import tomllib
+    base, method, initial, end_time = spec
+    text = (ROOT / "pbe_cfd" / "scenes" / f"{base}.toml").read_text()
+    data = tomllib.loads(text)
+    data["scene"]["name"] = name
+    data["scene"]["end_time"] = end_time
+    if method and "name" in method:
+        data["method"] = dict(method)
+    elif method:
+        data["method"].update(method)
+    if initial:
+        data["initial"].update(initial)
+    lines = []
+    for table, values in data.items():
+        lines.append(f"[{table}]")
+        for k, v in values.items():
+            lines.append(f"{k} = {_toml(v)}")
+    path = work / f"{name}.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _toml(v):
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{k} = {_toml(x)}" for k, x in v.items()) + " }"
+    raise TypeError(v)
+
+
+def run_case(code: Path, work: Path, name: str, out: Path) -> bool:
+    """Run one case with the package at ``code`` into ``out``; False (and the error) if it
+    failed."""
+    words, spec = CASES[name]
+    if spec is not None:
+        scene = _derived_scene(work, name, spec)
+        words = [w.replace("{scene}", str(scene)) for w in words]
+    env = dict(os.environ, PYTHONPATH=str(code))
+    if out.exists():
+        shutil.rmtree(out)
+    cmd = [sys.executable, "-m", "pbe_cfd.cli", *words, "--out", str(out)]
+    r = subprocess.run(cmd, cwd=work, env=env, capture_output=True, text=True)
+    if r.returncode != 0:
+        print(f"{name} failed with {code}:\n{r.stderr[-2000:]}")
+        return False
+    return True
+
+
+def _summary(path: Path):
+    data = json.loads(path.read_text())
+
+    def strip(d):
+        if isinstance(d, dict):
+            return {k: strip(v) for k, v in d.items() if k not in WALL_KEYS}
+        if isinstance(d, list):
+            return [strip(x) for x in d]
+        return d
+    return strip(data)
+
+
+def compare(a: Path, b: Path) -> list[str]:
+    """Differences between two output directories (empty list: identical)."""
+    diffs = []
+    files = sorted(p.relative_to(a) for p in a.rglob("*") if p.is_file()
+                   and (p.suffix in (".csv", ".vtu", ".pvd") or p.name == "summary.json"))
+    if not files:
+        diffs.append(f"{a}: no result files")
+    for rel in files:
+        other = b / rel
+        if not other.is_file():
+            diffs.append(f"{rel}: missing in {b}")
+        elif rel.name == "summary.json":
+            if _summary(a / rel) != _summary(other):
+                diffs.append(f"{rel}: summary differs")
+        elif not filecmp.cmp(a / rel, other, shallow=False):
+            diffs.append(f"{rel}: bytes differ")
+    return diffs
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--base", required=True, help="base commit (e.g. 16e56e6)")
+    parser.add_argument("--only", nargs="*", default=None, choices=sorted(CASES))
+    parser.add_argument("--work", default=None)
+    parser.add_argument("--record", action="store_true",
+                        help="only run the base commit (record the reference outputs)")
+    args = parser.parse_args(argv)
+    sha = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", args.base],
+                         check=True, capture_output=True, text=True).stdout.strip()
+    work = Path(args.work or Path(tempfile.gettempdir()) / "pbe_cfd_bitwise" / sha)
+    work.mkdir(parents=True, exist_ok=True)
+    base_code = work / "code"
+    if not (base_code / "pbe_cfd").is_dir():
+        base_code.mkdir(exist_ok=True)
+        archive = subprocess.run(["git", "-C", str(ROOT), "archive", sha, "pbe_cfd"],
+                                 check=True, capture_output=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(base_code)], input=archive, check=True)
+    failed = 0
+    for name in args.only or sorted(CASES):
+        ref = work / "base" / name
+        if not (ref / "summary.json").is_file() and not run_case(base_code, work, name, ref):
+            failed += 1
+            continue
+        if args.record:
+            print(f"{name}: recorded")
+            continue
+        new = work / "new" / name
+        if not run_case(ROOT, work, name, new):
+            failed += 1
+            continue
+        diffs = compare(ref, new) + compare(new, ref)
+        n = sum(1 for p in ref.rglob("*") if p.is_file())
+        if diffs:
+            failed += 1
+            print(f"{name}: DIFFERENT\n  " + "\n  ".join(sorted(set(diffs))[:20]))
+        else:
+            print(f"{name}: identical ({n} files)")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,177 @@
+"""The registries (kernels, efficiency factors, methods) against the rest of the program.
+
+Parametrized over the registry entries, so an entry added by the recipe of CONTRIBUTING.md is
+checked without touching this file: its dispatch branch returns what its own function returns,
+the property groups it declares are all it reads, the scene accepts its name, and codes are
+unique. An unknown code must give NaN, never another kernel's value.
+"""
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from pbe_cfd import scene as S
+from pbe_cfd.methods import registry as M
+from pbe_cfd.physics import parameters as P
+from pbe_cfd.physics.efficiency import (EFFICIENCY_REGISTRY, pair_success_probability,
+                                        success_probability)
+from pbe_cfd.physics.kernels import (KERNEL_REGISTRY, collision_frequency, kernel_cell_factor,
+                                     kernel_property_groups, kernel_uses_d43,
+                                     pair_collision_frequency)
+from pbe_cfd.physics.properties import ALL_GROUPS, N_PROPS, fill_properties
+from test_physics_registry import avicel_params
+
+KERNEL_NAMES = [k.name for k in KERNEL_REGISTRY]
+FACTOR_NAMES = [e.name for e in EFFICIENCY_REGISTRY]
+#: an integer no registry uses
+UNKNOWN = 1 + max(k.code for k in KERNEL_REGISTRY)
+
+
+def rows(pairs, params, groups):
+    props = np.zeros((len(pairs), N_PROPS))
+    for r, (p, b) in enumerate(pairs):
+        fill_properties(p, b, params, groups, props, r)
+    return props
+
+
+RNG = np.random.default_rng(5)
+MASSES = 10 ** RNG.uniform(-11, -8, (40, 2))           # kg
+BINDER_SHARE = RNG.uniform(0.0, 0.5, (40, 2))
+CELLS = [(0.3, 1e-3, 1.2e-4), (0.05, 1e-6, 3e-4), (0.55, 2e-4, 8e-5)]   # alpha, Theta, d43
+
+
+# ------------------------------------------------------------------------------ kernels
+def test_kernel_names_and_codes_are_unique_and_the_scene_takes_them():
+    codes = [k.code for k in KERNEL_REGISTRY]
+    assert len(set(codes)) == len(codes) and min(codes) >= 0
+    assert len(set(KERNEL_NAMES)) == len(KERNEL_NAMES)
+    assert S.KERNEL_NAMES == tuple(KERNEL_NAMES)
+
+
+@pytest.mark.parametrize("name", KERNEL_NAMES)
+def test_kernel_dispatch_is_its_own_function(name):
+    """Every dispatcher's branch for the entry's code gives exactly what the entry declares."""
+    k = next(e for e in KERNEL_REGISTRY if e.name == name)
+    params = avicel_params()
+    assert kernel_property_groups(k.code) == k.properties
+    assert kernel_uses_d43(k.code) == k.uses_d43
+    for alpha, theta, d43 in CELLS:
+        factor = kernel_cell_factor(k.code, alpha, theta, d43, params)
+        assert factor == k.cell_factor(alpha, theta, d43, params)
+        assert math.isfinite(factor) and factor > 0
+        for p1, p2 in MASSES:
+            props = rows([(p1, 0.0), (p2, 0.0)], params, k.properties)
+            beta = pair_collision_frequency(k.code, props, 0, 1, factor, params)
+            assert beta == k.function(props, 0, 1, factor, params)
+            assert beta == collision_frequency(k.code, p1, p2, alpha, theta, d43, params)
+            assert math.isfinite(beta) and beta > 0
+            swapped = rows([(p2, 0.0), (p1, 0.0)], params, k.properties)
+            assert k.function(swapped, 0, 1, factor, params) == pytest.approx(beta, rel=1e-14)
+
+
+@pytest.mark.parametrize("name", KERNEL_NAMES)
+def test_kernel_reads_only_the_properties_it_declares(name):
+    """With only its declared property groups filled the kernel gives the value it gives with
+    every group filled: a column read but not declared would be 0 and change it."""
+    k = next(e for e in KERNEL_REGISTRY if e.name == name)
+    params = avicel_params()
+    factor = k.cell_factor(*CELLS[0], params)
+    for p1, p2 in MASSES:
+        declared = rows([(p1, 0.0), (p2, 0.0)], params, k.properties)
+        full = rows([(p1, 0.0), (p2, 0.0)], params, ALL_GROUPS)
+        assert k.function(declared, 0, 1, factor, params) == k.function(full, 0, 1, factor,
+                                                                         params)
+
+
+def test_an_unknown_kernel_code_gives_nan():
+    params = avicel_params()
+    props = rows([(1e-9, 0.0), (2e-9, 0.0)], params, ALL_GROUPS)
+    assert math.isnan(pair_collision_frequency(UNKNOWN, props, 0, 1, 1.0, params))
+    assert math.isnan(kernel_cell_factor(UNKNOWN, 0.3, 1e-3, 1e-4, params))
+    assert math.isnan(collision_frequency(UNKNOWN, 1e-9, 2e-9, 0.3, 1e-3, 1e-4, params))
+    assert math.isnan(collision_frequency(-1, 1e-9, 2e-9, 0.3, 1e-3, 1e-4, params))
+    assert kernel_property_groups(UNKNOWN) == 0 and not kernel_uses_d43(UNKNOWN)
+
+
+# ------------------------------------------------------------------------------ efficiency
+def test_factor_names_codes_and_switches_agree_with_the_scene_and_the_layout():
+    codes = [e.code for e in EFFICIENCY_REGISTRY]
+    assert sorted(codes) == list(range(len(codes)))
+    assert len(codes) <= P.MAX_EFFICIENCIES
+    assert S.EFFICIENCY_NAMES == tuple(FACTOR_NAMES)
+    switches = {e.name: e.switch for e in EFFICIENCY_REGISTRY}
+    assert (switches["geometric"], switches["physical"], switches["saturation"]) == (
+        P.USE_GEOMETRIC, P.USE_PHYSICAL, P.USE_SATURATION)
+    slots = [P.KERNEL, P.SEPARATE_DROPLETS, P.BIVARIATE, P.METHOD, P.ORDER, P.N_STATE]
+    assert not set(slots) & set(switches.values())
+    assert max(switches.values()) < P.N_CONFIG
+    material = {f.name for f in dataclasses.fields(S.Material)}
+    for e in EFFICIENCY_REGISTRY:
+        assert set(e.material) <= material, e.name
+
+
+def config_with(names):
+    config = np.zeros(P.N_CONFIG, dtype=np.int64)
+    for e in EFFICIENCY_REGISTRY:
+        config[e.switch] = int(e.name in names)
+    return config
+
+
+@pytest.mark.parametrize("name", FACTOR_NAMES)
+def test_each_switch_turns_on_its_own_factor(name):
+    """With only its switch on, psi is the factor's own function of the pair; it is a
+    probability, symmetric, and needs only the property groups it declares."""
+    e = next(f for f in EFFICIENCY_REGISTRY if f.name == name)
+    params = avicel_params()
+    config = config_with([name])
+    for (p1, p2), (y1, y2) in zip(MASSES, BINDER_SHARE):
+        u0 = float(RNG.uniform(0.0, 5.0))
+        pair = [(p1, y1 * p1), (p2, y2 * p2)]
+        full = rows(pair, params, ALL_GROUPS)
+        value = e.function(full, 0, 1, u0, params)
+        assert 0.0 <= value <= 1.0
+        assert pair_success_probability(full, 0, 1, u0, params, config) == value
+        assert success_probability(p1, y1 * p1, p2, y2 * p2, u0, params, config) == value
+        assert e.function(rows(pair, params, e.properties), 0, 1, u0, params) == value
+        swapped = rows(pair[::-1], params, ALL_GROUPS)
+        assert e.function(swapped, 0, 1, u0, params) == pytest.approx(value, rel=1e-12,
+                                                                      abs=1e-300)
+
+
+def test_switched_factors_multiply():
+    params = avicel_params()
+    config = config_with(FACTOR_NAMES)
+    for (p1, p2), (y1, y2) in zip(MASSES, BINDER_SHARE):
+        full = rows([(p1, y1 * p1), (p2, y2 * p2)], params, ALL_GROUPS)
+        product = 1.0
+        for e in EFFICIENCY_REGISTRY:
+            product *= e.function(full, 0, 1, 0.5, params)
+        assert pair_success_probability(full, 0, 1, 0.5, params, config) == pytest.approx(
+            product, rel=1e-15, abs=0.0)
+    none = config_with([])
+    assert pair_success_probability(full, 0, 1, 0.5, params, none) == 1.0
+
+
+# ------------------------------------------------------------------------------ methods
+def test_method_registry_agrees_with_the_scene_and_dispatch():
+    assert S.METHOD_NAMES == tuple(m.name for m in M.METHOD_REGISTRY)
+    codes = [m.code for m in M.METHOD_REGISTRY if m.integrated]
+    assert len(set(codes)) == len(codes)
+    assert set(M.MOMENT_METHODS) == {m.name for m in M.METHOD_REGISTRY if m.integrated}
+
+
+@pytest.mark.parametrize("name", [m.name for m in M.METHOD_REGISTRY if m.integrated])
+def test_a_moment_method_packs_its_code_order_and_state(name):
+    from conftest import make_scene
+
+    from pbe_cfd import model
+    entry = M.METHODS[name]
+    scene = make_scene(method={"name": name, "_replace": True},
+                       initial={"binder_fraction": 0.1})
+    arrays = model.pack(scene)
+    assert arrays.config[P.METHOD] == entry.code
+    assert arrays.config[P.ORDER] == entry.order(scene.method)
+    assert arrays.state_names == entry.state_names(scene)
+    assert arrays.config[P.N_STATE] == len(arrays.state_names)
+    assert entry.plan_line(scene)
