@@ -103,12 +103,25 @@ def test_factor_names_codes_and_switches_agree_with_the_scene_and_the_layout():
     switches = {e.name: e.switch for e in EFFICIENCY_REGISTRY}
     assert (switches["geometric"], switches["physical"], switches["saturation"]) == (
         P.USE_GEOMETRIC, P.USE_PHYSICAL, P.USE_SATURATION)
-    slots = [P.KERNEL, P.SEPARATE_DROPLETS, P.BIVARIATE, P.METHOD, P.ORDER, P.N_STATE]
-    assert not set(slots) & set(switches.values())
     assert max(switches.values()) < P.N_CONFIG
+    assert sorted(single_config_slots().values()) == list(range(P.N_SWITCHES_START))
     material = {f.name for f in dataclasses.fields(S.Material)}
     for e in EFFICIENCY_REGISTRY:
         assert set(e.material) <= material, e.name
+
+
+def single_config_slots():
+    """The named single slots of ``config`` (the constants of physics/parameters.py between
+    its config header and the switch block): distinct, below the efficiency switches."""
+    import ast
+    import inspect
+    source = inspect.getsource(P)
+    section = source[source.index("# ---- config"):source.index("N_SWITCHES_START =")]
+    slots = {}
+    for node in ast.parse(section).body:
+        if isinstance(node, ast.Assign) and isinstance(node.value, ast.Constant):
+            slots[node.targets[0].id] = node.value.value
+    return slots
 
 
 def config_with(names):

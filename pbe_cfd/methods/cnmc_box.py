@@ -295,7 +295,7 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
 
 
 # ---------------------------------------------------------------------------------------------
-# the steps of run_box
+# the steps of run_box (inlined into it by numba: the compiled loop is the one written out)
 # ---------------------------------------------------------------------------------------------
 @nb.njit(cache=True)
 def _new_classes(n):
@@ -333,7 +333,7 @@ def _fill_classes(p, isdrop, sep, rho, bin_of, bpos, members, bcnt, lo, hi, dirt
     return m_ref, ptot, s4
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _pair_weights(bcnt, table, tabd, occ, srow, trow, drow):
     """Class-pair majorant weights over the occupied classes, O(K_occ^2): fills occ (the
     occupied classes), srow, trow (ordered granule pairs per class) and drow (droplet
@@ -361,7 +361,7 @@ def _pair_weights(bcnt, table, tabd, occ, srow, trow, drow):
     return n_occ, w_gg, w_dg
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _next_event_time(t, r, exponential_dt):
     """Time [s] of the next event at total event rate r [1/s]: t + 1/r (the mean waiting time,
     seed 000) or an exponential waiting time (exponential_dt == 1); infinity when r = 0."""
@@ -372,7 +372,7 @@ def _next_event_time(t, r, exponential_dt):
     return t + 1.0 / r
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _propose(granules, w_gg, w_dg, n_occ, occ, trow, srow, drow, bcnt, table, tabd, members,
              dlist, nd, p, b, alpha, theta, u0, d43, params, config):
     """Propose an aggregation: a granule-granule pair (``granules``) or a droplet capture.
@@ -386,7 +386,7 @@ def _propose(granules, w_gg, w_dg, n_occ, occ, trow, srow, drow, bcnt, table, ta
     return i, j, rate, tabd[a]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _inject(p, b, isdrop, pd, bd, sep, rho, m_ref, ptot, s4, bin_of, bpos, members, bcnt, lo,
             hi, dirty, dlist, dpos, dcnt):
     """Injection: overwrite a random slot with a droplet (p_d, b_d); returns the box's new
@@ -404,7 +404,7 @@ def _inject(p, b, isdrop, pd, bd, sep, rho, m_ref, ptot, s4, bin_of, bpos, membe
     return ptot, s4
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _pick_granule_pair(w_gg, n_occ, occ, trow, srow, bcnt, table, members):
     """Propose a granule-granule pair: class a by its share of ordered pairs, then class c,
     then a member of each (distinct slots). Returns (i, j, a, c)."""
@@ -444,7 +444,7 @@ def _pick_granule_pair(w_gg, n_occ, occ, trow, srow, bcnt, table, members):
     return i, j, a, c
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _pick_capture(w_dg, n_occ, occ, drow, bcnt, members, dlist, nd):
     """Propose a droplet capture: granule class a by n_a B_d(a), a member of it and a random
     droplet. Returns (granule slot i, droplet slot j, a)."""
@@ -465,7 +465,7 @@ def _pick_capture(w_dg, n_occ, occ, drow, bcnt, members, dlist, nd):
     return i, j, a
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _merge(i, j, p, b, isdrop, rho, m_ref, ptot, s4, bin_of, bpos, members, bcnt, lo, hi,
            dirty, dlist, dpos, dcnt):
     """Accepted aggregation: merge slot j into granule i, refill j with a copy of a random
@@ -491,7 +491,7 @@ def _merge(i, j, p, b, isdrop, rho, m_ref, ptot, s4, bin_of, bpos, members, bcnt
     return ptot, s4
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _refresh_bounds(since_sync, p, rho, s3_factor, ptot, s4, d43_tab, bin_of, lo, hi, dirty,
                     table, tabd, alpha, theta, params, config):
     """After a change of the box: every N changes an exact O(N) pass over the sums and class

@@ -42,8 +42,11 @@ BIVARIATE = 2            # 1 if binder mass is a coordinate (otherwise univariat
 METHOD = 3               # code of the moment method (methods.dispatch)
 ORDER = 4                # QMOM nodes N, or Laguerre order m
 N_STATE = 5              # length of one cell's state vector
-EFFICIENCY_SWITCHES = 6  # config[EFFICIENCY_SWITCHES + code] = 1: the efficiency factor of
-MAX_EFFICIENCIES = 8     #   that code applies (physics.efficiency.EFFICIENCY_REGISTRY)
+N_SWITCHES_START = 6     # a new single slot goes above this line and moves this number up
+# config[EFFICIENCY_SWITCHES + code] = 1: the efficiency factor of that code applies
+# (physics.efficiency.EFFICIENCY_REGISTRY); room for MAX_EFFICIENCIES factors
+EFFICIENCY_SWITCHES = N_SWITCHES_START
+MAX_EFFICIENCIES = 8
 USE_GEOMETRIC = EFFICIENCY_SWITCHES + 0    # the geometric (accessible binder) factor
 USE_PHYSICAL = EFFICIENCY_SWITCHES + 1     # the viscous Stokes factor
 USE_SATURATION = EFFICIENCY_SWITCHES + 2   # the liquid-saturation factor
