@@ -30,13 +30,15 @@ from pbe_cfd.scene import load_scene
 from pbe_cfd.simulate import run_well_mixed
 
 from conftest import make_scene
-from test_laguerre import (COARSE, EPS, W3, gamma_moment, product_gamma_moments, rhs,
+from test_laguerre import (EPS, FRACTION, W3, gamma_moment, product_gamma_moments, rhs,
                            seed_efficiency, setup, si)
 
 WET = product_gamma_moments(2e10, 3.0, 2e-9, 0.7, 0.3e-9)       # SI moments of a wet class
 DRY_N, DRY_SHAPE, DRY_MEAN = 1.5e10, 6.0, 6e-10                 # a dry class (gamma in p)
 W22 = dict(W3, lam=2.0, gam=2.0, c_dry=5.4e-10, lam_dry=10.0)
-GRID = dict(COARSE, n_dry=80)
+GRID = dict(FRACTION, n_dry=80)
+#: an adaptive weight grid the 12 x 12 quadrature resolves (cond(G) <= 1e7 on every slice)
+ADAPT = dict(points=3, c=(1e-9, 4e-9), d=(1.5e-10, 1.2e-9))
 
 
 @pytest.fixture(scope="module")
@@ -57,8 +59,9 @@ def mixed_state(params, config, n_droplets=0.0):
     return state
 
 
-def tolerance(aux):
-    return 100 * EPS * max(aux[LL.AUX_COND_G], aux[LL.AUX_COND_DRY])
+def tolerance(aux, state):
+    """100 eps cond(G) of the weight slices the state's RHS blends, and of the dry class."""
+    return 100 * EPS * max(LL.corner_condition(state, aux), aux[LL.AUX_COND_DRY])
 
 
 def dry_si(out, k, m, params):
@@ -87,7 +90,7 @@ def closed_constant_kernel(m, k0):
 
 
 # ---- closed forms -------------------------------------------------------------------------
-@pytest.mark.parametrize("adaptive", [None, dict(points=3)], ids=["fixed", "adaptive"])
+@pytest.mark.parametrize("adaptive", [None, ADAPT], ids=["fixed", "adaptive"])
 @pytest.mark.parametrize("m", [2, 3, 4])
 def test_constant_kernel_dry_and_wet_classes(m, adaptive, cache):
     """dry + dry -> dry, dry + wet -> wet, wet + wet -> wet: every carried rate is the closed
@@ -95,9 +98,10 @@ def test_constant_kernel_dry_and_wet_classes(m, adaptive, cache):
     params, config = setup(m)
     aux = L.build_aux(params, config, m, weights=W22, support=GRID, cache_dir=cache,
                       adaptive=adaptive)
-    out = rhs(mixed_state(params, config), aux, params, config)
+    state = mixed_state(params, config)
+    out = rhs(state, aux, params, config)
     wet, dry = closed_constant_kernel(m, params[P.RATE])
-    rtol = tolerance(aux)
+    rtol = tolerance(aux, state)
     for (i, j), want in wet.items():
         if want == 0.0:
             assert si(out, i, j, m, params) == 0.0
@@ -114,12 +118,12 @@ def test_constant_kernel_droplet_capture_by_both_classes(m, cache):
     params, config = setup(m, kernel=0, separate=True)
     F, k0, pd = params[P.DROPLET_FACTOR], params[P.RATE], params[P.DROPLET_MASS]
     aux = L.build_aux(params, config, m, weights=W22, support=GRID, cache_dir=cache,
-                      adaptive=dict(points=3))
+                      adaptive=ADAPT)
     nd = 1.2e9
     with_drops = rhs(mixed_state(params, config, n_droplets=nd), aux, params, config)
     without = rhs(mixed_state(params, config, n_droplets=0.0), aux, params, config)
     d = with_drops - without
-    rtol = tolerance(aux)
+    rtol = tolerance(aux, mixed_state(params, config))
     W, D = WET, dry_moment
     for i in range(m):
         for j in range(m):
@@ -134,7 +138,7 @@ def test_constant_kernel_droplet_capture_by_both_classes(m, cache):
         -F * k0 * nd * (W(0, 0) + D(0)), rel=rtol)
 
 
-@pytest.mark.parametrize("adaptive", [None, True], ids=["fixed", "adaptive"])
+@pytest.mark.parametrize("adaptive", [None, ADAPT], ids=["fixed", "adaptive"])
 @pytest.mark.parametrize("consistent", [True, False])
 @pytest.mark.parametrize("m", [3, 4])
 def test_mass_and_binder_exact_with_seed_physics(m, consistent, adaptive, cache):
@@ -244,11 +248,11 @@ def test_theta_grid_hits_its_nodes_and_collapses_when_saturated(cache):
     state = mixed_state(params, config, n_droplets=1e9)
     thetas = np.geomspace(0.1, 10.0, 5)
     grid = L.build_aux(params, config, m, weights=W22, support=GRID, theta_grid=thetas,
-                       cache_dir=cache, adaptive=dict(points=3))
+                       cache_dir=cache, adaptive=ADAPT)
     assert grid[LL.AUX_NSLICE] == 5
     fixed = L.build_aux(params, config, m, weights=W22, support=GRID, cache_dir=cache,
                         collision_velocity=float(L.theta_to_u0(thetas[2])),
-                        adaptive=dict(points=3))
+                        adaptive=ADAPT)
     cell = np.zeros(P.N_CELL)
     cell[P.THETA] = thetas[2]
     a, b = rhs(state, grid, params, config, cell), rhs(state, fixed, params, config, cell)
@@ -303,8 +307,7 @@ def test_cache_key_covers_the_dry_class_and_the_adaptive_grid(tmp_path):
     assert len(list(tmp_path.iterdir())) == 1
     L.build_aux(params, config, m, weights=dict(W22, lam_dry=4.0), support=GRID, cache_dir=d)
     L.build_aux(params, config, m, weights=W22, support=dict(GRID, n_dry=40), cache_dir=d)
-    L.build_aux(params, config, m, weights=W22, support=GRID, cache_dir=d,
-                adaptive=dict(points=3))
+    L.build_aux(params, config, m, weights=W22, support=GRID, cache_dir=d, adaptive=ADAPT)
     assert len(list(tmp_path.iterdir())) == 4
 
 
@@ -324,8 +327,8 @@ def test_initial_state_places_granules_by_binder():
 
 
 def test_output_columns_add_the_classes_and_the_droplets(cache):
-    scene = load_scene("study-seed-dry").with_method(grid_mass=10, grid_binder=10,
-                                                     dry_grid_mass=60, adaptive_points=3)
+    scene = load_scene("study-seed-dry").with_method(grid_mass=12, grid_binder=12,
+                                                     dry_grid_mass=60)
     arrays = model.pack(scene)
     aux = LT.aux_for_scene(scene, arrays, cache_dir=cache)
     m = 3
@@ -342,7 +345,7 @@ def test_output_columns_add_the_classes_and_the_droplets(cache):
     assert cols["dry_mass_fraction"][0] == pytest.approx(dry_moment(1) / cols["M10"][0],
                                                          rel=1e-12)
     w, p, b = LT.population_for_output(state, aux, arrays)
-    tol = 100 * EPS * max(aux[LL.AUX_COND_G], aux[LL.AUX_COND_DRY])
+    tol = tolerance(aux, state)
     for i in range(m):
         for j in range(m):
             want = WET(i, j) + (dry_moment(i) if j == 0 else 0.0)

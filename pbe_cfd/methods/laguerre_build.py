@@ -28,9 +28,9 @@ from .laguerre_layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_COND_DRY, AUX_COND
                               AUX_MASS_SCALE, AUX_N_B, AUX_N_DRY, AUX_N_NODES, AUX_N_P,
                               AUX_NMOM, AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_OFF_BASIS,
                               AUX_OFF_CAPMAP, AUX_OFF_CD, AUX_OFF_CD0, AUX_OFF_CDD,
-                              AUX_OFF_DRY_BASIS, AUX_OFF_F43, AUX_OFF_F43D, AUX_OFF_LOGU,
-                              AUX_OFF_LOGW, AUX_OFF_Q, AUX_OFF_QDD, AUX_OFF_SUPPORT, AUX_OFF_X,
-                              AUX_OFF_XL, AUX_ORDER, AUX_P_MAX, AUX_SEPARATE, AUX_SPACING,
+                              AUX_OFF_CONDW, AUX_OFF_DRY_BASIS, AUX_OFF_F43, AUX_OFF_F43D,
+                              AUX_OFF_LOGU, AUX_OFF_LOGW, AUX_OFF_Q, AUX_OFF_QDD,
+                              AUX_OFF_SUPPORT, AUX_OFF_X, AUX_OFF_XL, AUX_ORDER, AUX_P_MAX, AUX_SEPARATE, AUX_SPACING,
                               AUX_U0_FIXED, AUX_VERSION, TABLE_III)
 from .laguerre_wet import wet_basis, wet_kernels, wet_tensors
 
@@ -260,6 +260,7 @@ def _tables(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
              f43=np.concatenate([b["f43"] for b in bases]),
              basis=np.concatenate([b["basis"] for b in bases]),
              sup=np.concatenate([b["sup"] for b in bases]), dry=dry, separate=separate,
+             condw=np.array([b["cond"] for b in bases]),
              cond=max(b["cond"] for b in bases), n_nodes=len(bases[0]["u"]), slices=slices,
              collapsed=collapsed, pd=pd)
     return t
@@ -273,7 +274,7 @@ def _build(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
              (AUX_OFF_SUPPORT, t["sup"]), (AUX_OFF_QDD, t["Qdd"]), (AUX_OFF_X, t["X"]),
              (AUX_OFF_XL, t["XL"]), (AUX_OFF_CDD, t["Cdd"]), (AUX_OFF_CAPMAP, dry["capmap"]),
              (AUX_OFF_F43D, dry["f43"]), (AUX_OFF_DRY_BASIS, dry["basis"]),
-             (AUX_OFF_LOGW, t["logw"])]
+             (AUX_OFF_LOGW, t["logw"]), (AUX_OFF_CONDW, t["condw"])]
     pos = AUX_HEADER
     offs = []
     for _, blk in named:

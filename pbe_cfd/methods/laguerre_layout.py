@@ -61,6 +61,7 @@ AUX_N_DRY = 33           # nodes of the dry quadrature in p
 AUX_NWC = 34             # weight means c on the adaptive grid (1: fixed weights)
 AUX_NWD = 35             # weight means d on the adaptive grid (1: fixed weights)
 AUX_OFF_LOGW = 36        # offset of ln c [kg] (NWC values), then ln d [kg] (NWD values)
+AUX_OFF_CONDW = 37       # offset of cond(G) of each weight slice (NWC * NWD values)
 AUX_HEADER = 40
 AUX_LAYOUT_VERSION = 3.0
 
@@ -119,6 +120,13 @@ def unpack_basis(aux, w=0):
     r_dry = aux[o + 3 + m * m:o + 3 + m * m + m]
     return dict(c=c, d=d, lam=lam, gam=gam, Cp=Cp, Cb=Cb, Ginv=Ginv, r=r, m=m,
                 Ginv_dry=Ginv_dry, r_dry=r_dry, n_dry=n_dry, c_dry=c_dry, lam_dry=lam_dry)
+
+
+def corner_condition(state, aux):
+    """Largest condition number of the equilibrated G among the weight slices the state's
+    RHS blends (``weight_corners``): what bounds its round-off, 100 eps cond."""
+    o = int(aux[AUX_OFF_CONDW])
+    return max(float(aux[o + w]) for w, _ in weight_corners(state, aux))
 
 
 def dry_support_functionals(aux):
