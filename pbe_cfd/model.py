@@ -153,7 +153,11 @@ def size_moment(scene, k: int, j: int = 0) -> float:
 
 
 def initial_moments(scene, arrays: Arrays, names) -> np.ndarray:
-    """Scaled initial state for moment methods whose state entries are named ``names``."""
+    """Scaled initial state for moment methods whose state entries are named ``names`` (a
+    method's own ``initial_state`` in the registry takes precedence)."""
+    own = method_of(scene).initial_state
+    if own is not None:
+        return own(scene, arrays, lambda i, j: size_moment(scene, i, j))
     state = np.zeros(len(names))
     nd0 = scene.initial.droplet_number_density
     pd = arrays.droplet_mass
@@ -185,7 +189,10 @@ def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
     """SI output columns (moments, droplets, d32, d43, binder fraction) of scaled states
     (one row per time or per cell). If a list is passed as ``populations``, each row's
     weighted particles (w [1/m3], p [kg], b [kg], from the method's ``population``) are
-    appended to it."""
+    appended to it. A method's own ``columns`` in the registry takes precedence."""
+    own = method_of(scene).columns
+    if own is not None:
+        return own(scene, arrays, states, aux, populations)
     names = arrays.state_names
     bivariate = scene.bivariate
     cols = moment_columns(names, bivariate)

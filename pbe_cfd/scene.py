@@ -144,13 +144,21 @@ class Method:
     consistent: bool = True
     weight_mean_mass: float = 1.0e-9
     weight_mean_binder: float = 1.0e-9
-    weight_shape_mass: float = 1.0
-    weight_shape_binder: float = 0.2
+    # the wet class's gamma weights vanish at p = 0 and b = 0 (shape 2): with the Laguerre dry
+    # class holding every granule at b = 0, a wet granule carries at least one droplet
+    weight_shape_mass: float = 2.0
+    weight_shape_binder: float = 2.0
     support_mass: float = 1.0e-8
     support_binder: float = 4.0e-9
     grid_mass: int = 20
     grid_binder: int = 20
     grid_spacing: str = "fraction"
+    dry_class: bool = True
+    dry_weight_mean_mass: float | None = None     # kg; None: the initial mean mass
+    dry_weight_shape_mass: float = 10.0
+    dry_grid_mass: int = 200
+    adaptive_weights: bool = True
+    adaptive_points: int = 9
 
 
 @dataclass(frozen=True)

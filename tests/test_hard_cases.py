@@ -397,15 +397,21 @@ def test_laguerre_population_leaving_its_support_is_reported(tmp_path):
     assert any("beyond the integration support" in w for w in summary["warnings"])
 
 
-def test_laguerre_binder_arriving_in_a_dry_population_is_a_clear_error():
-    """A known limit of the ROM: binder captured by a dry population with no droplets at the
-    start is spread by the reconstruction over the b-weight and the binder moments turn
-    negative at once; the run must stop with a message that says so and what to do. (With
-    droplets present at t = 0, as in the seed scenario, the ROM runs.)"""
+def test_laguerre_binder_arriving_in_a_dry_population():
+    """Binder captured by a dry population with no droplets at the start: the ROM keeps the
+    granules in its dry class (b = 0 exactly) until they meet binder, and runs with every
+    invariant (M10 exact, M01 growing at the injected rate). The formulation without the dry
+    class (dry_class = false, table III shapes) spreads the first binder over the b-weight, the
+    binder moments turn negative at once and the run stops."""
     scene = load_scene("study-ktgf")
     scene = dataclasses.replace(scene, end_time=2.0, output_interval=1.0,
                                 initial=dataclasses.replace(scene.initial,
                                                             droplet_number_density=0.0))
     scene = dataclasses.replace(scene, method=make_scene(method=LAGUERRE).method)
-    with pytest.raises(SimulationError, match="binder-free population"):
-        run_well_mixed(scene)
+    res = run_well_mixed(scene)
+    pd = droplet_mass(60e-6, 1000.0)
+    assert_invariants(res.columns, injected_mass_rate=scene.binder_injection.rate * pd)
+    assert res.columns["dry_M00"][-1] < res.columns["dry_M00"][0]
+    old = scene.with_method(dry_class=False, weight_shape_mass=1.0, weight_shape_binder=0.2)
+    with pytest.raises(SimulationError, match="stopped"):
+        run_well_mixed(old)

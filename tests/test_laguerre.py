@@ -286,7 +286,7 @@ def test_mass_conservation_seed_physics(m, consistent, cache):
     state = L.initial_state(M, params, config, n_droplets=1.5e9)
     out = rhs(state, aux, params, config)
     pd = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
-    K = m * m
+    K = m * m + m                                              # the droplet entry
     scale = abs(out[K]) * pd
     assert scale > 0
     assert abs(out[m] + out[K] * pd) <= 1e-12 * scale          # d(M10 + n_d p_d)/dt = 0
@@ -331,8 +331,8 @@ def test_injection_separate_droplets(cache):
     base = rhs(state, aux, params, config, cell)
     cell[P.INJECTION] = 1.485e8
     d = rhs(state, aux, params, config, cell) - base
-    assert d[m * m] * params[P.NUMBER_SCALE] == pytest.approx(1.485e8, rel=1e-14)
-    assert np.all(d[:m * m] == 0.0)
+    assert d[m * m + m] * params[P.NUMBER_SCALE] == pytest.approx(1.485e8, rel=1e-14)
+    assert np.all(d[:m * m + m] == 0.0)
 
 
 # ---- cell dependence ----------------------------------------------------------------------
@@ -396,7 +396,7 @@ def test_realizable(cache):
     assert L.strictly_realizable(delta, config) and L.strictly_realizable(ok, config)
     # level 0 and up: signs, finiteness, M01 <= M10
     for idx, val in ((0, -1.0), (1, ok[m] * 1.01), (4, np.nan), (2 * m, -1e-3),
-                     (m * m, -1.0)):
+                     (m * m + m, -1.0), (m * m, -1.0), (m * m + 2, -1e-3 * abs(ok).max())):
         bad = ok.copy()
         bad[idx] = val
         assert not L.laguerre_realizable(bad, aux, params, config), idx
@@ -412,9 +412,9 @@ def test_realizable(cache):
     assert L.laguerre_realizable(bad, aux1, params, config)
     assert not L.strictly_realizable(bad, config)
     bad = ok.copy()
-    bad[m * m] = -1e-3
+    bad[m * m + m] = -1e-3
     L.laguerre_project(bad, aux, params, config)
-    assert bad[m * m] == 0.0
+    assert bad[m * m + m] == 0.0
 
 
 def test_cache_round_trip(tmp_path):

@@ -53,6 +53,11 @@ class MethodEntry(NamedTuple):
     plan_line       f(scene) -> the method's line of ``pbe-cfd plan``
     repairs_mixture f(scene) -> True if a mixture of realizable states (transport) may need
                     the method's projection before the next source step
+    initial_state   f(scene, arrays, granule_moment) -> the scaled initial state, or None for
+                    the generic one (state entries "M{i}{j}" and "droplet_number_density";
+                    granule_moment(i, j) [kg^(i+j)/m3] of the initial granules)
+    columns         f(scene, arrays, states, aux, populations) -> SI output columns, or None
+                    for the generic ones (``model.moment_outputs``)
     ensemble        a method that is not integrated per cell: f(scene, arrays, cell, times
                     [s], progress) -> dict of result columns and statistics (cNMC:
                     ``cnmc.simulate_ensemble``)
@@ -74,6 +79,8 @@ class MethodEntry(NamedTuple):
     repairs_mixture: Callable = lambda scene: False
     ensemble: Callable | None = None
     config_slots: Callable = lambda scene: {}
+    initial_state: Callable | None = None
+    columns: Callable | None = None
 
     def order(self, method) -> int:
         """config[P.ORDER] of the scene's ``Method`` (nodes, order; 0)."""
@@ -119,12 +126,8 @@ def _qmom_plan(scene):
 
 # ---------------------------------------------------------------------------- Laguerre ROM
 def laguerre_state_names(order, separate_droplets):
-    """State entry names of the Laguerre ROM: M_ij, i-major over i, j < order, then the free
-    droplets."""
-    names = [f"M{i}{j}" for i in range(order) for j in range(order)]
-    if separate_droplets:
-        names.append("droplet_number_density")
-    return names
+    """State entry names of the Laguerre ROM (wet moments, dry moments, free droplets)."""
+    return laguerre_tensor.state_names(order, separate_droplets)
 
 
 def _laguerre_keys(t, defaults):
@@ -137,6 +140,7 @@ def _laguerre_keys(t, defaults):
     for key in ("grid_mass", "grid_binder"):
         kw[key] = t.number(key, getattr(defaults, key), integer=True, low=4, high=400)
     kw["grid_spacing"] = t.choice("grid_spacing", ("fraction", "uniform"), "fraction")
+    kw.update(laguerre_tensor.scene_keys(t, defaults))
     return kw
 
 
@@ -145,19 +149,7 @@ def _laguerre_aux(scene, arrays, theta_grid=None):
 
 
 def _laguerre_hint(scene, arrays, state, aux):
-    """For a stopped Laguerre cell: the share of the mass that has left the integration support
-    (the usual reason the ROM's moments stop being realizable), or why a binder-free start
-    cannot take binder."""
-    m10 = state[int(arrays.config[P.ORDER])]
-    if state[1] <= 1e-6 * max(m10, 0.0):
-        return ("; the Laguerre ROM cannot take a binder-free population that starts receiving "
-                "binder (its reconstruction spreads the first binder over the b-weight, and the "
-                "binder moments turn negative): start with initial.binder_fraction > 0 or "
-                "initial droplets, or use qmom")
-    share, _ = laguerre_tensor.escaped_share_report(np.atleast_2d(state), aux, arrays)
-    return (f"; {share:.1%} of the granule mass had left the Laguerre support (p_max = "
-            f"{scene.method.support_mass:g} kg, b_max = {scene.method.support_binder:g} kg): "
-            "widen the support or use qmom")
+    return laguerre_tensor.failure_hint(state, aux, arrays)
 
 
 def _laguerre_diagnostics(states, aux, arrays):
@@ -169,7 +161,9 @@ def _laguerre_plan(scene):
     m = scene.method
     n_state = len(laguerre_state_names(m.order, scene.separate_droplets))
     return (f"Laguerre ROM of order {m.order} "
-            f"({'moment-consistent' if m.consistent else 'plain projection'}), "
+            f"({'moment-consistent' if m.consistent else 'plain projection'}"
+            f"{', dry class' if m.dry_class else ''}"
+            f"{', adaptive weights' if m.adaptive_weights else ''}), "
             f"support p <= {m.support_mass:g} kg, b <= {m.support_binder:g} kg, grid "
             f"{m.grid_mass} x {m.grid_binder}; {n_state} states")
 
@@ -237,7 +231,8 @@ METHOD_REGISTRY = (
                 aux=_laguerre_aux, tabulates_theta=True,
                 population=laguerre_tensor.population_for_output,
                 failure_hint=_laguerre_hint, diagnostics=_laguerre_diagnostics,
-                plan_line=_laguerre_plan),
+                plan_line=_laguerre_plan, initial_state=laguerre_tensor.scene_initial_state,
+                columns=laguerre_tensor.scene_columns),
     MethodEntry(name="cnmc", code=NOT_INTEGRATED, scene_keys=_cnmc_keys,
                 order_key=None, order_label="cNMC particles", state_names=lambda s: [], aux=_no_aux,
                 tabulates_theta=False, population=_cnmc_population, failure_hint=_no_hint,

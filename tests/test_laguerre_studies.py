@@ -1,0 +1,104 @@
+"""Laguerre ROM from a dry start against independent references (issue 15): the seed scenario
+without droplets at t = 0 against a cNMC ensemble, and the fluid bed against QMOM N = 3.
+
+Tolerances: the issue's aim, 10% on every carried moment (the population's M_ij, i, j < m, and
+the dry class's M_k0), plus the reference's own 95% half-width (its replicas' spread); the
+ensemble (3e4 particles x 8 replicas per output time, seed fixed before looking) is independent
+code (methods.cnmc). On the fluid bed, 10% of QMOM N = 3 on the bed means the issue names.
+"""
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from pbe_cfd import model
+from pbe_cfd.couple import run_coupled
+from pbe_cfd.domain import load_domain
+from pbe_cfd.methods import cnmc
+from pbe_cfd.methods.cnmc_box import MAX_TRIALS, N_QUANTITIES, run_box
+from pbe_cfd.scene import load_scene
+from pbe_cfd.simulate import run_well_mixed
+
+TIMES = (60.0, 300.0, 600.0)
+PARTICLES, REPLICAS, SEED = 30_000, 8, 2024
+
+
+def cnmc_moments(scene, times, particles, replicas, seed, order=4):
+    """{t: {name: (mean, 95% half-width)}} of M_ij (whole population, free droplets included)
+    and dry_M{k}0 (granules with b = 0) from the final boxes of independent replicas run to
+    each time; the box volume from its mass and the exact M10 (the cNMC keeps M10 exact)."""
+    arrays = model.pack(scene)
+    cell = model.well_mixed_cell(scene)[0]
+    initial = dataclasses.asdict(scene.initial)
+    out = {}
+    for t in times:
+        rows = []
+        for child in np.random.SeedSequence([seed, int(t)]).spawn(replicas):
+            rng = np.random.default_rng(child)
+            p, b, isdrop, vol0 = cnmc.initial_box(arrays.params, arrays.config, initial,
+                                                  particles, rng)
+            res = np.empty((2, N_QUANTITIES))
+            status = run_box(p, b, isdrop, vol0, np.array([0.0, t]), cell, arrays.params,
+                             arrays.config, int(rng.integers(0, 2 ** 31 - 1)), 0, MAX_TRIALS,
+                             res)[4]
+            assert status == 0
+            vol = p.sum() / res[-1, 1]
+            dry = (isdrop == 0) & (b == 0.0)
+            row = {f"M{i}{j}": np.sum(p ** i * b ** j) / vol
+                   for i in range(order) for j in range(order)}
+            row.update({f"dry_M{k}0": np.sum(p[dry] ** k) / vol for k in range(order)})
+            rows.append(row)
+        q = stats.t.ppf(0.975, replicas - 1) / math.sqrt(replicas)
+        out[t] = {k: (float(np.mean([r[k] for r in rows])),
+                      float(q * np.std([r[k] for r in rows], ddof=1))) for k in rows[0]}
+    return out
+
+
+@pytest.fixture(scope="module")
+def seed_dry_reference():
+    return cnmc_moments(load_scene("study-seed-dry"), TIMES, PARTICLES, REPLICAS, SEED)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("order, knobs", [
+    (3, {}),
+    (4, {"grid_mass": 30, "grid_binder": 30, "adaptive_points": 13}),
+], ids=["m3", "m4"])
+def test_seed_scenario_from_a_dry_start_against_the_cnmc(order, knobs, seed_dry_reference):
+    """Every carried moment of the ROM (M_ij, i, j < m, and the dry class's M_k0) within 10% of
+    the cNMC (plus its 95% half-width) at 60, 300 and 600 s. m = 4 needs the finer quadrature
+    (30 x 30) and weight grid (13 x 13): its highest moments at 60 s come from the first wet
+    granules, a narrow population that 20 x 20 nodes under-resolve (14% on M33 there)."""
+    scene = load_scene("study-seed-dry").with_method(order=order, **knobs)
+    scene = dataclasses.replace(scene, output_interval=60.0)
+    cols = run_well_mixed(scene).columns
+    names = [f"M{i}{j}" for i in range(order) for j in range(order)]
+    names += [f"dry_M{k}0" for k in range(order)]
+    bad = []
+    for t in TIMES:
+        k = int(np.argmin(np.abs(cols["time_s"] - t)))
+        for q in names:
+            ref, half = seed_dry_reference[t][q]
+            err = cols[q][k] / ref - 1.0
+            if abs(err) > 0.10 + half / ref:
+                bad.append(f"{q} at {t:g} s: {err:+.1%} (reference +-{half / ref:.1%})")
+    assert bad == []
+
+
+@pytest.mark.slow
+def test_fluid_bed_from_a_dry_start_against_qmom():
+    """The bundled fluid bed with the Laguerre ROM and no droplets at t = 0 runs to the end;
+    its bed means at 60 s (M00, d43, binder fraction) within 10% of QMOM N = 3, and mass and
+    binder exact."""
+    scene = load_scene("fluid-bed-laguerre")
+    scene = dataclasses.replace(scene, output_interval=30.0)
+    domain = load_domain(scene)
+    lag = run_coupled(scene, domain)
+    qmom = run_coupled(scene.with_method(name="qmom", nodes=3), domain)
+    assert lag.times[-1] == scene.end_time
+    for q in ("M00", "d43_m", "binder_fraction"):
+        assert lag.bed_columns[q][-1] == pytest.approx(qmom.bed_columns[q][-1], rel=0.10), q
+    for q in ("M10", "M01"):
+        assert lag.bed_columns[q][-1] == pytest.approx(qmom.bed_columns[q][-1], rel=1e-10), q
