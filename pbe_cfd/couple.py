@@ -237,10 +237,7 @@ def run_coupled(scene: Scene, domain: Domain, progress=None, threads: int | None
     st = stats.sum(axis=0)
     run_stats = {"cells": int(cells.n_cells), "active_cells": int(idx.size),
                  "spray_cells": int(np.count_nonzero(spray)),
-                 "accepted_steps": int(st[integrate.ACCEPTED]),
-                 "rejected_error": int(st[integrate.REJECTED_ERROR]),
-                 "rejected_realizability": int(st[integrate.REJECTED_REALIZABILITY]),
-                 "rhs_calls": int(st[integrate.RHS_CALLS]),
+                 **integrate.stats_summary(st),
                  "cell_steps_per_second": float(st[integrate.ACCEPTED] / wall) if wall > 0 else 0,
                  "threads": int(numba.get_num_threads()), **notes}
     if transport is not None:
@@ -275,7 +272,8 @@ def _advance(states, rows, aux, arrays, method, t0, t1, steps, stats, status, re
         raise SimulationError(
             f"{scene.source}: cell {int(idx[c])} (alpha {rows[c, P.ALPHA]:.4g}, Theta "
             f"{rows[c, P.THETA]:.3g} m2/s2) stopped at t = {reached[c]:.6g} s: "
-            f"{integrate.STATUS_TEXT[int(status[c])]}; {bad.size} cell(s) affected"
+            f"{integrate.failure_reason(status[c], stats[c], arrays.params, arrays.config)}; "
+            f"{bad.size} cell(s) affected"
             + failure_hint(scene, arrays, states[c], aux))
 
 

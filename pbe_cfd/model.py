@@ -100,6 +100,8 @@ def pack(scene: Scene) -> Arrays:
         config[P.METHOD] = -1
         names = []
     config[P.N_STATE] = len(names)
+    from .integrate import SCHEMES
+    config[P.INTEGRATOR] = SCHEMES[method.integrator]
     return Arrays(params=params, config=config, number_scale=n_ref, mass_scale=p_ref,
                   droplet_mass=pd, state_names=names)
 

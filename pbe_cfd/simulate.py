@@ -156,7 +156,7 @@ def run_well_mixed(scene: Scene, progress=None) -> RunResult:
         if status[0] != integrate.OK:
             raise SimulationError(
                 f"{scene.source}: cell 0 stopped at t = {reached[0]:.6g} s: "
-                f"{integrate.STATUS_TEXT[int(status[0])]} "
+                f"{integrate.failure_reason(status[0], stats[0], arrays.params, arrays.config)} "
                 f"(floor {arrays.params[P.STEP_FLOOR]:.3g} s)" + failure_hint(scene, arrays,
                                                                                work[0], aux))
         states[k] = work[0]
@@ -166,10 +166,7 @@ def run_well_mixed(scene: Scene, progress=None) -> RunResult:
     columns = {"time_s": times}
     columns.update(moment_outputs(scene, arrays, states, aux))
     st = stats[0]
-    run_stats = {"accepted_steps": int(st[integrate.ACCEPTED]),
-                 "rejected_error": int(st[integrate.REJECTED_ERROR]),
-                 "rejected_realizability": int(st[integrate.REJECTED_REALIZABILITY]),
-                 "rhs_calls": int(st[integrate.RHS_CALLS])}
+    run_stats = integrate.stats_summary(st)
     if scene.method.name == "laguerre":
         from .methods import laguerre_tensor
         share, text = laguerre_tensor.escaped_share_report(states, aux, arrays)

@@ -35,7 +35,8 @@ from .laguerre_tensor import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_CONSISTENT, AUX_DR
                               AUX_OFF_F43, AUX_OFF_LOGU, AUX_OFF_Q, AUX_ORDER, AUX_P_MAX,
                               AUX_SEPARATE, build_aux, log_theta_grid, theta_to_u0)
 
-__all__ = ["laguerre_rhs", "laguerre_realizable", "laguerre_project", "build_aux",
+__all__ = ["laguerre_rhs", "laguerre_realizable", "laguerre_project", "laguerre_conserved",
+           "build_aux",
            "moments_from_state", "escaped_mass_share", "reconstruct", "reconstructed_moment",
            "initial_state", "state_size", "strictly_realizable", "log_theta_grid", "theta_to_u0"]
 
@@ -256,6 +257,26 @@ def laguerre_realizable(state, aux, params, config, work=None):
 def strictly_realizable(state, config, level=2):
     """True if the moment conditions of ``level`` (default: all orders) hold."""
     return bool(_moment_checks(np.asarray(state, float), np.asarray(config, np.int64), level))
+
+
+@nb.njit(cache=True)
+def laguerre_conserved(config, params, pivots, coefs):
+    """Linear invariants of the ROM state for the time integrator: rows c of ``coefs``
+    (n_inv, N_STATE) with c . d(state)/dt independent of the state (the injection only):
+    granule mass M10 and binder mass M01, each plus the free droplets' mass x_d n_d
+    (x_d = p_d / p_ref). ``pivots[r]`` is the entry with coefficient 1. Returns the count."""
+    m = config[P.ORDER]
+    n = config[P.N_STATE]
+    K = m * m
+    xd = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
+    for r in range(2):
+        for k in range(n):
+            coefs[r, k] = 0.0
+        pivots[r] = m if r == 0 else 1          # M10 at (1, 0), M01 at (0, 1)
+        coefs[r, pivots[r]] = 1.0
+        if config[P.SEPARATE_DROPLETS] == 1 and n > K:
+            coefs[r, K] = xd
+    return 2
 
 
 @nb.njit(cache=True)

@@ -45,7 +45,8 @@ BIVARIATE = 5            # 1 if binder mass is a coordinate (otherwise univariat
 METHOD = 6               # code of the moment method (methods.dispatch)
 ORDER = 7                # QMOM nodes N, or Laguerre order m
 N_STATE = 8              # length of one cell's state vector
-N_CONFIG = 9
+INTEGRATOR = 9           # per-cell time integrator: 0 explicit, 1 implicit, 2 auto (integrate)
+N_CONFIG = 10
 
 # ---- cell (float64, per cell) ----------------------------------------------------------
 ALPHA = 0                # solids volume fraction [-]
