@@ -106,7 +106,7 @@ class CellBatch:
         argument types as ``advance``, nothing integrated. Returns the wall time it took [s]
         (seconds on a first run, milliseconds once cached); ``compiled_now`` then says whether
         numba compiled it (True) or found it in its cache (False)."""
-        misses = sum(integrate.integrate_cells.stats.cache_misses.values())
+        misses = sum(integrate.integrate_cells_kernel.stats.cache_misses.values())
         start = _time.perf_counter()
         one = slice(0, 1)
         integrate.integrate_cells(self.states[one].copy(), self.rows[one].copy(), self.aux,
@@ -116,7 +116,7 @@ class CellBatch:
                                   np.full(1, integrate.UNREALIZABLE_START, dtype=np.int64),
                                   np.zeros_like(self.reached[one]))
         seconds = _time.perf_counter() - start
-        self.compiled_now = sum(integrate.integrate_cells.stats.cache_misses.values()) > misses
+        self.compiled_now = sum(integrate.integrate_cells_kernel.stats.cache_misses.values()) > misses
         return seconds
 
     def advance(self, t0: float, t1: float, states: np.ndarray | None = None):
@@ -166,13 +166,10 @@ class CellBatch:
 
     # -- accounting ----------------------------------------------------------------------
     def stats(self) -> dict:
-        """Counters summed over the cells: accepted steps, steps rejected by the error control
-        and by realizability, right-hand-side calls."""
-        st = self.stats_counts.sum(axis=0)
-        return {"accepted_steps": int(st[integrate.ACCEPTED]),
-                "rejected_error": int(st[integrate.REJECTED_ERROR]),
-                "rejected_realizability": int(st[integrate.REJECTED_REALIZABILITY]),
-                "rhs_calls": int(st[integrate.RHS_CALLS])}
+        """Counters summed over the cells (``integrate.stats_summary``): accepted steps, steps
+        rejected by the error control and by realizability, right-hand-side calls, implicit
+        steps, Jacobians and scheme switches."""
+        return integrate.stats_summary(self.stats_counts)
 
     def shared(self) -> dict:
         """What every chunk of this batch shares (aux, params, config, tolerances, step

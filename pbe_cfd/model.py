@@ -118,6 +118,8 @@ def pack(scene) -> Arrays:
         config[slot] = value
     names = method.state_names(scene)
     config[P.N_STATE] = len(names)
+    from .integrate import SCHEMES
+    config[P.INTEGRATOR] = SCHEMES[method.integrator]
     return Arrays(params=params, config=config, number_scale=n_ref, mass_scale=p_ref,
                   droplet_mass=pd, state_names=names)
 

@@ -141,6 +141,7 @@ class Method:
     seed: int = 1
     rtol: float = 1.0e-8
     atol: float = 1.0e-14
+    integrator: str = "auto"
     consistent: bool = True
     weight_mean_mass: float = 1.0e-9
     weight_mean_binder: float = 1.0e-9
@@ -532,6 +533,8 @@ def _method(path, data):
     kw = dict(name=name)
     kw["rtol"] = t.number("rtol", 1.0e-8, positive=True, high=0.1)
     kw["atol"] = t.number("atol", 1.0e-14, positive=True)
+    # per-cell time integrator of the moment methods (pbe_cfd.integrate); cnmc ignores it
+    kw["integrator"] = t.choice("integrator", ("explicit", "implicit", "auto"), "auto")
     kw.update(METHODS[name].scene_keys(t, Method))
     t.finish()
     return Method(**kw)

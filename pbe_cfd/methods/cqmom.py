@@ -295,6 +295,28 @@ def _project_into(state, target, config, work, n):
         target[n_state - 1] = state[n_state - 1]
 
 
+@nb.njit(cache=True)
+def cqmom_conserved(config, params, pivots, coefs):
+    """Linear invariants of the CQMOM state for the time integrator: rows c of ``coefs``
+    (n_inv, N_STATE) with c . d(state)/dt independent of the state (the injection only):
+    granule mass M10 and (bivariate) binder mass M01, each plus the free droplets' mass
+    x_d n_d (x_d = p_d / p_ref). ``pivots[r]`` is the entry with coefficient 1 (M10, M01).
+    Returns the number of invariants."""
+    n = config[P.ORDER]
+    n_state = config[P.N_STATE]
+    separate = config[P.SEPARATE_DROPLETS] == 1
+    xd = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
+    count = 2 if config[P.BIVARIATE] == 1 else 1
+    for r in range(count):
+        for k in range(n_state):
+            coefs[r, k] = 0.0
+        pivots[r] = 1 if r == 0 else mixed_index(n, 0, 1)
+        coefs[r, pivots[r]] = 1.0
+        if separate:
+            coefs[r, n_state - 1] = xd
+    return count
+
+
 @nb.njit(cache=True, error_model="numpy")
 def cqmom_realizable(state, aux, params, config, work):
     """True if the cell's state is a realizable moment set for CQMOM.

@@ -47,7 +47,8 @@ from .laguerre_layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_MASS_SCALE, AUX_NP
                               AUX_SEPARATE, state_names, state_size, weight_corners)
 from .laguerre_tensor import build_aux, escaped_mass_share, initial_state, theta_to_u0
 
-__all__ = ["laguerre_rhs", "laguerre_realizable", "laguerre_project", "build_aux",
+__all__ = ["laguerre_rhs", "laguerre_realizable", "laguerre_project", "laguerre_conserved",
+           "build_aux",
            "moments_from_state", "escaped_mass_share", "reconstruct", "reconstructed_moment",
            "initial_state", "state_size", "state_names", "strictly_realizable", "theta_to_u0"]
 
@@ -419,6 +420,29 @@ def laguerre_realizable(state, aux, params, config, work=None):
 def strictly_realizable(state, config, level=2):
     """True if the moment conditions of ``level`` (default: all orders) hold."""
     return bool(_moment_checks(np.asarray(state, float), np.asarray(config, np.int64), level))
+
+
+@nb.njit(cache=True)
+def laguerre_conserved(config, params, pivots, coefs):
+    """Linear invariants of the ROM state for the time integrator: rows c of ``coefs``
+    (n_inv, N_STATE) with c . d(state)/dt independent of the state (the injection only):
+    granule mass M10 = W10 + D1 (wet and dry classes) and binder mass M01 = W01 (the dry
+    class holds none), each plus the free droplets' mass x_d n_d (x_d = p_d / p_ref).
+    ``pivots[r]`` is the entry with coefficient 1 (W10, W01). Returns the count."""
+    m = config[P.ORDER]
+    n = config[P.N_STATE]
+    K = m * m
+    xd = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
+    for r in range(2):
+        for k in range(n):
+            coefs[r, k] = 0.0
+        pivots[r] = m if r == 0 else 1          # W10 at (1, 0), W01 at (0, 1)
+        coefs[r, pivots[r]] = 1.0
+        if r == 0:
+            coefs[r, K + 1] = 1.0               # dry D1
+        if config[P.SEPARATE_DROPLETS] == 1 and n > K + m:
+            coefs[r, K + m] = xd
+    return 2
 
 
 @nb.njit(cache=True)

@@ -430,6 +430,28 @@ def qmom_rhs(state, out, cell, aux, params, config, work):
                      u0)
 
 
+@nb.njit(cache=True)
+def qmom_conserved(config, params, pivots, coefs):
+    """Linear invariants of the QMOM state for the time integrator: rows c of ``coefs``
+    (n_inv, N_STATE) with c . d(state)/dt independent of the state (the injection only):
+    granule mass M10 plus the free droplets' mass x_d n_d, and (bivariate) binder mass M01 plus
+    x_d n_d, x_d = p_d / p_ref. ``pivots[r]`` is the entry with coefficient 1 (M10, M01).
+    Returns the number of invariants."""
+    n_max = config[P.ORDER]
+    n_state = config[P.N_STATE]
+    separate = config[P.SEPARATE_DROPLETS] == 1
+    xd = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
+    count = 2 if config[P.BIVARIATE] == 1 else 1
+    for r in range(count):
+        for k in range(n_state):
+            coefs[r, k] = 0.0
+        pivots[r] = 1 if r == 0 else 2 * n_max
+        coefs[r, pivots[r]] = 1.0
+        if separate:
+            coefs[r, n_state - 1] = xd
+    return count
+
+
 @nb.njit(cache=True, error_model="numpy")
 def _project_into(state, target, config, nodes, weights, binder, n):
     """Moments of the quadrature (nodes, weights, binder; n nodes) into target."""

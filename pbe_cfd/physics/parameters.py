@@ -52,7 +52,8 @@ BINDER_NODES = 6         # CQMOM conditional nodes N2 per size node
 BREAKAGE = 7             # 1 if a [breakage] table is present (physics.breakage)
 BREAKAGE_SELECTION = 8   # code of the breakage selection function (physics.breakage)
 BREAKAGE_DAUGHTERS = 9   # code of the breakage daughter rule (physics.breakage)
-N_SWITCHES_START = 10    # a new single slot goes above this line and moves this number up
+INTEGRATOR = 10          # per-cell time integrator: 0 explicit, 1 implicit, 2 auto (integrate)
+N_SWITCHES_START = 11    # a new single slot goes above this line and moves this number up
 # config[EFFICIENCY_SWITCHES + code] = 1: the efficiency factor of that code applies
 # (physics.efficiency.EFFICIENCY_REGISTRY); room for MAX_EFFICIENCIES factors
 EFFICIENCY_SWITCHES = N_SWITCHES_START

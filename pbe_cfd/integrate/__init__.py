@@ -1,0 +1,115 @@
+"""Realizable adaptive time stepping of the per-cell moment equations.
+
+Three schemes (``[method] integrator``, config[INTEGRATOR]):
+
+* ``explicit``: the Bogacki-Shampine RK3(2) pair (``explicit``), error control on the scaled
+  state, every stage checked for realizability (a stage outside the set rejects the step and
+  halves it).
+* ``implicit``: the linearly implicit Rosenbrock method RODAS3 (``rosenbrock``) with a
+  finite-difference Jacobian; the same realizability checks on every stage argument; linear
+  invariants (granule and binder mass) kept exact through the Jacobian's conserved rows.
+* ``auto`` (default): explicit until a cell's steps are limited by stiffness, then implicit
+  for as long as that pays, per cell (``cell``).
+
+Cells are independent and run in parallel (``numba.prange``): the well-mixed run is the
+one-cell case of the same function the mesh coupling calls. Only the method and the scheme a
+scene uses are compiled (``integrate_cells`` passes both as compile-time constants); the
+compiled code is cached on disk.
+"""
+import time
+
+import numpy as np
+from numba import typeof
+from numba.core import types
+
+from ..physics import parameters as P
+from .cell import integrate_cell, integrate_cells_kernel  # noqa: F401
+from .codes import (ACCEPTED, AUTO, EXPLICIT, IMPLICIT, IMPLICIT_STEPS, JACOBIANS,  # noqa: F401
+                    MAX_STEPS_PER_INTERVAL, N_STATS, NOT_FINITE, OK, REJECTED_ERROR,
+                    REJECTED_REALIZABILITY, RHS_CALLS, SCHEMES, STATUS_TEXT, STEP_FLOOR,
+                    SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START)
+
+
+def integrate_cells(states, cells, aux, params, config, t_start, t_end, steps, rtol, atol,
+                    max_steps, stats, status, reached):
+    """Advance every cell (row of ``states``) from t_start to t_end [s] in parallel.
+
+    states (n_cells, n_state) scaled moments, modified in place; cells (n_cells, N_CELL) local
+    fields; aux the method's auxiliary array; params, config the packed scene
+    (``physics.parameters``; config[METHOD] and config[INTEGRATOR] choose the compiled
+    kernel); steps (n_cells,) step memory [s] (negative: an auto cell is implicit);
+    rtol, atol [-] tolerances on the scaled state; max_steps per cell and call;
+    stats (n_cells, N_STATS) counters accumulated; status (n_cells,) int codes and
+    reached (n_cells,) the time [s] each cell got to.
+    """
+    args = (states, cells, aux, params, config, float(t_start), float(t_end), steps,
+            float(rtol), float(atol), int(max_steps), stats, status, reached)
+    kernel(int(config[P.METHOD]), int(config[P.INTEGRATOR]), args)(
+        int(config[P.METHOD]), int(config[P.INTEGRATOR]), *args)
+
+
+_KERNELS = {}
+
+
+def kernel(method, scheme, args):
+    """The compiled ``integrate_cells_kernel`` for method and scheme codes as compile-time
+    constants and the types of ``args`` (compiled, or loaded from the disk cache, on first
+    use; a direct entry point afterwards, so a call costs no type resolution)."""
+    sig = (types.literal(method), types.literal(scheme)) + tuple(typeof(a) for a in args)
+    entry = _KERNELS.get(sig)
+    if entry is None:
+        integrate_cells_kernel.compile(sig)
+        entry = integrate_cells_kernel.overloads[sig].entry_point
+        _KERNELS[sig] = entry
+    return entry
+
+
+def failure_reason(code, stats, params, config) -> str:
+    """Why a cell stopped: STATUS_TEXT of its status code and, for a stalled step controller,
+    what the cell's counters (stats row) say about the cause."""
+    text = STATUS_TEXT[int(code)]
+    if code not in (STEP_FLOOR, TOO_MANY_STEPS):
+        return text
+    accepted, rejected = int(stats[ACCEPTED]), int(stats[REJECTED_ERROR])
+    if rejected >= 0.5 * max(accepted, 1):
+        # a step controller that rejects as often as it accepts sits on a jump of the rates
+        text += ("; the steps were rejected by the error test as often as accepted: the rates "
+                 "jump (a discontinuous right-hand side) and the cell stays on the jump")
+        if int(config[P.USE_PHYSICAL]) == 1 and params[P.STOKES_WIDTH] == 0.0:
+            text += (", here where a pair crosses the critical Stokes number (sharp viscous "
+                     "Stokes criterion): give material.stokes_switch_width (0.002 - 0.01 "
+                     "agree with each other within 1%, README: hard cases)")
+    elif int(config[P.INTEGRATOR]) == EXPLICIT:
+        text += "; the rates are stiff for the explicit integrator: use integrator = \"auto\""
+    return text
+
+
+def stats_summary(stats) -> dict:
+    """JSON-able counters of the integration from a stats row (or rows, summed over cells):
+    accepted and rejected steps, RHS calls, implicit steps, Jacobians and scheme switches."""
+    st = np.asarray(stats)
+    if st.ndim > 1:
+        st = st.sum(axis=0)
+    return {"accepted_steps": int(st[ACCEPTED]),
+            "rejected_error": int(st[REJECTED_ERROR]),
+            "rejected_realizability": int(st[REJECTED_REALIZABILITY]),
+            "rhs_calls": int(st[RHS_CALLS]),
+            "implicit_steps": int(st[IMPLICIT_STEPS]),
+            "jacobians": int(st[JACOBIANS]),
+            "scheme_switches": int(st[SWITCHES])}
+
+
+def compile_kernels(aux, params, config, n_cells=1) -> float:
+    """Compile (or load from the on-disk cache) the integrator kernel of one packed scene:
+    its method and its scheme only. Returns the wall time it took [s] (near zero when the
+    cache holds the kernel and it was loaded before in this process)."""
+    start = time.perf_counter()
+    n = int(config[P.N_STATE])
+    states = np.zeros((n_cells, n))
+    cells = np.zeros((n_cells, P.N_CELL))
+    steps = np.zeros(n_cells)
+    stats = np.zeros((n_cells, N_STATS), dtype=np.int64)
+    status = np.full(n_cells, UNREALIZABLE_START, dtype=np.int64)  # skipped: no cell runs
+    integrate_cells(states, cells, aux, params, config, 0.0, 0.0, steps, 1e-8, 1e-14, 1,
+                    stats, status, np.zeros(n_cells))
+    return time.perf_counter() - start

@@ -1,0 +1,355 @@
+"""The per-cell time loop: step control, realizability, and the auto switch between schemes.
+
+``integrate_cell(method, scheme, ...)`` takes the method and scheme codes as compile-time
+constants (numba integer literals): the scheme's step functions are chosen at typing time
+(``_explicit``, ``_jacobian``, ``_implicit`` below), so an explicit scene never compiles the
+Rosenbrock code and an implicit one never the explicit pair.
+
+Auto (as LSODA switches between Adams and BDF): a cell starts explicit. An accepted explicit
+step whose stiffness estimate h rho exceeds STIFF_H_RHO (the step is near the pair's stability
+or positivity limit: R(z) of the explicit pair turns negative at z = -1.6) counts towards a
+switch; after N_STIFF such steps in a row the cell goes implicit. An implicit step pays for
+itself when it is COST_RATIO = (n + 3) / 3 times longer than the explicit step the cell could
+take instead (max of its last explicit step and 1.6 / rho(J), rho from power iteration); after
+N_SLOW implicit steps in a row that are not, the cell goes back to explicit and waits a number
+of steps (doubling after each unproductive episode) before it may switch again. The scheme a
+cell ended with is remembered in the sign of its step memory (negative: implicit).
+"""
+import math
+
+import numba as nb
+import numpy as np
+from numba.core import types
+from numba.extending import overload
+
+from ..methods.dispatch import WORK_SIZE, conserved, project, realizable, rhs
+from ..physics import parameters as P
+from .codes import (ACCEPT, ACCEPTED, AUTO, EXPLICIT, F0, FTMP, IMPLICIT, IMPLICIT_STEPS,
+                    JACOBIANS, N_BUF, NOT_FINITE, OK, REJECT_ERROR, REJECT_NOT_FINITE,
+                    REJECT_REALIZABILITY, REJECTED_ERROR, REJECTED_REALIZABILITY, RHS_CALLS,
+                    STEP_FLOOR, SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START, YNEW, YTMP)
+from .explicit import bs3_attempt
+from .exponential import capture_column, exp_bs3_attempt
+from .rosenbrock import jacobian, rodas3_attempt, spectral_radius
+
+STIFF_H_RHO = 1.0        # h rho above which an explicit step counts as stability-limited
+N_STIFF = 15             # such steps in a row before an auto cell goes implicit
+N_SLOW = 8               # implicit steps in a row not worth their cost before going back
+POSITIVITY_LIMIT = 1.6   # |h lambda| up to which the explicit pair keeps a decay positive
+MAX_WAIT = 4096          # longest wait (explicit steps) before another implicit attempt
+CAPTURE_DOMINANCE = 10.0  # droplet / granule relative rates above which capture is exact
+
+# switch memory of one cell (float array)
+SW_STIFF = 0             # stability-limited explicit steps in a row
+SW_WAIT = 1              # explicit steps still to wait before the next switch
+SW_BACKOFF = 2           # the wait after the next unproductive implicit episode
+SW_SLOW = 3              # implicit steps in a row that did not pay
+SW_H_EXPLICIT = 4        # last accepted explicit step [s]
+SW_GOOD = 5              # implicit steps of this episode that paid
+N_SW = 6
+
+
+def _scheme(scheme):
+    return scheme.literal_value if isinstance(scheme, types.IntegerLiteral) else None
+
+
+def _explicit(scheme, method, y, h, buf, phis, expo, cell, aux, params, config, work, rtol,
+              atol, d, n):
+    raise NotImplementedError("numba only")
+
+
+def _capture(scheme, method, y, buf, cell, aux, params, config, work, d, n):
+    raise NotImplementedError("numba only")
+
+
+def _implicit(scheme, method, y, h, buf, jac, lu, piv, cell, aux, params, config, work, rtol,
+              atol, n):
+    raise NotImplementedError("numba only")
+
+
+def _jacobian(scheme, method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, config,
+              work, rtol, atol, n):
+    raise NotImplementedError("numba only")
+
+
+@overload(_explicit, prefer_literal=True)
+def _explicit_impl(scheme, method, y, h, buf, phis, expo, cell, aux, params, config, work, rtol,
+                   atol, d, n):
+    code = _scheme(scheme)
+    if code is None:
+        return None
+    if code == IMPLICIT:      # never called: an implicit scene does not compile the pair
+        def stub(scheme, method, y, h, buf, phis, expo, cell, aux, params, config, work, rtol,
+                 atol, d, n):
+            return REJECT_NOT_FINITE, 0.0, 0.0, 0
+        return stub
+    if code == EXPLICIT:
+        def pair(scheme, method, y, h, buf, phis, expo, cell, aux, params, config, work, rtol,
+                 atol, d, n):
+            return bs3_attempt(method, y, h, buf, cell, aux, params, config, work, rtol, atol, n)
+        return pair
+
+    def either(scheme, method, y, h, buf, phis, expo, cell, aux, params, config, work, rtol,
+               atol, d, n):
+        if expo:
+            return exp_bs3_attempt(method, y, h, buf, phis, cell, aux, params, config, work,
+                                   rtol, atol, d, n)
+        return bs3_attempt(method, y, h, buf, cell, aux, params, config, work, rtol, atol, n)
+    return either
+
+
+@overload(_capture, prefer_literal=True)
+def _capture_impl(scheme, method, y, buf, cell, aux, params, config, work, d, n):
+    code = _scheme(scheme)
+    if code is None:
+        return None
+    if code != AUTO:          # never called
+        return lambda scheme, method, y, buf, cell, aux, params, config, work, d, n: 0.0
+    return lambda scheme, method, y, buf, cell, aux, params, config, work, d, n: \
+        capture_column(method, y, buf, cell, aux, params, config, work, d, n)
+
+
+@overload(_implicit, prefer_literal=True)
+def _implicit_impl(scheme, method, y, h, buf, jac, lu, piv, cell, aux, params, config, work,
+                   rtol, atol, n):
+    code = _scheme(scheme)
+    if code is None:
+        return None
+    if code == EXPLICIT:      # never called
+        return lambda scheme, method, y, h, buf, jac, lu, piv, cell, aux, params, config, \
+            work, rtol, atol, n: (REJECT_NOT_FINITE, 0.0, 0)
+    return lambda scheme, method, y, h, buf, jac, lu, piv, cell, aux, params, config, work, \
+        rtol, atol, n: rodas3_attempt(method, y, h, buf, jac, lu, piv, cell, aux, params,
+                                      config, work, rtol, atol, n)
+
+
+@overload(_jacobian, prefer_literal=True)
+def _jacobian_impl(scheme, method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params,
+                   config, work, rtol, atol, n):
+    code = _scheme(scheme)
+    if code is None:
+        return None
+    if code == EXPLICIT:      # never called
+        return lambda scheme, method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, \
+            config, work, rtol, atol, n: 0
+    return lambda scheme, method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, \
+        config, work, rtol, atol, n: jacobian(method, y, buf, jac, pivots, coefs, n_inv, cell,
+                                              aux, params, config, work, rtol, atol, n)
+
+
+@nb.njit(cache=True)
+def _after_explicit(h_try, h_rho, sw):
+    """Auto: bookkeeping after an accepted explicit step; True if the cell goes implicit."""
+    sw[SW_H_EXPLICIT] = h_try
+    sw[SW_WAIT] -= 1.0
+    if h_rho > STIFF_H_RHO:
+        sw[SW_STIFF] += 1.0
+    else:
+        sw[SW_STIFF] = 0.0
+    if sw[SW_STIFF] >= N_STIFF and sw[SW_WAIT] <= 0.0:
+        sw[SW_STIFF] = 0.0
+        sw[SW_SLOW] = 0.0
+        sw[SW_GOOD] = 0.0
+        return True
+    return False
+
+
+@nb.njit(cache=True)
+def _after_implicit(h_try, sw, jac, buf, n):
+    """Auto: bookkeeping after an accepted implicit step (jac: its Jacobian). Returns the
+    explicit step to continue with [s] if the cell goes back to explicit, else 0."""
+    rho = spectral_radius(jac, buf[YTMP], buf[FTMP], n)
+    h_stable = POSITIVITY_LIMIT / rho if rho > 0.0 else math.inf
+    h_ref = max(sw[SW_H_EXPLICIT], h_stable)
+    if h_try >= (n + 3.0) / 3.0 * h_ref:
+        sw[SW_GOOD] += 1.0
+        sw[SW_SLOW] = 0.0
+        return 0.0
+    sw[SW_SLOW] += 1.0
+    if sw[SW_SLOW] < N_SLOW:
+        return 0.0
+    if sw[SW_GOOD] > 0.0:
+        sw[SW_BACKOFF] = N_STIFF
+    else:
+        sw[SW_BACKOFF] = min(2.0 * max(sw[SW_BACKOFF], N_STIFF), MAX_WAIT)
+    sw[SW_WAIT] = sw[SW_BACKOFF]
+    sw[SW_STIFF] = 0.0
+    return min(h_try, h_ref)
+
+
+@nb.njit(cache=True)
+def _capture_pays(state, f0, cell, params, h, d, n, rtol, atol):
+    """Auto: True if the next explicit step should integrate the droplet capture exactly.
+
+    It pays where the droplets, not the granules, limit the explicit pair's step: in a
+    droplet transient, where the droplets' relative rate |dn_d/dt| / n_d exceeds the fastest
+    relative rate of the other entries CAPTURE_DOMINANCE times (fresh droplets after a
+    transport step, an initial charge being captured). Elsewhere the plain pair is used:
+    with quasi-steady droplets it is as accurate per step and cheaper, and where their
+    capture is stiff (h lambda above the pair's limit) the Rosenbrock method is more accurate
+    than the exponential step, which has classical order 3 only (measured: 3.8 times longer
+    steps for RODAS3 at lambda = 1e6 /s, rtol 1e-8)."""
+    floor = atol / rtol
+    nd = state[d]
+    if nd <= 0.0:
+        return cell[P.INJECTION] > 0.0
+    rate_d = abs(f0[d]) / max(nd, floor)
+    rate_g = 0.0
+    for i in range(n):
+        if i != d:
+            rate_g = max(rate_g, abs(f0[i]) / max(abs(state[i]), floor))
+    return rate_d > CAPTURE_DOMINANCE * rate_g
+
+
+@nb.njit(cache=True)
+def _absorb_droplets(method, state, d, atol, pivots, coefs, n_inv, aux, params, config, work,
+                     saved):
+    """A free-droplet density in (0, atol] (numerically zero: below the absolute tolerance)
+    is handed to the granules along the linear invariants (their mass and binder keep
+    x_d n_d), so that a decaying droplet number ends at exactly zero instead of creeping
+    through denormal numbers; kept as it was if the result would not be realizable."""
+    nd = state[d]
+    if not (nd > 0.0 and nd <= atol):
+        return
+    for i in range(state.shape[0]):
+        saved[i] = state[i]
+    for r in range(n_inv):
+        p = pivots[r]
+        state[p] += coefs[r, d] * nd / coefs[r, p]
+    state[d] = 0.0
+    if not realizable(method, state, aux, params, config, work):
+        for i in range(state.shape[0]):
+            state[i] = saved[i]
+
+
+@nb.njit(cache=True, inline="always")
+def _memory(scheme, mode, h):
+    """Step memory: the next step [s], negative if an auto cell is implicit."""
+    return -h if (scheme == AUTO and mode == 1) else h
+
+
+@nb.njit(cache=True)
+def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_end, step,
+                   rtol, atol, max_steps, stats):
+    """Advance one cell's state from t_start to t_end [s] in place.
+
+    method, scheme: literal codes (methods.dispatch, integrate.codes). ``step`` is a
+    one-element array holding the proposed step [s] (updated for the next call; its sign is
+    the auto scheme's memory). ``stats`` accumulates the columns of ``codes``. Returns
+    (status, time reached [s]).
+    """
+    n = config[P.N_STATE]
+    work = np.empty(WORK_SIZE)
+    if not realizable(method, state, aux, params, config, work):
+        return UNREALIZABLE_START, t_start
+    buf = np.empty((N_BUF, n))
+    jac = np.empty((n, n))
+    lu = np.empty((n, n))
+    piv = np.empty(n, dtype=np.int64)
+    pivots = np.zeros(2, dtype=np.int64)
+    coefs = np.zeros((2, n))
+    n_inv = conserved(method, config, params, pivots, coefs)
+    sw = np.zeros(N_SW)
+    phis = np.empty((3, 6))
+    droplet = n - 1 if config[P.SEPARATE_DROPLETS] == 1 else -1
+    droplets = scheme == AUTO and droplet >= 0     # auto: capture exact where it pays
+    mode = 1 if (scheme == IMPLICIT or (scheme == AUTO and step[0] < 0.0)) else 0
+    h = abs(step[0])
+    if not (h > 0.0):
+        h = (t_end - t_start) * 1e-3
+    f0 = buf[F0]
+    y_new = buf[YNEW]
+    rhs(method, state, f0, cell, aux, params, config, work)
+    stats[RHS_CALLS] += 1
+    for i in range(n):
+        if not math.isfinite(f0[i]):
+            step[0] = _memory(scheme, mode, h)
+            return NOT_FINITE, t_start
+    floor = params[P.STEP_FLOOR]
+    t = t_start
+    taken = 0
+    have_jac = False
+    have_capture = False
+    while t < t_end:
+        if taken >= max_steps:
+            step[0] = _memory(scheme, mode, h)
+            return TOO_MANY_STEPS, t
+        last = t + h >= t_end
+        h_try = t_end - t if last else h
+        if h_try < floor and not last:
+            step[0] = _memory(scheme, mode, h)
+            return STEP_FLOOR, t
+        taken += 1
+        h_rho = 0.0
+        if mode == 0:
+            expo = droplets and _capture_pays(state, f0, cell, params, h_try, droplet, n, rtol,
+                                              atol)
+            if expo and not have_capture:
+                _capture(scheme, method, state, buf, cell, aux, params, config, work, droplet, n)
+                stats[RHS_CALLS] += 1
+                have_capture = True
+            outcome, err, h_rho, calls = _explicit(scheme, method, state, h_try, buf, phis,
+                                                   expo, cell, aux, params, config, work, rtol,
+                                                   atol, droplet, n)
+        else:
+            if not have_jac:
+                stats[RHS_CALLS] += _jacobian(scheme, method, state, buf, jac, pivots, coefs,
+                                              n_inv, cell, aux, params, config, work, rtol,
+                                              atol, n)
+                stats[JACOBIANS] += 1
+                have_jac = True
+            outcome, err, calls = _implicit(scheme, method, state, h_try, buf, jac, lu, piv,
+                                            cell, aux, params, config, work, rtol, atol, n)
+        stats[RHS_CALLS] += calls
+        if outcome == ACCEPT:
+            t = t_end if last else t + h_try
+            for i in range(n):
+                state[i] = y_new[i]
+            if scheme != EXPLICIT and droplet >= 0:
+                _absorb_droplets(method, state, droplet, atol, pivots, coefs, n_inv, aux,
+                                 params, config, work, buf[FTMP])
+            project(method, state, aux, params, config, work)
+            rhs(method, state, f0, cell, aux, params, config, work)
+            stats[RHS_CALLS] += 1
+            stats[ACCEPTED] += 1
+            have_capture = False
+            factor = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** (-1.0 / 3.0)))
+            h = h_try * factor if not last else max(h, h_try * factor)
+            if mode == 1:
+                stats[IMPLICIT_STEPS] += 1
+                have_jac = False
+                if scheme == AUTO:
+                    h_back = _after_implicit(h_try, sw, jac, buf, n)
+                    if h_back > 0.0:
+                        mode = 0
+                        h = h_back
+                        stats[SWITCHES] += 1
+            elif scheme == AUTO and _after_explicit(h_try, h_rho, sw):
+                mode = 1
+                stats[SWITCHES] += 1
+        elif outcome == REJECT_ERROR:
+            stats[REJECTED_ERROR] += 1
+            h = h_try * max(0.2, 0.9 * err ** (-1.0 / 3.0))
+        elif outcome == REJECT_REALIZABILITY:
+            stats[REJECTED_REALIZABILITY] += 1
+            h = 0.5 * h_try
+        else:
+            stats[REJECTED_ERROR] += 1
+            h = 0.5 * h_try
+    step[0] = _memory(scheme, mode, h)
+    return OK, t
+
+
+@nb.njit(cache=True, parallel=True)
+def integrate_cells_kernel(method, scheme, states, cells, aux, params, config, t_start, t_end,
+                           steps, rtol, atol, max_steps, stats, status, reached):
+    """``integrate_cell`` over every row of ``states`` in parallel (numba prange)."""
+    n_cells = states.shape[0]
+    for c in nb.prange(n_cells):
+        if status[c] != OK:
+            continue
+        code, t = integrate_cell(method, scheme, states[c], cells[c], aux, params, config,
+                                 t_start, t_end, steps[c:c + 1], rtol, atol, max_steps,
+                                 stats[c])
+        status[c] = code
+        reached[c] = t
