@@ -168,3 +168,44 @@ def test_power_selection_rows_below_the_top_are_exact(order):
             got = out[i * order + j] * nref * pref ** (i + j)
             assert abs(got - exact) <= tol * k * moment0(i + 1, j), (i, j, got, exact)
     assert np.all(out[order * order:] == 0.0)           # no dry class: nothing there
+
+
+@pytest.mark.parametrize("binder_fraction", [Y0, 0.0], ids=["wet", "dry"])
+def test_collisional_selection_per_cell(binder_fraction):
+    """Collisional selection with exponent 1: dM00/dt = S_cell M10 / p_ref exactly (F(0) - 1 =
+    1; int p phi~_k = delta with the consistent reconstruction), S_cell = s0 g0(alpha)
+    sqrt(Theta / Theta_ref) from each cell's own row (g0 written out here: Sinclair-Jackson at
+    min(alpha, alpha_min_friction)), 0 where the Stokes deformation gate is shut (St_def =
+    rho u0^2 / (2 Y) <= 0.2 at Y = 1000 Pa, rho = 1000 kg/m3); mass and binder rates 0.0.
+    Tolerance: 100 eps cond(G) (module doc)."""
+    scene = make_scene(domain={"type": "well-mixed", "solids_fraction": 0.3,
+                               "granular_temperature": 0.05, "alpha_max": 0.62,
+                               "alpha_min_friction": 0.5},
+                       initial={"distribution": "exponential",
+                                "binder_fraction": binder_fraction},
+                       breakage={"selection": "collisional", "rate": 0.05, "exponent": 1.0,
+                                 "reference_granular_temperature": 0.01,
+                                 "yield_strength": 1000.0, "critical_deformation_number": 0.2},
+                       method={"name": "laguerre", "order": 3, "_replace": True})
+    aux, arrays = aux_of(scene)
+    y = binder_fraction
+    state = LT.scene_initial_state(
+        scene, arrays, lambda i, j: N0 * P0 ** (i + j) * math.factorial(i + j) * y ** j)
+    m, K = 3, 9
+    first = K if binder_fraction == 0.0 else 0            # the class the granules are in
+    nref = arrays.params[P.NUMBER_SCALE]
+    m10 = N0 * P0                                          # kg/m3
+    tol = 100 * np.finfo(float).eps * max(aux[AUX_COND_G], aux[AUX_COND_DRY])
+    for alpha, theta in ((0.31, 0.09), (0.55, 0.09), (0.55, 0.04)):
+        u0 = 4.0 * math.sqrt(theta / math.pi)
+        cell = np.array([alpha, theta, u0, 0.0])
+        out = np.zeros_like(state)
+        L.laguerre_rhs(state, out, cell, aux, arrays.params, arrays.config)
+        g0 = 1.0 / (1.0 - (min(alpha, 0.5) / 0.62) ** (1.0 / 3.0))
+        gate = 1000.0 * u0 ** 2 / (2.0 * 1000.0) > 0.2
+        expected = 0.05 * g0 * math.sqrt(theta / 0.01) * m10 / P0 if gate else 0.0
+        assert out[first] * nref == pytest.approx(expected, rel=tol, abs=0.0), (alpha, theta)
+        mass_row = first + (m if first == 0 else 1)
+        assert out[mass_row] == 0.0
+        if first == 0:
+            assert out[1] == 0.0
