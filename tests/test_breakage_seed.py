@@ -2,7 +2,8 @@
 breakage added: S = s0 p / p0, s0 = 1e-3 1/s, uniform daughters. Over the 600 s a granule of
 the mean size breaks about once (the number falls to 2.58e10 instead of 1.48e10 without
 breakage), so breakage shapes the result.
-The moment methods against the cNMC (10,000 particles x 8 replicas, seed fixed when the test was
+The moment methods (QMOM N = 2, 3; Laguerre m = 3, 4) against the cNMC (10,000 particles x 8
+replicas, seed fixed when the test was
 written): within 10% where the issue asks it (docs/physics.md section 8 and the README report
 what the methods give on every moment and time).
 
@@ -58,6 +59,23 @@ def test_qmom_with_breakage_within_ten_percent_of_the_cnmc(reference, nodes):
     assert abs(deviation(c, reference, "M11")[-1]) < 0.10
     # mass and binder: straight lines of the injected rate Q p_d, to 1e-10 (breakage adds
     # nothing to either)
+    t = c["time_s"]
+    rate = 1.485e8 * 1000.0 * math.pi / 6.0 * 60e-6 ** 3        # kg/(m3 s)
+    for name in ("M10", "M01"):
+        assert np.max(np.abs(c[name] / (c[name][0] + rate * t) - 1.0)) < 1e-10, name
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("order", [3, 4])
+def test_laguerre_with_breakage_within_ten_percent_of_the_cnmc(reference, order):
+    """The Laguerre ROM (seed-wurster-laguerre: dry class, adaptive weights, 20 x 20 nodes)
+    with the same power breakage: every moment the cNMC reports (M00, M20, M11, M02) and d43
+    within the issue's 10% at every output time (measured worst 3.6%, m = 4 M00 at 590 s);
+    mass and binder exact as without breakage."""
+    c = run_well_mixed(with_breakage("seed-wurster-laguerre", order=order)).columns
+    assert np.array_equal(c["time_s"], reference["time_s"])
+    for name in ("M00", "M20", "M11", "M02", "d43_m"):
+        assert np.max(np.abs(deviation(c, reference, name))) < 0.10, name
     t = c["time_s"]
     rate = 1.485e8 * 1000.0 * math.pi / 6.0 * 60e-6 ** 3        # kg/(m3 s)
     for name in ("M10", "M01"):

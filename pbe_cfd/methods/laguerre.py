@@ -45,6 +45,7 @@ from .laguerre_layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_MASS_SCALE, AUX_NP
                               AUX_OFF_LOGU, AUX_OFF_LOGW, AUX_OFF_Q, AUX_OFF_QDD,
                               AUX_OFF_SUPPORT, AUX_OFF_X, AUX_OFF_XL, AUX_ORDER, AUX_P_MAX,
                               AUX_SEPARATE, state_names, state_size, weight_corners)
+from .laguerre_breakage import add_laguerre_breakage
 from .laguerre_tensor import build_aux, escaped_mass_share, initial_state, theta_to_u0
 
 __all__ = ["laguerre_rhs", "laguerre_realizable", "laguerre_project", "laguerre_conserved",
@@ -309,6 +310,9 @@ def laguerre_rhs(state, out, cell, aux, params, config, work=None):
                                         _weight_position(state, aux, m), i0, t)
         if separate:
             out[K + m] = -loss
+    if config[P.BREAKAGE] == 1:          # a linear term, laguerre_breakage
+        add_laguerre_breakage(state, out, cell, aux, params, config,
+                              _weight_position(state, aux, m))
     inj = cell[P.INJECTION]
     if separate:
         out[K + m] += inj / nref

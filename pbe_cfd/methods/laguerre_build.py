@@ -22,11 +22,13 @@ import numpy as np
 
 from ..physics import parameters as P
 from .laguerre_basis import SPACINGS
+from .laguerre_breakage import breakage_blocks
 from .laguerre_dry import cross_tensors, dry_class, dry_kernels, dry_tensors
 from .laguerre_layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_COND_DRY, AUX_COND_G,
                               AUX_CONSISTENT, AUX_DROPLET_MASS, AUX_HEADER, AUX_LAYOUT_VERSION,
                               AUX_MASS_SCALE, AUX_N_B, AUX_N_DRY, AUX_N_NODES, AUX_N_P,
                               AUX_NMOM, AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_OFF_BASIS,
+                              AUX_OFF_BREAK,
                               AUX_OFF_CAPMAP, AUX_OFF_CD, AUX_OFF_CD0, AUX_OFF_CDD,
                               AUX_OFF_CONDW, AUX_OFF_DRY_BASIS, AUX_OFF_F43, AUX_OFF_F43D,
                               AUX_OFF_LOGU, AUX_OFF_LOGW, AUX_OFF_Q, AUX_OFF_QDD,
@@ -36,7 +38,7 @@ from .laguerre_wet import wet_basis, wet_kernels, wet_tensors
 
 _ALGO_TAG = "laguerre-rom-3-dry-class-adaptive"
 _SOURCES = ("laguerre_build.py", "laguerre_layout.py", "laguerre_basis.py", "laguerre_wet.py",
-            "laguerre_dry.py")
+            "laguerre_dry.py", "laguerre_breakage.py")
 #: default adaptive grid of the wet weight means: c in [p_max/32, p_max/2.5], d in
 #: [b_max/64, b_max/2] (the weight must fit in the support)
 ADAPTIVE_RANGES = dict(c=(1.0 / 32.0, 1.0 / 2.5), d=(1.0 / 64.0, 0.5))
@@ -58,7 +60,7 @@ def _source_digest():
     phys = os.path.join(os.path.dirname(here), "physics")
     h = hashlib.sha256()
     paths = [os.path.join(phys, f) for f in ("kernels.py", "efficiency.py", "rates.py",
-                                             "properties.py", "parameters.py")]
+                                             "properties.py", "parameters.py", "breakage.py")]
     paths += [os.path.join(here, f) for f in _SOURCES]
     for path in paths:
         with open(path, "rb") as fh:
@@ -71,7 +73,8 @@ def _cache_key(params, config, order, weights, support, consistent, u0_grid, ada
     for slot in (P.RATE, P.NUMBER_SCALE, P.STEP_FLOOR):   # factored out / irrelevant
         q[slot] = 0.0
     cfg = [int(config[s]) for s in (P.KERNEL, P.USE_GEOMETRIC, P.USE_PHYSICAL,
-                                    P.USE_SATURATION, P.SEPARATE_DROPLETS)]
+                                    P.USE_SATURATION, P.SEPARATE_DROPLETS,
+                                    P.BREAKAGE, P.BREAKAGE_SELECTION, P.BREAKAGE_DAUGHTERS)]
     blob = json.dumps(dict(tag=_ALGO_TAG, src=_source_digest(), params=q.tolist(), config=cfg,
                            order=int(order),
                            weights={k: float(v) for k, v in weights.items()},
@@ -262,7 +265,8 @@ def _tables(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
              sup=np.concatenate([b["sup"] for b in bases]), dry=dry, separate=separate,
              condw=np.array([b["cond"] for b in bases]),
              cond=max(b["cond"] for b in bases), n_nodes=len(bases[0]["u"]), slices=slices,
-             collapsed=collapsed, pd=pd)
+             collapsed=collapsed, pd=pd,
+             breakage=breakage_blocks(params, config, m, bases, dry))
     return t
 
 
@@ -275,6 +279,8 @@ def _build(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
              (AUX_OFF_XL, t["XL"]), (AUX_OFF_CDD, t["Cdd"]), (AUX_OFF_CAPMAP, dry["capmap"]),
              (AUX_OFF_F43D, dry["f43"]), (AUX_OFF_DRY_BASIS, dry["basis"]),
              (AUX_OFF_LOGW, t["logw"]), (AUX_OFF_CONDW, t["condw"])]
+    if t["breakage"].size:                 # absent: AUX_OFF_BREAK stays 0
+        named.append((AUX_OFF_BREAK, t["breakage"]))
     pos = AUX_HEADER
     offs = []
     for _, blk in named:

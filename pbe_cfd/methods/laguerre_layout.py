@@ -17,6 +17,7 @@ NWC means c and NWD means d); the dry-only blocks depend on the slice alone. Blo
     Cdd[s, k < m, e < m]                 droplets captured by dry granules
     F43[w, k], SUPPORT[w, 2K], BASIS[w, BASIS_SIZE]   wet functionals and reconstruction
     CAPMAP[e < m, a < K], F43D[k], DRY_BASIS           dry-class data
+    BREAK: Lwet[w, k < K, a < K], then Ldry[k < m, e < m]   breakage (if any)
 """
 import math
 
@@ -62,8 +63,9 @@ AUX_NWC = 34             # weight means c on the adaptive grid (1: fixed weights
 AUX_NWD = 35             # weight means d on the adaptive grid (1: fixed weights)
 AUX_OFF_LOGW = 36        # offset of ln c [kg] (NWC values), then ln d [kg] (NWD values)
 AUX_OFF_CONDW = 37       # offset of cond(G) of each weight slice (NWC * NWD values)
+AUX_OFF_BREAK = 38       # offset of the breakage block (laguerre_breakage; 0: no breakage)
 AUX_HEADER = 40
-AUX_LAYOUT_VERSION = 3.0
+AUX_LAYOUT_VERSION = 4.0
 
 TABLE_III = dict(weights=dict(c=1e-9, d=1e-9, lam=1.0, gam=0.2),
                  support=dict(p_max=1e-8, b_max=4e-9, n_p=20, n_b=20))
