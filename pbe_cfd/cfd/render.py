@@ -399,7 +399,7 @@ def plan_render(out_dir, fields: Sequence[str] | None = None,
 def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = None,
                   times: Sequence[float] | None = None,
                   png_dir: str | os.PathLike | None = None, notes: list | None = None,
-                  plan=None, sequence: bool = False) -> list[Path]:
+                  plan=None, sequence: bool = False, info: dict | None = None) -> list[Path]:
     """Render cell fields of the VTK series in ``out_dir`` (its .pvd) at output times (s).
 
     ``fields``: names to draw (default: those of alpha, Theta, M00, d43_m, binder_fraction
@@ -408,7 +408,9 @@ def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = Non
     PNG per field and time, ``<png_dir>/<field>_t<time>s.png`` (png_dir defaults to
     ``out_dir/png``), the same colour range for a field at every time, and with ``sequence``
     ``<field>_sequence.png``: the times side by side on that range. ``plan``: the result of
-    ``plan_render`` (else it is made here). Returns the paths."""
+    ``plan_render`` (else it is made here). ``info``: the scene name and alpha_min
+    (``{"name", "alpha_min"}``) for the titles, else read from the run's summary.json.
+    Returns the paths."""
     import pyvista as pv
 
     pvd, entries, idx, fields, found = plan or plan_render(out_dir, fields, times)
@@ -419,7 +421,7 @@ def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = Non
         notes.extend(found)
     meshes = {i: pv.read(entries[i][1]) for i in idx}
     cuts = {i: section(meshes[i]) for i in idx}
-    info = _run_info(pvd.parent, pvd.parent.parent)
+    info = info if info is not None else _run_info(pvd.parent, pvd.parent.parent)
     png_dir = Path(png_dir) if png_dir is not None else pvd.parent / "png"
     out = []
     for field in fields:
