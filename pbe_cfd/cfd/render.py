@@ -530,6 +530,18 @@ def plot_bed_moments(csv_path: str | os.PathLike, png_path: str | os.PathLike,
     return png_path
 
 
+def _fixed_margins(fig, width, height, nrow, ncol, left=0.8, right=0.2, top=0.75, bottom=0.5,
+                   column_gap=0.95, row_gap=0.8):
+    """Panel margins in inches (room for tick labels, axis labels, panel titles and the
+    figure title): a fixed layout costs one draw, where a constrained layout draws the
+    figure several times over."""
+    axes_w = (width - left - right - (ncol - 1) * column_gap) / ncol
+    axes_h = (height - top - bottom - (nrow - 1) * row_gap) / nrow
+    fig.subplots_adjust(left=left / width, right=1 - right / width, bottom=bottom / height,
+                        top=1 - top / height, wspace=column_gap / axes_w,
+                        hspace=row_gap / axes_h)
+
+
 def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
     """The figure of ``bed_moments.csv``: one panel per quantity, in the units of the VTK cell
     fields (moments per m3 of bed: the bed average is the volume-weighted mean of the cells'
@@ -545,8 +557,9 @@ def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
         raise ValueError(f"{csv_path}: no columns to plot besides time_s")
     ncol = min(3, len(panels))
     nrow = -(-len(panels) // ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(4.3 * ncol, 3.1 * nrow + 0.6),
-                             squeeze=False, layout="constrained")
+    width, height = 4.3 * ncol, 3.1 * nrow + 0.6
+    fig, axes = plt.subplots(nrow, ncol, figsize=(width, height), squeeze=False)
+    _fixed_margins(fig, width, height, nrow, ncol)
     for ax, (name, cols, unit) in zip(axes.ravel(), panels):
         for c in cols:
             y = col[c]
