@@ -408,9 +408,7 @@ def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = Non
     PNG per field and time, ``<png_dir>/<field>_t<time>s.png`` (png_dir defaults to
     ``out_dir/png``), the same colour range for a field at every time, and with ``sequence``
     ``<field>_sequence.png``: the times side by side on that range. ``plan``: the result of
-    ``plan_render`` (else it is made here). ``info``: the scene name and alpha_min
-    (``{"name", "alpha_min"}``) for the titles, else read from the run's summary.json.
-    Returns the paths."""
+    ``plan_render`` (else made here); ``info``: {"name", "alpha_min"} (else from summary.json)."""
     import pyvista as pv
 
     pvd, entries, idx, fields, found = plan or plan_render(out_dir, fields, times)
@@ -531,15 +529,13 @@ def plot_bed_moments(csv_path: str | os.PathLike, png_path: str | os.PathLike,
 
 
 def _fixed_margins(fig, width, height, nrow, ncol, left=0.8, right=0.2, top=0.75, bottom=0.5,
-                   column_gap=0.95, row_gap=0.8):
-    """Panel margins in inches (room for tick labels, axis labels, panel titles and the
-    figure title): a fixed layout costs one draw, where a constrained layout draws the
-    figure several times over."""
-    axes_w = (width - left - right - (ncol - 1) * column_gap) / ncol
-    axes_h = (height - top - bottom - (nrow - 1) * row_gap) / nrow
+                   gap=(0.95, 0.8)):
+    """Margins and gaps (columns, rows) in inches: one draw, where a constrained layout draws
+    the figure several times over."""
+    axes_w = (width - left - right - (ncol - 1) * gap[0]) / ncol
+    axes_h = (height - top - bottom - (nrow - 1) * gap[1]) / nrow
     fig.subplots_adjust(left=left / width, right=1 - right / width, bottom=bottom / height,
-                        top=1 - top / height, wspace=column_gap / axes_w,
-                        hspace=row_gap / axes_h)
+                        top=1 - top / height, wspace=gap[0] / axes_w, hspace=gap[1] / axes_h)
 
 
 def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
