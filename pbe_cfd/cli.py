@@ -39,6 +39,26 @@ def _compile_text(result):
     return ""
 
 
+def _process_age() -> float:
+    """Wall seconds [s] since this process started (Linux /proc), 0 where unknown."""
+    import os
+    try:
+        with open("/proc/self/stat") as fh:
+            started = float(fh.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime") as fh:
+            uptime = float(fh.read().split()[0])
+        return max(uptime - started / os.sysconf("SC_CLK_TCK"), 0.0)
+    except (OSError, ValueError, IndexError, AttributeError):
+        return 0.0
+
+
+def _phases_text(phases) -> str:
+    """One line: the wall seconds of each phase of a coupled run."""
+    names = ("startup", "read", "setup", "compile", "solve", "assemble", "write", "render")
+    return "phases [s]: " + ", ".join(f"{n} {phases[n + '_s']:.2f}" for n in names
+                                      if n + "_s" in phases)
+
+
 def _fail(message, code=2):
     print(f"pbe-cfd: error: {message}", file=sys.stderr)
     return code
@@ -143,6 +163,8 @@ def _fresh_case(scene, mesh: str, overwrite: bool = False):
 
 def couple_command(args):
     """``pbe-cfd couple [SCENE] --out DIR``: the per-cell run over an OpenFOAM bed."""
+    import time
+
     from . import output
     from .couple import check_foam_fields, run_coupled, write_coupled, write_foam_fields
     from .domain import load_domain
@@ -156,6 +178,8 @@ def couple_command(args):
     if _cluster_wanted(args) and not args.resume:
         from .distributed import check_store
         check_store(args.out, args.overwrite)
+    phases = {"startup_s": _process_age()}
+    t_read = time.perf_counter()
     scene = load_scene(args.scene or DEFAULT_COUPLED)
     if scene.domain.type != "openfoam":
         raise SceneError(scene.source, "domain.type",
@@ -164,6 +188,7 @@ def couple_command(args):
     if args.run_case:
         scene = _fresh_case(scene, args.mesh, args.overwrite)
     domain = load_domain(scene, need_flux=scene.transport is not None)
+    phases["read_s"] = time.perf_counter() - t_read
     if args.foam_fields:
         check_foam_fields(scene, domain, args.overwrite)
     executor = SerialExecutor()
@@ -183,7 +208,7 @@ def couple_command(args):
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
     with output.atomic_directory(out, args.overwrite, kind="couple") as tmp:
-        write_coupled(tmp, scene, domain, result)
+        phases = write_coupled(tmp, scene, domain, result, phases=phases)
         if args.foam_fields:
             written = write_foam_fields(scene, domain, result, args.overwrite)
             executor.mirror_to_processors(written, args.overwrite)  # per processor too
@@ -192,6 +217,7 @@ def couple_command(args):
           f"t = {scene.end_time:g} s in {result.wall_time_s:.2f} s "
           f"({result.stats['cell_steps_per_second']:.3g} cell-steps/s)"
           f"{_compile_text(result)}; wrote {args.out}/")
+    print(f"{scene.name}: {_phases_text(phases)}")
     return 0
 
 

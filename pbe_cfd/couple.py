@@ -41,6 +41,7 @@ class CoupledResult:
     warnings: list = field(default_factory=list)
     compile_time_s: float = 0.0     # compiling (or loading) the kernels, not in wall_time_s
     kernels_compiled: bool = False  # True: numba compiled them (a first run), else loaded
+    phases: dict = field(default_factory=dict)  # wall seconds of setup, compile, solve, assemble
 
 
 def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None,
@@ -82,10 +83,13 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
         transport = build_transport(scene, domain, active, rows, arrays=arrays, aux=aux)
         warnings.extend(transport.warnings)
     with notice_if_slow(progress):
-        compile_s = batch.compile()
+            compile_s = batch.compile()
+    solve_start = _time.perf_counter()
+    setup_s = solve_start - start - compile_s
     start += compile_s                      # the run time excludes the compile
     history = executor.run(batch, times, transport, progress=progress)
-    wall = _time.perf_counter() - start
+    solve_end = _time.perf_counter()
+    wall = solve_end - start
     cell_fields, bed = _outputs(scene, arrays, aux, cells, active, spray, idx, times, history)
     st = batch.stats()
     run_stats = {"cells": int(cells.n_cells), "active_cells": int(idx.size),
@@ -101,9 +105,11 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     run_stats.update(extra)
     warnings.extend(notes_method)
     warnings.extend(_domain_warnings(scene, spray, notes))
+    phases = {"setup_s": setup_s, "compile_s": compile_s, "solve_s": solve_end - solve_start,
+              "assemble_s": _time.perf_counter() - solve_end}
     return CoupledResult(times=times, cell_fields=cell_fields, bed_columns=bed, stats=run_stats,
                          wall_time_s=wall, warnings=warnings, compile_time_s=compile_s,
-                         kernels_compiled=batch.compiled_now)
+                         kernels_compiled=batch.compiled_now, phases=phases)
 
 
 def _domain_warnings(scene, spray, notes) -> list:
@@ -167,27 +173,41 @@ def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history):
 
 # ---------------------------------------------------------------------------- writing
 def write_coupled(out_dir: Path, scene, domain: Domain, result: CoupledResult,
-                  render: bool = True):
-    """Write fields.pvd + .vtu, bed_moments.csv, summary.json and PNG renders into out_dir."""
+                  render: bool = True, phases: dict | None = None) -> dict:
+    """Write fields.pvd + .vtu, bed_moments.csv, PNG renders and summary.json into out_dir.
+
+    ``phases``: wall seconds [s] of the phases before the run (start-up, read), merged with
+    the run's (``result.phases``) and this function's (write, render) into summary.json's
+    ``phases``; returns that dict."""
     from . import output
     from .cfd.vtk import VtkSeries
     from .scene import describe
 
+    t0 = _time.perf_counter()
+    phases = {**(phases or {}), **result.phases}
     with VtkSeries(out_dir / "vtk", domain.cells, name="pbe") as series:
         for t, fields in zip(result.times, result.cell_fields):
             series.write(t, fields)
     output.write_columns_csv(out_dir / "bed_moments.csv", result.bed_columns)
-    output.write_json(out_dir / "summary.json", {
-        "scene": describe(scene), "method": scene.method.name, "domain": domain.description,
-        "wall_time_s": result.wall_time_s, "compile_time_s": result.compile_time_s,
-        "kernels_compiled": result.kernels_compiled, "stats": result.stats,
-        "warnings": result.warnings})
+    phases["write_s"] = _time.perf_counter() - t0
     if render:
         from .cfd.render import plot_bed_moments, render_series
+        t1 = _time.perf_counter()
         png = out_dir / "png"
-        render_series(out_dir / "vtk", times=[result.times[0], result.times[-1]], png_dir=png)
+        render_series(out_dir / "vtk", times=[result.times[0], result.times[-1]], png_dir=png,
+                      info={"name": scene.name, "alpha_min": scene.domain.alpha_min})
         plot_bed_moments(out_dir / "bed_moments.csv", png / "bed_moments.png",
                          title=scene.name)
+        phases["render_s"] = _time.perf_counter() - t1
+    t2 = _time.perf_counter()
+    summary = {"scene": describe(scene), "method": scene.method.name,
+               "domain": domain.description, "wall_time_s": result.wall_time_s,
+               "compile_time_s": result.compile_time_s,
+               "kernels_compiled": result.kernels_compiled, "stats": result.stats,
+               "phases": phases, "warnings": result.warnings}
+    output.write_json(out_dir / "summary.json", summary)
+    phases["write_s"] += _time.perf_counter() - t2
+    return phases
 
 
 #: OpenFOAM dimensions of the fields written back into a case

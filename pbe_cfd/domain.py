@@ -113,7 +113,8 @@ def build_cells(scene, cells) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]
     theta = np.maximum(np.asarray(cells.theta, dtype=float), 0.0)
     rows[:, P.ALPHA] = alpha
     rows[:, P.THETA] = theta
-    rows[:, P.COLLISION_VELOCITY] = collision_velocity(theta)
+    # the same formula in NumPy: no numba call (and its start-up) before the kernels load
+    rows[:, P.COLLISION_VELOCITY] = collision_velocity.py_func(theta)
     active = np.asarray(cells.alpha) >= scene.domain.alpha_min
     spray = spray_zone(scene, cells) & active
     if scene.binder_injection is not None:

@@ -20,7 +20,8 @@ from .physics.efficiency import switch_on
 from .physics.injection import droplet_mass
 from .physics.kernels import KERNEL_BY_NAME
 from .physics.kernels import collision_velocity as _collision_velocity
-from .population import DERIVED, columns_from_particles, mean_diameters, moment_columns
+from .population import (DERIVED, columns_from_particle_rows, columns_from_particles,
+                         mean_diameters, mean_diameters_rows, moment_columns)
 
 __all__ = ["Arrays", "scales", "pack", "well_mixed_cell", "collision_velocity", "size_moment",
            "initial_moments", "product_gel_time", "moment_outputs", "droplet_mass"]
@@ -186,6 +187,22 @@ def product_gel_time(scene) -> float | None:
     return 1.0 / (agg.rate * m20)
 
 
+def _outputs_by_row(out, rows, states, names, cols, nd, pd, n_ref, p_ref, rho):
+    """``moment_outputs``'s moments, d32 and d43 row by row (populations of different
+    sizes): see there."""
+    for r, (w, p, b) in enumerate(rows):
+        state = states[r]
+        estimated = columns_from_particles(w, p, b, cols)
+        for c in cols:
+            k = int(c[1]) + int(c[2])
+            value = (state[names.index(c)] * n_ref * p_ref ** k if c in names
+                     else estimated[c])
+            out[c][r] = value + nd[r] * pd ** k
+        ww = np.append(w, nd[r]) if nd[r] > 0 else w
+        pp = np.append(p, pd) if nd[r] > 0 else p
+        out["d32_m"][r], out["d43_m"][r] = mean_diameters(ww, pp, rho)
+
+
 def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
                    populations: list | None = None) -> dict:
     """SI output columns (moments, droplets, d32, d43, binder fraction) of scaled states
@@ -209,27 +226,35 @@ def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
     n_ref, p_ref = arrays.number_scale, arrays.mass_scale
     rho = scene.material.density
     population = method_of(scene).population
-    for r in range(n_rows):
-        state = states[r]
-        w, p, b = population(state, aux, arrays)
-        if populations is not None:
-            populations.append((w, p, b))
-        nd = state[-1] * n_ref if separate else 0.0
-        estimated = columns_from_particles(w, p, b, cols)
+    rows = [population(states[r], aux, arrays) for r in range(n_rows)]
+    if populations is not None:
+        populations.extend(rows)
+    if n_rows == 0:
+        return out
+    nd = states[:, -1] * n_ref if separate else np.zeros(n_rows)
+    if len({len(w) for w, _, _ in rows}) > 1:       # populations of different sizes
+        _outputs_by_row(out, rows, states, names, cols, nd, pd, n_ref, p_ref, rho)
+    else:                                            # one (rows, particles) array each
+        w_all, p_all, b_all = (np.array([r[k] for r in rows], dtype=float) for k in range(3))
+        estimated = columns_from_particle_rows(w_all, p_all, b_all,
+                                               [c for c in cols if c not in names])
         for c in cols:
-            if c in names:
-                i, j = int(c[1]), int(c[2])
-                value = state[names.index(c)] * n_ref * p_ref ** (i + j)
-            else:
-                value = estimated[c]
-            out[c][r] = value + nd * pd ** (int(c[1]) + int(c[2]))
-        if separate:
-            out["droplet_number_density"][r] = nd
-        ww = np.append(w, nd) if nd > 0 else w
-        pp = np.append(p, pd) if nd > 0 else p
-        d32, d43 = mean_diameters(ww, pp, rho)
-        out["d32_m"][r] = d32
-        out["d43_m"][r] = d43
-        m10 = out["M10"][r]
-        out["binder_fraction"][r] = out["M01"][r] / m10 if bivariate and m10 > 0 else 0.0
+            k = int(c[1]) + int(c[2])
+            value = (states[:, names.index(c)] * n_ref * p_ref ** k if c in names
+                     else estimated[c])
+            out[c][:] = value + nd * pd ** k
+        with_droplets = nd > 0
+        for sel in (with_droplets, ~with_droplets):
+            if not np.any(sel):
+                continue
+            ww, pp = w_all[sel], p_all[sel]
+            if sel is with_droplets:
+                ww = np.hstack([ww, nd[sel, None]])
+                pp = np.hstack([pp, np.full((pp.shape[0], 1), pd)])
+            out["d32_m"][sel], out["d43_m"][sel] = mean_diameters_rows(ww, pp, rho)
+    if separate:
+        out["droplet_number_density"][:] = nd
+    m10 = out["M10"]
+    out["binder_fraction"][:] = (np.where(m10 > 0, out["M01"] / np.where(m10 > 0, m10, 1.0),
+                                          0.0) if bivariate else 0.0)
     return out

@@ -41,6 +41,28 @@ def mean_diameters(weights, p, density):
     return float(d32), float(d43)
 
 
+def mean_diameters_rows(weights, p, density):
+    """``mean_diameters`` of every row of (rows, particles) weights [1/m3] and masses p [kg]:
+    arrays (d32, d43) [m], zeros for an empty row; the same arithmetic row by row."""
+    w = np.asarray(weights, dtype=float)
+    d = diameter(p, density)
+    m2 = np.sum(w * d ** 2, axis=1)
+    m3 = np.sum(w * d ** 3, axis=1)
+    m4 = np.sum(w * d ** 4, axis=1)
+    d32 = np.where(m2 > 0, m3 / np.where(m2 > 0, m2, 1.0), 0.0)
+    d43 = np.where(m3 > 0, m4 / np.where(m3 > 0, m3, 1.0), 0.0)
+    return d32, d43
+
+
+def columns_from_particle_rows(weights, p, b, names):
+    """``columns_from_particles`` of every row of (rows, particles) arrays: name -> (rows,)
+    moments M_ij [kg^(i+j)/m3], the same arithmetic row by row."""
+    w = np.asarray(weights, dtype=float)
+    p = np.asarray(p, dtype=float)
+    b = np.asarray(b, dtype=float)
+    return {name: np.sum(w * p ** int(name[1]) * b ** int(name[2]), axis=1) for name in names}
+
+
 def columns_from_particles(weights, p, b, names):
     """Moments M_ij [kg^(i+j)/m3] named in ``names`` from weighted particles."""
     w = np.asarray(weights, dtype=float)

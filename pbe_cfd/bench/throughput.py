@@ -325,6 +325,36 @@ def _speedups(result):
     return out
 
 
+def thread_scaling(rows, label, n_cells, threads=(1, 2)) -> dict:
+    """Ratios (second thread count / first) of one method's rates measured in one run on
+    n_cells cells: RHS/s (medians of the repeats), kernel-only ceiling, cell-steps/s."""
+    pick = {r["threads"]: r for r in rows if r["label"] == label and r["cells"] == n_cells}
+    lo, hi = threads
+    if lo not in pick or hi not in pick:
+        return {}
+    a, b = pick[lo], pick[hi]
+    return {key: b[key] / a[key] for key in ("rhs_per_s_median", "ceiling_per_s",
+                                             "cell_steps_per_s")
+            if a.get(key) and b.get(key) is not None}
+
+
+def thread_scaling_markdown(rows, labels, n_cells, threads) -> list:
+    """The 2-thread / 1-thread table (empty without both thread counts)."""
+    if len(threads) < 2:
+        return []
+    pair = (threads[0], threads[-1])
+    out = ["", f"**Thread scaling** ({pair[1]} thr / {pair[0]} thr, {n_cells:g} cells, "
+           "same run; on a shared machine the load average below bounds what a second "
+           "thread can give):", "",
+           "| method | RHS/s (median) | kernel-only ceiling | cell-steps/s |", "|---|---|---|---|"]
+    for label in labels:
+        sc = thread_scaling(rows, label, n_cells, pair)
+        out.append(f"| {label} | " + " | ".join(
+            f"{sc[k]:.2f}x" if k in sc else "-"
+            for k in ("rhs_per_s_median", "ceiling_per_s", "cell_steps_per_s")) + " |")
+    return out
+
+
 def throughput_markdown(result) -> str:
     """Throughput tables (RHS/s, cell-steps/s per method, cells, threads) as Markdown."""
     rows = result["rows"]
@@ -380,6 +410,7 @@ def throughput_markdown(result) -> str:
             parts.append(f"{100 * cell(label, n, th, 'share_of_ceiling'):.0f}%")
         out.append(f"| {label} | " + " | ".join(parts)
                    + f" | {cell(label, n, threads[0], 'rhs_per_step'):.2f} |")
+    out += thread_scaling_markdown(rows, labels, n, threads)
     base = result.get("baseline")
     if base:
         out += ["", f"**Plain NumPy/SciPy QMOM N = {base['order']}** (bench.NumpyQMOM: "

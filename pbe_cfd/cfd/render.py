@@ -399,7 +399,7 @@ def plan_render(out_dir, fields: Sequence[str] | None = None,
 def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = None,
                   times: Sequence[float] | None = None,
                   png_dir: str | os.PathLike | None = None, notes: list | None = None,
-                  plan=None, sequence: bool = False) -> list[Path]:
+                  plan=None, sequence: bool = False, info: dict | None = None) -> list[Path]:
     """Render cell fields of the VTK series in ``out_dir`` (its .pvd) at output times (s).
 
     ``fields``: names to draw (default: those of alpha, Theta, M00, d43_m, binder_fraction
@@ -408,7 +408,7 @@ def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = Non
     PNG per field and time, ``<png_dir>/<field>_t<time>s.png`` (png_dir defaults to
     ``out_dir/png``), the same colour range for a field at every time, and with ``sequence``
     ``<field>_sequence.png``: the times side by side on that range. ``plan``: the result of
-    ``plan_render`` (else it is made here). Returns the paths."""
+    ``plan_render`` (else made here); ``info``: {"name", "alpha_min"} (else from summary.json)."""
     import pyvista as pv
 
     pvd, entries, idx, fields, found = plan or plan_render(out_dir, fields, times)
@@ -419,7 +419,7 @@ def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = Non
         notes.extend(found)
     meshes = {i: pv.read(entries[i][1]) for i in idx}
     cuts = {i: section(meshes[i]) for i in idx}
-    info = _run_info(pvd.parent, pvd.parent.parent)
+    info = info if info is not None else _run_info(pvd.parent, pvd.parent.parent)
     png_dir = Path(png_dir) if png_dir is not None else pvd.parent / "png"
     out = []
     for field in fields:
@@ -528,6 +528,16 @@ def plot_bed_moments(csv_path: str | os.PathLike, png_path: str | os.PathLike,
     return png_path
 
 
+def _fixed_margins(fig, width, height, nrow, ncol, left=0.8, right=0.2, top=0.75, bottom=0.5,
+                   gap=(0.95, 0.8)):
+    """Margins and gaps (columns, rows) in inches: one draw, where a constrained layout draws
+    the figure several times over."""
+    axes_w = (width - left - right - (ncol - 1) * gap[0]) / ncol
+    axes_h = (height - top - bottom - (nrow - 1) * gap[1]) / nrow
+    fig.subplots_adjust(left=left / width, right=1 - right / width, bottom=bottom / height,
+                        top=1 - top / height, wspace=gap[0] / axes_w, hspace=gap[1] / axes_h)
+
+
 def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
     """The figure of ``bed_moments.csv``: one panel per quantity, in the units of the VTK cell
     fields (moments per m3 of bed: the bed average is the volume-weighted mean of the cells'
@@ -543,8 +553,9 @@ def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
         raise ValueError(f"{csv_path}: no columns to plot besides time_s")
     ncol = min(3, len(panels))
     nrow = -(-len(panels) // ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(4.3 * ncol, 3.1 * nrow + 0.6),
-                             squeeze=False, layout="constrained")
+    width, height = 4.3 * ncol, 3.1 * nrow + 0.6
+    fig, axes = plt.subplots(nrow, ncol, figsize=(width, height), squeeze=False)
+    _fixed_margins(fig, width, height, nrow, ncol)
     for ax, (name, cols, unit) in zip(axes.ravel(), panels):
         for c in cols:
             y = col[c]
