@@ -285,9 +285,9 @@ def test_a_warm_run_says_nothing_and_compile_leaves_nothing_to_compile(tmp_path,
     batch = CellBatch.for_scene(scene, arrays, aux, model.well_mixed_cell(scene),
                                 state[None, :].copy())
     batch.compile()
-    before = dict(integrate.integrate_cells.overloads)
+    before = dict(integrate.integrate_cells_kernel.overloads)
     batch.step(0.0, 1.0)
-    assert dict(integrate.integrate_cells.overloads) == before
+    assert dict(integrate.integrate_cells_kernel.overloads) == before
     assert batch.stats()["accepted_steps"] > 0
     assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 0
     out, err = capsys.readouterr()
