@@ -150,7 +150,8 @@ class CellBatch:
         c = int(bad[0])
         states = self.states if states is None else states
         source = self.scene.source if self.scene is not None else ""
-        text = integrate.STATUS_TEXT[int(self.status[c])]
+        text = integrate.failure_reason(int(self.status[c]), self.stats_counts[c], self.params,
+                                        self.config)
         if self.cell_ids is None:
             message = (f"{source}: cell {c} stopped at t = {self.reached[c]:.6g} s: {text} "
                        f"(floor {self.params[P.STEP_FLOOR]:.3g} s)")

@@ -265,7 +265,7 @@ def bench_command(args):
         print(bench.throughput_markdown(res))
     else:
         study_of = {"cnmc": bench.cnmc_study, "laguerre": bench.laguerre_study,
-                    "couple": bench.couple_study}
+                    "couple": bench.couple_study, "integrators": bench.integrator_study}
         study_of[study](out, quick=quick)
         files = f"{study}.csv, {study}.md"
         print((out / f"{study}.md").read_text())
@@ -352,7 +352,8 @@ def build_parser():
     p.set_defaults(func=render_command)
 
     p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")
-    p.add_argument("study", choices=("accuracy", "throughput", "cnmc", "laguerre", "couple"))
+    p.add_argument("study", choices=("accuracy", "throughput", "cnmc", "laguerre", "couple",
+                                     "integrators"))
     p.add_argument("scene", nargs="?", help="scene for the accuracy study")
     p.add_argument("--out", default="bench-out")
     p.add_argument("--quick", action="store_true", help="a tiny configuration (plumbing check)")

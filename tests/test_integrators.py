@@ -25,7 +25,8 @@ from pbe_cfd.methods.dispatch import WORK_SIZE, conserved, rhs
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.injection import droplet_mass
 from pbe_cfd.scene import load_scene
-from pbe_cfd.simulate import method_aux, run_well_mixed
+from pbe_cfd.methods.registry import method_of
+from pbe_cfd.simulate import run_well_mixed
 
 from conftest import make_scene
 
@@ -133,7 +134,7 @@ def test_each_step_is_third_order(which):
     scene = dataclasses.replace(capture_scene(100.0, "auto"), initial=dataclasses.replace(
         capture_scene(100.0, "auto").initial, distribution="exponential"))
     arrays = model.pack(scene)
-    aux, _ = method_aux(scene, arrays)
+    aux = method_of(scene).aux(scene, arrays, None)
     y0 = model.initial_moments(scene, arrays, arrays.state_names)
     cell = model.well_mixed_cell(scene)[0]
     n = y0.size
@@ -233,11 +234,11 @@ def test_a_scene_compiles_only_its_method_and_scheme(tmp_path):
 import json, dataclasses
 from pbe_cfd import integrate, model
 from pbe_cfd.scene import load_scene
-from pbe_cfd.simulate import method_aux
+from pbe_cfd.methods.registry import method_of
 scene = load_scene("seed-wurster")
 scene = dataclasses.replace(scene, method=dataclasses.replace(scene.method, integrator="explicit"))
 arrays = model.pack(scene)
-aux, _ = method_aux(scene, arrays)
+aux = method_of(scene).aux(scene, arrays, None)
 integrate.compile_kernels(aux, arrays.params, arrays.config)
 from pbe_cfd.methods import laguerre
 from pbe_cfd.integrate import rosenbrock, exponential, cell

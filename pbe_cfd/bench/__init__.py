@@ -1,4 +1,5 @@
-"""What accuracy costs in time: ``pbe-cfd bench accuracy | throughput | cnmc | laguerre | couple``.
+"""What accuracy costs in time: ``pbe-cfd bench accuracy | throughput | cnmc | laguerre | couple |
+integrators``.
 
 accuracy (``accuracy_study``)
     Each method over its accuracy knob -- QMOM nodes 1-4; Laguerre ROM order 2-4 on a coarse
@@ -20,13 +21,20 @@ throughput (``throughput_study``)
     integrated per cell by ``scipy.integrate.solve_ivp``, giving the speed-up as a ratio.
     Writes throughput.csv, throughput.md, throughput.png, machine.json.
 
+integrators (``integrator_study``)
+    The per-cell integrators explicit, implicit and auto on the seed scene, the ktgf study
+    scene and a stiff cell at packing: wall time, RHS calls and error against the explicit
+    pair at 100 times tighter tolerance; and the bundled transport scene's solver and
+    whole-process time against the same scene without ``[transport]``. Writes
+    integrators.csv, integrators.md, integrators.json.
+
 cnmc, laguerre, couple
     Seed-scenario cNMC speed per replica (trials and accepted events per second); Laguerre
     tensor build time per order and grid and its RHS rate; cell-steps per second of
     ``run_coupled`` on the bundled small bed and on its cells replicated to ~3600 cells.
 
 Modules: ``common`` (machine, writers), ``analytic`` (closed-form references), ``accuracy``
-and ``accuracy_report``, ``throughput`` with ``sweeps`` (numba) and ``numpy_baseline`` (the
+and ``accuracy_report``, ``integrators``, ``throughput`` with ``sweeps`` (numba) and ``numpy_baseline`` (the
 plain NumPy/SciPy QMOM), ``cnmc``, ``laguerre``, ``couple``, ``cluster`` (the Dask path).
 
 Every study accepts ``quick`` (a tiny configuration for tests: well under a minute once numba's
@@ -42,6 +50,7 @@ from .analytic import (analytic_applicable, analytic_moments, analytic_reference
 from .cnmc import cnmc_study, seed_scenario_benchmark, seed_scenario_setup
 from .common import STUDY_FILES, failure_status, machine_info
 from .couple import couple_study, replicated_domain
+from .integrators import integrator_markdown, integrator_study, stiff_scene
 from .laguerre import laguerre_study
 from .numpy_baseline import NumpyQMOM
 from .sweeps import (laguerre_contraction_sweep, qmom_kernel_sweep, qmom_node_properties,

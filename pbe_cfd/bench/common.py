@@ -97,5 +97,5 @@ STUDY_FILES = {
     "throughput": ["throughput.csv", "throughput.md", "throughput.png", "throughput.json",
                    "machine.json"],
     **{name: [f"{name}.csv", f"{name}.md", f"{name}.json"]
-       for name in ("cnmc", "laguerre", "couple")},
+       for name in ("cnmc", "laguerre", "couple", "integrators")},
 }

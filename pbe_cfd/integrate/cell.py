@@ -222,6 +222,24 @@ def _absorb_droplets(method, state, d, atol, pivots, coefs, n_inv, aux, params, 
             state[i] = saved[i]
 
 
+@nb.njit(cache=True)
+def _next_mode(auto, mode, h, h_try, h_rho, sw, jac, buf, n, stats):
+    """After an accepted step of size h_try [s] in mode (0 explicit, 1 implicit): count it
+    and, for an auto cell, decide the mode of the next step. Returns (mode, next step [s])."""
+    if mode == 1:
+        stats[IMPLICIT_STEPS] += 1
+        if auto:
+            h_back = _after_implicit(h_try, sw, jac, buf, n)
+            if h_back > 0.0:
+                stats[SWITCHES] += 1
+                return 0, h_back
+        return 1, h
+    if auto and _after_explicit(h_try, h_rho, sw):
+        stats[SWITCHES] += 1
+        return 1, h
+    return 0, h
+
+
 @nb.njit(cache=True, inline="always")
 def _memory(scheme, mode, h):
     """Step memory: the next step [s], negative if an auto cell is implicit."""
@@ -315,18 +333,8 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
             have_capture = False
             factor = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** (-1.0 / 3.0)))
             h = h_try * factor if not last else max(h, h_try * factor)
-            if mode == 1:
-                stats[IMPLICIT_STEPS] += 1
-                have_jac = False
-                if scheme == AUTO:
-                    h_back = _after_implicit(h_try, sw, jac, buf, n)
-                    if h_back > 0.0:
-                        mode = 0
-                        h = h_back
-                        stats[SWITCHES] += 1
-            elif scheme == AUTO and _after_explicit(h_try, h_rho, sw):
-                mode = 1
-                stats[SWITCHES] += 1
+            have_jac = False
+            mode, h = _next_mode(scheme == AUTO, mode, h, h_try, h_rho, sw, jac, buf, n, stats)
         elif outcome == REJECT_ERROR:
             stats[REJECTED_ERROR] += 1
             h = h_try * max(0.2, 0.9 * err ** (-1.0 / 3.0))

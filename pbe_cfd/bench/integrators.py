@@ -1,0 +1,227 @@
+"""The integrator study: explicit vs implicit vs auto, and what transport splitting costs
+(``pbe-cfd bench integrators``).
+
+Well-mixed part: each scheme on the seed scene (QMOM N = 3, non-stiff), the ktgf study scene
+(non-stiff), and a stiff cell (the ktgf scene next to packing, alpha = alpha_max - 1e-4 without
+friction cap, Theta = 1e-4 m2/s2, injection 1e4 times the seed rate, smooth Stokes switch).
+Wall time is the median of ``repeats`` runs (compile excluded); the error is the largest
+relative difference of M00, M20, M11 and d43 over every output time against a reference run
+of the explicit pair at a 100 times tighter tolerance (an independent step sequence and, for
+implicit and auto, an independent scheme).
+
+Transport part: the bundled ``fluid-bed-transport`` scene against the same scene without
+``[transport]``: the solver time (run wall time without compile, median of ``repeats``) and
+the whole-process time of ``python -m pbe_cfd.cli couple`` (median of ``repeats``, one
+process each, in this session), and their ratios.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..scene import load_scene
+from ..simulate import run_well_mixed
+from .common import _git_describe, _machine_line, _say, _write_simple, failure_status, \
+    machine_info
+
+SCHEMES = ("explicit", "implicit", "auto")
+COMPARED = ("M00", "M20", "M11", "d43_m")
+SEED_RATE = 1.485e8          # droplets/(m3 s): the seed scene's injection
+
+
+def stiff_scene(end_time=2.0):
+    """The ktgf study cell next to packing (alpha within 1e-4 of alpha_max, no friction cap,
+    g0 = 1.9e4), Theta 1e-4 m2/s2, injection 1e4 x the seed rate, Stokes switch width 0.05;
+    2 s by default (the explicit pair's reference needs ~1.3e4 steps per second here)."""
+    scene = load_scene("study-ktgf")
+    dom = dataclasses.replace(scene.domain, solids_fraction=0.62 - 1e-4,
+                              granular_temperature=1e-4, alpha_min_friction=None)
+    return dataclasses.replace(
+        scene, domain=dom, end_time=end_time, output_interval=end_time / 10,
+        binder_injection=dataclasses.replace(scene.binder_injection, rate=1e4 * SEED_RATE),
+        material=dataclasses.replace(scene.material, stokes_switch_width=0.05))
+
+
+def _with(scene, **method):
+    return dataclasses.replace(scene, method=dataclasses.replace(scene.method, **method))
+
+
+def _error(columns, ref) -> float:
+    worst = 0.0
+    for key in COMPARED:
+        a, b = np.asarray(columns[key]), np.asarray(ref[key])
+        scale = np.abs(b)
+        ok = scale > 0
+        if np.any(ok):
+            worst = max(worst, float(np.max(np.abs(a[ok] - b[ok]) / scale[ok])))
+    return worst
+
+
+def well_mixed_rows(scenes, repeats, quiet) -> list:
+    """One row per scene and scheme: median wall [s], RHS calls, steps, error vs reference."""
+    rows = []
+    for label, scene in scenes:
+        tight = _with(scene, integrator="explicit", rtol=scene.method.rtol / 100,
+                      atol=scene.method.atol / 100)
+        try:
+            ref = run_well_mixed(tight).columns
+        except Exception as exc:  # noqa: BLE001 - a failed reference is a result
+            ref = None
+            _say(quiet, f"  {label}: reference failed: {exc}")
+        for scheme in SCHEMES:
+            run = _with(scene, integrator=scheme)
+            try:
+                results = [run_well_mixed(run) for _ in range(repeats)]
+            except Exception as exc:  # noqa: BLE001
+                rows.append({"scene": label, "integrator": scheme, "wall_s": float("nan"),
+                             "rhs_calls": 0, "accepted_steps": 0, "implicit_steps": 0,
+                             "error": float("nan"), "status": failure_status(exc)})
+                _say(quiet, f"  {label} {scheme}: failed: {exc}")
+                continue
+            res = results[0]
+            wall = statistics.median(r.wall_time_s for r in results)
+            rows.append({"scene": label, "integrator": scheme, "wall_s": wall,
+                         "rhs_calls": res.stats["rhs_calls"],
+                         "accepted_steps": res.stats["accepted_steps"],
+                         "implicit_steps": res.stats["implicit_steps"],
+                         "error": _error(res.columns, ref) if ref is not None
+                         else float("nan"), "status": "ok"})
+            _say(quiet, f"  {label} {scheme}: {wall:.3g} s, {res.stats['rhs_calls']} RHS, "
+                 f"error {rows[-1]['error']:.2e}")
+    return rows
+
+
+def _scene_text_without_transport(text: str) -> str:
+    """The scene file's text with its [transport] table removed."""
+    out, skip = [], False
+    for line in text.splitlines():
+        stripped = line.strip()
+        if stripped.startswith("["):
+            skip = stripped == "[transport]"
+        if not skip:
+            out.append(line)
+    return "\n".join(out) + "\n"
+
+
+def _process_seconds(scene_path, out_dir) -> tuple[float, float]:
+    """(wall [s], CPU [s] user + system) of one ``pbe_cfd.cli couple`` process."""
+    env = dict(os.environ)
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "pbe_cfd.cli", "couple", str(scene_path), "--out",
+                    str(out_dir), "--overwrite"], check=True, env=env,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def transport_rows(repeats, quiet, quick=False) -> list:
+    """Solver and whole-process time of fluid-bed-transport with and without [transport]."""
+    from ..couple import run_coupled
+    from ..domain import load_domain
+    with_transport = load_scene("fluid-bed-transport")
+    text = Path(with_transport.source).read_text()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        plain_path = Path(tmp) / "fluid-bed-no-transport.toml"
+        plain_path.write_text(_scene_text_without_transport(text))
+        scenes = [("with [transport]", Path(with_transport.source)),
+                  ("without [transport]", plain_path)]
+        for label, path in scenes:
+            scene = load_scene(str(path))
+            if quick:
+                scene = dataclasses.replace(scene, end_time=2.0, output_interval=1.0)
+            domain = load_domain(scene, need_flux=scene.transport is not None)
+            solver, cpu, source, stats = [], [], [], None
+            run_coupled(scene, domain)                       # compile or load the kernels
+            for _ in range(repeats):
+                cpu0 = time.process_time()
+                res = run_coupled(scene, domain)
+                cpu.append(time.process_time() - cpu0)
+                solver.append(res.wall_time_s)
+                stats = res.stats
+                if "transport" in res.stats:
+                    source.append(res.stats["transport"]["source_wall_s"])
+            process = [] if quick else [_process_seconds(path, Path(tmp) / "out")
+                                        for _ in range(repeats)]
+            nan = float("nan")
+            rows.append({"scene": label, "solver_s": statistics.median(solver),
+                         "solver_cpu_s": statistics.median(cpu),
+                         "source_s": statistics.median(source) if source else nan,
+                         "process_s": statistics.median(p[0] for p in process) if process
+                         else nan,
+                         "process_cpu_s": statistics.median(p[1] for p in process) if process
+                         else nan,
+                         "accepted_steps": stats["accepted_steps"],
+                         "rhs_calls": stats["rhs_calls"],
+                         "implicit_steps": stats["implicit_steps"]})
+            _say(quiet, f"  {label}: solver {rows[-1]['solver_s']:.3g} s, process "
+                 f"{rows[-1]['process_s']:.3g} s")
+    return rows
+
+
+def integrator_markdown(result) -> str:
+    """The study's tables (Markdown)."""
+    lines = [f"Machine: {_machine_line(result['machine'])}; commit {result['commit']}; "
+             f"wall times are medians of {result['repeats']} runs.", "",
+             "| scene | integrator | wall [s] | RHS calls | steps (implicit) | max rel. error |",
+             "|---|---|---|---|---|---|"]
+    for r in result["well_mixed"]:
+        if r["status"] != "ok":
+            lines.append(f"| {r['scene']} | {r['integrator']} | - | - | - | {r['status']} |")
+            continue
+        lines.append(f"| {r['scene']} | {r['integrator']} | {r['wall_s']:.3g} | "
+                     f"{r['rhs_calls']} | {r['accepted_steps']} ({r['implicit_steps']}) | "
+                     f"{r['error']:.1e} |")
+    rows = result["transport"]
+    if rows:
+        lines += ["", "| fluid-bed-transport | solver wall [s] | solver CPU [s] | sources [s] "
+                  "| process wall [s] | process CPU [s] | steps (implicit) | RHS calls |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for r in rows:
+            lines.append(f"| {r['scene']} | {r['solver_s']:.3g} | {r['solver_cpu_s']:.3g} | "
+                         f"{r['source_s']:.3g} | {r['process_s']:.3g} | "
+                         f"{r['process_cpu_s']:.3g} | {r['accepted_steps']} "
+                         f"({r['implicit_steps']}) | {r['rhs_calls']} |")
+        if len(rows) == 2:
+            a, b = rows
+            lines += ["", f"Ratios with / without transport: solver wall "
+                      f"{a['solver_s'] / b['solver_s']:.2f} (CPU "
+                      f"{a['solver_cpu_s'] / b['solver_cpu_s']:.2f}), whole process wall "
+                      f"{a['process_s'] / b['process_s']:.2f} (CPU "
+                      f"{a['process_cpu_s'] / b['process_cpu_s']:.2f})."]
+    return "\n".join(lines) + "\n"
+
+
+def integrator_study(out_dir="bench-out", quick=False, quiet=False, repeats=None) -> dict:
+    """Run both parts (quick: short scenes, one repeat, no subprocess timing) and write
+    integrators.csv, integrators.md and integrators.json into out_dir."""
+    repeats = repeats or (1 if quick else 3)
+    end = 20.0 if quick else None
+    seed = load_scene("seed-wurster")
+    ktgf = load_scene("study-ktgf")
+    if end is not None:
+        seed = dataclasses.replace(seed, end_time=end, output_interval=end / 4)
+        ktgf = dataclasses.replace(ktgf, end_time=end, output_interval=end / 4)
+    scenes = [("seed-wurster (QMOM)", seed), ("study-ktgf (QMOM)", ktgf),
+              ("stiff: ktgf cell at packing, 1e4 x injection, 2 s", stiff_scene(2.0))]
+    well_mixed = well_mixed_rows(scenes, repeats, quiet)
+    transport = transport_rows(repeats, quiet, quick=quick)
+    result = {"machine": machine_info(), "commit": _git_describe(), "repeats": repeats,
+              "well_mixed": well_mixed, "transport": transport}
+    rows = [{"part": "well-mixed", **r} for r in well_mixed] + \
+        [{"part": "transport", **r} for r in transport]
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    _write_simple(out_dir, "integrators", [{k: r.get(k) for k in keys} for r in rows],
+                  integrator_markdown(result), result)
+    return result
