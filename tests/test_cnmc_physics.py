@@ -213,8 +213,8 @@ def first_trials(case, separate, p0, b0, d0, volume):
     gran_masses = p0[d0 == 0]
     for seed in range(RUNS):
         p, b, isdrop = p0.copy(), b0.copy(), d0.copy()
-        trials, acc, inj, viol, status, t = cnmc.run_box(p, b, isdrop, volume, times, cell,
-                                                          params, config, seed, 0, 1, out)
+        trials, acc, inj, viol, status, t, *_ = cnmc.run_box(p, b, isdrop, volume, times, cell,
+                                                              params, config, seed, 0, 1, out)
         assert trials == 1 and viol == 0 and inj == 0
         t_first[seed] = t
         if acc:
