@@ -119,7 +119,7 @@ def pack(scene) -> Arrays:
     names = method.state_names(scene)
     config[P.N_STATE] = len(names)
     from .integrate import SCHEMES
-    config[P.INTEGRATOR] = SCHEMES[method.integrator]
+    config[P.INTEGRATOR] = SCHEMES[scene.method.integrator]
     return Arrays(params=params, config=config, number_scale=n_ref, mass_scale=p_ref,
                   droplet_mass=pd, state_names=names)
 
