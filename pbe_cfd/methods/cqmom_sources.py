@@ -11,14 +11,16 @@ All quantities are scaled (see ``methods.cqmom``); no allocation.
 import numba as nb
 
 from ..physics import parameters as P
+from ..physics.breakage import daughter_moment_factor
 from ..physics.efficiency import efficiency_property_groups, pair_success_probability
 from ..physics.kernels import (kernel_cell_factor, kernel_property_groups, kernel_uses_d43,
                                pair_collision_frequency)
 from ..physics.properties import (BINDER_LAYER, DIAMETER, EKE_CBRT, EKE_INV, INV_DIAMETER_CUBED,
                                   WETTING, fill_properties)
 from ..physics.rates import particle_properties
-from .cqmom import (invert_cached, mixed_index, off_acc, off_bpowers, off_counts, off_points,
-                    off_powers, props_view)
+from .breakage_sources import cell_selection_factor, node_selection_rate
+from .cqmom import (invert_cached, mixed_index, off_acc, off_bpowers, off_cond, off_counts,
+                    off_points, off_powers, props_view)
 
 
 @nb.njit(cache=True, inline="always")
@@ -232,6 +234,45 @@ def _droplet_capture(out, state, work, n_max, m, n, factor, u0, params, config, 
 
 
 @nb.njit(cache=True, error_model="numpy")
+def _breakage(out, work, n_max, m, n, cell, params, config, bivariate):
+    """Breakage birth and death (``physics.breakage``; binder splits in proportion to mass, so
+    both daughters keep the parent's fraction y): by quadrature over the size nodes with their
+    conditional fraction moments,
+
+        dM_kl/dt = sum_a w_a S(x_a) (F(k + l) - 1) x_a^(k+l) <y^l>_a,
+
+    F the daughter rule's moment factor. <y^l>_a are the conditional moments of the inversion
+    (the Vandermonde solve, the bounded mean binder for l = 1); where a node's conditional set
+    is realizable they are exactly the moments of its N2 points (sum_b r_ab y_ab^l), so this
+    is the quadrature over the N1 x N2 points. Where it is not (the nearest realizable points
+    miss a moment) the carried conditional moments are used: with a constant selection the
+    source is then s (F(k+l) - 1) M_kl exactly for every carried moment, whereas the points'
+    moments would make e.g. M13 of N1 = 2 follow M40 of the size quadrature. F(1) = 1: M10 and
+    M01 get exactly nothing (skipped, not summed to zero). Free droplets never break."""
+    factor = cell_selection_factor(cell, params, config)
+    if factor == 0.0:
+        return
+    code = config[P.BREAKAGE_DAUGHTERS]
+    n_size = 2 * n_max
+    oc = off_cond(n_max, m)
+    lmax = 2 * m if bivariate else 1
+    for a in range(n):
+        xa = work[a]
+        rate = work[n_max + a] * node_selection_rate(xa, factor, params, config)
+        if rate == 0.0:
+            continue
+        power = rate                                  # w S x^q
+        for q in range(n_size + lmax):
+            if q != 1:
+                gain = power * (daughter_moment_factor(code, float(q)) - 1.0)
+                if q < n_size:
+                    out[q] += gain
+                for l in range(max(1, q - n_max + 1), min(q, lmax - 1) + 1):
+                    out[mixed_index(n_max, q - l, l)] += gain * work[oc + a * 2 * m + l]
+            power *= xa
+
+
+@nb.njit(cache=True, error_model="numpy")
 def cqmom_rhs(state, out, cell, aux, params, config, work):
     """d(state)/dt of one cell [scaled moments per s] (layout in the module docstring).
 
@@ -253,8 +294,8 @@ def cqmom_rhs(state, out, cell, aux, params, config, work):
         factor = kernel_cell_factor(config[P.KERNEL], cell[P.ALPHA], cell[P.THETA], d43, params)
     if factor != 0.0:
         _aggregation(out, work, n_max, m, n, factor, u0, params, config, bivariate)
-    # breakage (issue 16) adds its birth and death terms here: a quadrature over the same
-    # points (work[off_points:]) with the daughter moments of each broken point.
+    if n > 0 and config[P.BREAKAGE] == 1:
+        _breakage(out, work, n_max, m, n, cell, params, config, bivariate)
     inj = cell[P.INJECTION] / params[P.NUMBER_SCALE]
     xd = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
     if separate:
