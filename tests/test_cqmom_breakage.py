@@ -29,7 +29,8 @@ With N1 = 2 the carried M_13 = y0^3 M_40 is not among them: the points give it y
 the size rule's closure of M_40, so its equation does not close. It is checked to 1e-6 against
 that closure computed independently here (a plain-NumPy Gauss rule of the exact M_00 .. M_30,
 integrated by scipy); its distance from the exact M_13 is the closure error (measured: 54%
-with uniform daughters, 115% with equal halves at s t = 2; with one point per node it feeds no other moment).
+with uniform daughters, 115% with equal halves at s t = 2; with one point per node it feeds
+no other moment).
 Quadrature over the points was chosen over the carried (Vandermonde) conditional moments,
 which make this M_13 exact but are not realizable (see ``cqmom_sources._breakage``).
 """

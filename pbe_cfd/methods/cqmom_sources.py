@@ -1,5 +1,5 @@
-"""Sources of the CQMOM moment equations: aggregation, droplet capture and injection by
-quadrature over the conditional points (layout and inversion in ``methods.cqmom``).
+"""Sources of the CQMOM moment equations: aggregation, droplet capture, injection and breakage
+by quadrature over the conditional points (layout and inversion in ``methods.cqmom``).
 
 Granule-granule aggregation runs over pairs of size nodes: the collision frequency depends on
 the masses only and is evaluated once per pair of size nodes, the success probability (which
