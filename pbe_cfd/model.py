@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .integrate.codes import SCHEMES
 from .methods.registry import method_of
 from .physics import parameters as P
 from .physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
@@ -118,7 +119,6 @@ def pack(scene) -> Arrays:
         config[slot] = value
     names = method.state_names(scene)
     config[P.N_STATE] = len(names)
-    from .integrate import SCHEMES
     config[P.INTEGRATOR] = SCHEMES[scene.method.integrator]
     return Arrays(params=params, config=config, number_scale=n_ref, mass_scale=p_ref,
                   droplet_mass=pd, state_names=names)

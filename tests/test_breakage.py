@@ -1,4 +1,4 @@
-"""Breakage against its closed forms (DESIGN section 3, docs/physics.md "Breakage").
+"""Breakage against its closed forms (docs/physics.md section 8).
 
 Three problems whose moments are known exactly (N0 granules per m3, binder fraction y0 = 0.25
 on every granule, so M_ij = y0^j M_(i+j),0 for all t: binder splits in proportion to mass):

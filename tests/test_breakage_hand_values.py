@@ -2,7 +2,7 @@
 
 Each expected value is computed here from the formula as docs/physics.md ("Breakage") writes
 it; the project's functions are only called to be checked. Sources: the selection and daughter
-forms of DESIGN section 3 (issue 16); g0 of Sinclair & Jackson as OpenFOAM evaluates it (cap
+forms of docs/physics.md section 8 (issue 16); g0 of Sinclair & Jackson as OpenFOAM evaluates it (cap
 at alpha_min_friction); u0 = 4 sqrt(Theta / pi) (Gidaspow 1994); the Stokes deformation number
 St_def = rho_g u0^2 / (2 Y) of Tardos, Khan and Mort (1997).
 

@@ -1,4 +1,4 @@
-"""Breakage (DESIGN section 3): the selection-function and daughter-rule registries.
+"""Breakage (docs/physics.md section 8): the selection-function and daughter-rule registries.
 
 A granule of mass p' [kg] holding binder b' [kg] breaks at the selection rate S(p') [1/s] into
 two daughters; each daughter keeps the parent's binder fraction (binder splits in proportion to
@@ -14,7 +14,7 @@ M_ij = int p^i b^j n gain
 
 beta(u) the number density of daughters with mass share u (two daughters: F(0) = 2, F(1) = 1).
 ``uniform`` daughters (b(p | p') = 2 / p'): beta = 2, F(k) = 2 / (k + 1); ``equal`` halves:
-beta = 2 delta(u - 1/2), F(k) = 2^(1 - k). Hence the closed forms of DESIGN section 3.
+beta = 2 delta(u - 1/2), F(k) = 2^(1 - k). Hence the closed forms of docs/physics.md section 8.
 
 Selection functions, like the aggregation kernels, split into a cell factor g(alpha, theta,
 u0, params) [1/s] shared by every granule of a cell and a particle part f(p, g, params) [1/s]:
