@@ -246,9 +246,9 @@ def _breakage(out, work, n_max, m, n, cell, params, config, bivariate):
     population: the source is exact for each moment the points reproduce when S is constant.
     Where a node's conditional moments are not realizable the points are their nearest
     realizable reading; the raw conditional moments of the Vandermonde solve are not used
-    (measured, power selection, N1 = N2 = 2, y = 0.25 on every granule: they put a negative
-    <y^3> on the small node and 1.25 on the large one, and M03 ended 63% below the QMOM
-    closure after k v0 t = 1, the exact value within 7% of it). F(1) = 1: M10 and M01 get
+    (power selection, N1 = N2 = 2, y0 = 0.25 on every granule of an exponential start: the
+    solve gives <y^3> < 0 on the small node and 1.25 y0^3 on the large one, and M03 ended 60%
+    below the exact value after k v0 t = 1, the points 7% above it). F(1) = 1: M10 and M01 get
     exactly nothing (skipped, not summed to zero). Free droplets never break."""
     factor = cell_selection_factor(cell, params, config)
     if factor == 0.0:
