@@ -73,6 +73,9 @@ def parse_figure(cell):
 
 
 # ---------------------------------------------------------------------------- seed scenario
+#: the README's footnote: the ROM as it was before the dry class (table III's shapes)
+BEFORE_DRY = {"consistent": True, "dry_class": False, "adaptive_weights": False,
+              "weight_shape_mass": 1.0, "weight_shape_binder": 0.2}
 SEED_ROWS = {
     "QMOM N = 2": ("seed-wurster", {"name": "qmom", "nodes": 2}),
     "QMOM N = 3": ("seed-wurster", {"name": "qmom", "nodes": 3}),
@@ -81,6 +84,10 @@ SEED_ROWS = {
     "Laguerre m = 3, plain (seed's projection)": ("seed-wurster-laguerre",
                                                    {"order": 3, "consistent": False}),
     "Laguerre m = 4, plain": ("seed-wurster-laguerre", {"order": 4, "consistent": False}),
+    "Laguerre m = 3, before the dry class *": ("seed-wurster-laguerre", dict(BEFORE_DRY, order=3)),
+    "Laguerre m = 4, before the dry class *": ("seed-wurster-laguerre", dict(BEFORE_DRY, order=4)),
+    "CQMOM N1 = 2, N2 = 2": ("seed-wurster-cqmom", {"nodes": 2, "binder_nodes": 2}),
+    "CQMOM N1 = 3, N2 = 2": ("seed-wurster-cqmom", {"nodes": 3, "binder_nodes": 2}),
 }
 COLUMN = {"M00": "M00", "M20": "M20", "M11": "M11", "M02": "M02", "d43": "d43_m"}
 

@@ -22,9 +22,10 @@ b <= p holds at every point by construction, and a conditional set that is not r
 projected onto the nearest realizable one (an atom on 0 or 1, or fewer nodes) instead of failing.
 
 Sources (``methods.cqmom_sources``) are quadratures over the points of the aggregation
-integrals (every kernel and efficiency), droplet capture (droplets a population of their own)
-and injection, with gains written as sums of non-negative terms so that M10 and M01 get
-exactly nothing from aggregation.
+integrals (every kernel and efficiency), droplet capture (droplets a population of their own),
+injection and breakage (``physics.breakage``: selection at the node's mass, the daughter
+rule's moment factors), with gains written as sums of non-negative terms so that M10 and M01
+get exactly nothing from aggregation and breakage.
 """
 import math
 
