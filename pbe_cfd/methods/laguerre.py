@@ -37,7 +37,7 @@ import numba as nb
 import numpy as np
 
 from ..physics import parameters as P
-from ..physics.kernels import kernel_cell_factor
+from ..physics.kernels import KTGF, kernel_cell_factor
 from . import laguerre_tensor as LT
 from .laguerre_layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_MASS_SCALE, AUX_NPAIR,
                               AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_OFF_CAPMAP, AUX_OFF_CD,
@@ -53,7 +53,6 @@ __all__ = ["laguerre_rhs", "laguerre_realizable", "laguerre_project", "laguerre_
            "moments_from_state", "escaped_mass_share", "reconstruct", "reconstructed_moment",
            "initial_state", "state_size", "state_names", "strictly_realizable", "theta_to_u0"]
 
-KTGF = 4   # kernel code of ktgf in physics.kernels.KERNELS
 #: the dry class is merged into the wet one once it holds less than this share of the granules
 DRY_MERGE_SHARE = 1e-12
 

@@ -21,6 +21,7 @@ import os
 import numpy as np
 
 from ..physics import parameters as P
+from ..physics.efficiency import uses_collision_velocity
 from .laguerre_basis import SPACINGS
 from .laguerre_breakage import breakage_blocks
 from .laguerre_dry import cross_tensors, dry_class, dry_kernels, dry_tensors
@@ -52,7 +53,9 @@ def unit_params(params):
 
 
 def _needs_u0(config):
-    return int(config[P.USE_PHYSICAL]) == 1
+    """True if a factor switched on reads the collision velocity (the tensors then depend on
+    the cell's Theta and are tabulated on a Theta grid)."""
+    return uses_collision_velocity(config)
 
 
 def _source_digest():
@@ -72,9 +75,11 @@ def _cache_key(params, config, order, weights, support, consistent, u0_grid, ada
     q = np.array(params, dtype=np.float64).copy()
     for slot in (P.RATE, P.NUMBER_SCALE, P.STEP_FLOOR):   # factored out / irrelevant
         q[slot] = 0.0
-    cfg = [int(config[s]) for s in (P.KERNEL, P.USE_GEOMETRIC, P.USE_PHYSICAL,
-                                    P.USE_SATURATION, P.SEPARATE_DROPLETS,
-                                    P.BREAKAGE, P.BREAKAGE_SELECTION, P.BREAKAGE_DAUGHTERS)]
+    # every switch the tensors depend on: kernel, droplets, breakage and the whole efficiency
+    # block (a factor added to the registry changes the key without an edit here)
+    cfg = [int(config[s]) for s in (P.KERNEL, P.SEPARATE_DROPLETS, P.BREAKAGE,
+                                    P.BREAKAGE_SELECTION, P.BREAKAGE_DAUGHTERS)]
+    cfg += [int(x) for x in config[P.EFFICIENCY_SWITCHES:]]
     blob = json.dumps(dict(tag=_ALGO_TAG, src=_source_digest(), params=q.tolist(), config=cfg,
                            order=int(order),
                            weights={k: float(v) for k, v in weights.items()},
