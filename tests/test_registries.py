@@ -280,3 +280,19 @@ def test_an_unknown_breakage_code_gives_nan():
     unknown = 1 + max(d.code for d in B.DAUGHTER_REGISTRY)
     assert math.isnan(B.daughter_moment_factor(unknown, 2.0))
     assert math.isnan(B.daughter_share(unknown, 0.3))
+
+
+def test_an_unknown_method_code_gives_nan_not_another_methods_numbers():
+    """The run-time method dispatch has no fallback: a code no method owns yields NaN rates
+    (which stop the cell) and an unrealizable state, never QMOM's numbers."""
+    from pbe_cfd.methods.dispatch import WORK_SIZE, method_realizable, method_rhs
+    config = np.zeros(P.N_CONFIG, dtype=np.int64)
+    config[P.METHOD] = 99
+    config[P.ORDER] = 2
+    config[P.N_STATE] = 4
+    params = np.ones(P.N_PARAMS)
+    state = np.array([1.0, 1.0, 1.1, 1.3])
+    out = np.zeros(4)
+    method_rhs(state, out, np.zeros(P.N_CELL), np.zeros(1), params, config, np.zeros(WORK_SIZE))
+    assert np.all(np.isnan(out))
+    assert not method_realizable(state, np.zeros(1), params, config, np.zeros(WORK_SIZE))

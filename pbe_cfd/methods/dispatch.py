@@ -17,6 +17,7 @@ Two ways in:
   compile time (benchmarks, the transport's repair pass).
 """
 import numba as nb
+import numpy as np
 from numba.core import types
 from numba.extending import overload
 
@@ -132,8 +133,11 @@ def method_rhs(state, out, cell, aux, params, config, work):
         laguerre_rhs(state, out, cell, aux, params, config, work)
     elif config[P.METHOD] == CQMOM:
         cqmom_rhs(state, out, cell, aux, params, config, work)
-    else:
+    elif config[P.METHOD] == QMOM:
         qmom_rhs(state, out, cell, aux, params, config, work)
+    else:                       # an unknown code: NaN, which stops the cell, never wrong numbers
+        for k in range(out.shape[0]):
+            out[k] = np.nan
 
 
 @nb.njit(cache=True)
@@ -143,7 +147,9 @@ def method_realizable(state, aux, params, config, work):
         return laguerre_realizable(state, aux, params, config, work)
     if config[P.METHOD] == CQMOM:
         return cqmom_realizable(state, aux, params, config, work)
-    return qmom_realizable(state, aux, params, config, work)
+    if config[P.METHOD] == QMOM:
+        return qmom_realizable(state, aux, params, config, work)
+    return False
 
 
 @nb.njit(cache=True)
@@ -153,5 +159,5 @@ def method_project(state, aux, params, config, work):
         laguerre_project(state, aux, params, config, work)
     elif config[P.METHOD] == CQMOM:
         cqmom_project(state, aux, params, config, work)
-    else:
+    elif config[P.METHOD] == QMOM:
         qmom_project(state, aux, params, config, work)
