@@ -68,7 +68,10 @@ def test_wheel_ships_the_case_template_and_case_run_works_installed(tmp_path):
     subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)],
                    check=True)
     py = venv / "bin" / "python"
-    subprocess.run([str(py), "-m", "pip", "install", "--no-deps", "-q", str(wheel)],
+    # --force-reinstall: the venv sees the system site-packages, where pbe_cfd of the same
+    # version may already be installed (CI installs it), and pip would then skip the wheel
+    subprocess.run([str(py), "-m", "pip", "install", "--no-deps", "--force-reinstall", "-q",
+                    str(wheel)],
                    check=True, env=_clean_env())
     away = tmp_path / "elsewhere"
     away.mkdir()
