@@ -37,13 +37,6 @@ _D43_MARGIN = 1.02         # majorant tables use d43 * 1.02, rebuilt when d43 le
 # numba core
 # ---------------------------------------------------------------------------------------------
 @nb.njit(cache=True)
-def _d4(p, rho):
-    """Fourth power of the volume-equivalent diameter d = (6 p / (pi rho))^(1/3) [m^4]."""
-    d = (_C_D * p / rho) ** (1.0 / 3.0)
-    return d * d * d * d
-
-
-@nb.njit(cache=True)
 def _kernel_d43(s4, ptot, n_free_droplets, pd, rho):
     """d43 [m] the ktgf kernel uses: sum d^4 / sum d^3 of the granules (docs/physics.md
     section 4.3), from the box sums s4 = sum d^4 [m^4] and ptot = sum p [kg] less the free
