@@ -35,7 +35,7 @@ import numpy as np
 from ..physics import parameters as P
 from ..physics.properties import N_PROPS
 from .conditional import fraction_moments, gauss_unit_interval, restore_binder_mass
-from .qmom import solve_node_binder
+from .qmom import qmom_conserved, solve_node_binder
 from .quadrature import wheeler_nodes
 
 _as_strided = np.lib.stride_tricks.as_strided
@@ -298,24 +298,11 @@ def _project_into(state, target, config, work, n):
 
 @nb.njit(cache=True)
 def cqmom_conserved(config, params, pivots, coefs):
-    """Linear invariants of the CQMOM state for the time integrator: rows c of ``coefs``
-    (n_inv, N_STATE) with c . d(state)/dt independent of the state (the injection only):
-    granule mass M10 and (bivariate) binder mass M01, each plus the free droplets' mass
-    x_d n_d (x_d = p_d / p_ref). ``pivots[r]`` is the entry with coefficient 1 (M10, M01).
-    Returns the number of invariants."""
-    n = config[P.ORDER]
-    n_state = config[P.N_STATE]
-    separate = config[P.SEPARATE_DROPLETS] == 1
-    xd = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
-    count = 2 if config[P.BIVARIATE] == 1 else 1
-    for r in range(count):
-        for k in range(n_state):
-            coefs[r, k] = 0.0
-        pivots[r] = 1 if r == 0 else mixed_index(n, 0, 1)
-        coefs[r, pivots[r]] = 1.0
-        if separate:
-            coefs[r, n_state - 1] = xd
-    return count
+    """Linear invariants of the CQMOM state for the time integrator (granule mass M10, binder
+    mass M01, each plus the free droplets' mass): the QMOM ones, since both states hold M10 at
+    entry 1, M01 at entry 2 N1 (``mixed_index(N1, 0, 1)``) and the droplets last. Returns the
+    number of invariants."""
+    return qmom_conserved(config, params, pivots, coefs)
 
 
 @nb.njit(cache=True, error_model="numpy")
