@@ -191,13 +191,14 @@ def write_coupled(out_dir: Path, scene, domain: Domain, result: CoupledResult,
     output.write_columns_csv(out_dir / "bed_moments.csv", result.bed_columns)
     phases["write_s"] = _time.perf_counter() - t0
     if render:
-        from .cfd.render import plot_bed_moments, render_series
+        from .cfd.render import BED_MOMENTS_COST, plot_bed_moments, render_series
         t1 = _time.perf_counter()
         png = out_dir / "png"
+        bed = (plot_bed_moments, (out_dir / "bed_moments.csv", png / "bed_moments.png"),
+               {"title": scene.name}, BED_MOMENTS_COST)
         render_series(out_dir / "vtk", times=[result.times[0], result.times[-1]], png_dir=png,
-                      info={"name": scene.name, "alpha_min": scene.domain.alpha_min})
-        plot_bed_moments(out_dir / "bed_moments.csv", png / "bed_moments.png",
-                         title=scene.name)
+                      info={"name": scene.name, "alpha_min": scene.domain.alpha_min},
+                      extra_tasks=[bed])
         phases["render_s"] = _time.perf_counter() - t1
     t2 = _time.perf_counter()
     summary = {"scene": describe(scene), "method": scene.method.name,

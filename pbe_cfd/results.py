@@ -111,7 +111,8 @@ def render_run(directory, fields=None, times=None, overwrite: bool = False,
     output.prepare_directory(root, overwrite, flag="render", names=names, allow_cwd=True)
     with output.add_to_directory(root, kind="render", flag="render") as tmp:
         png_dir = tmp / "png" if in_run else tmp
-        render.render_series(vtk_dir, png_dir=png_dir, notes=[], plan=plan, sequence=sequence)
-        if bed:
-            render.plot_bed_moments(d / "bed_moments.csv", png_dir / "bed_moments.png")
+        extra = [(render.plot_bed_moments, (d / "bed_moments.csv", png_dir / "bed_moments.png"),
+                  {}, render.BED_MOMENTS_COST)] if bed else []
+        render.render_series(vtk_dir, png_dir=png_dir, notes=[], plan=plan, sequence=sequence,
+                             extra_tasks=extra)
     return [root / n for n in names]

@@ -2,6 +2,7 @@
 of a readable size. Read from the source (every import statement, including those inside
 functions), so the checks see what a reader sees."""
 import ast
+import re
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent.parent / "pbe_cfd"
@@ -119,6 +120,49 @@ def test_imports_point_down_the_layers():
                 up.append(f"{m} ({LAYERS[layer_of(m)][0]}) imports {t} "
                           f"({LAYERS[layer_of(t)][0]})")
     assert up == []
+
+
+JIT_DECORATOR = re.compile(r"@(nb\.|numba\.)?(njit|jit|vectorize|guvectorize|cfunc)\b")
+
+
+def reached_by_compiled_code(mods, graph):
+    """Modules holding numba-compiled functions and every package module they import,
+    directly or through others: what compiled code can read."""
+    seen, stack = set(), [m for m, p in mods.items() if JIT_DECORATOR.search(p.read_text())]
+    while stack:
+        m = stack.pop()
+        if m not in seen:
+            seen.add(m)
+            stack.extend(graph.get(m, ()))
+    return seen
+
+
+def test_files_left_out_of_the_kernel_cache_key_hold_nothing_compiled_code_reads():
+    """The numba cache directory is keyed by a hash of all sources but pbe_cfd.UNCOMPILED; a
+    file there that compiled code reads would let a stale kernel run."""
+    import pbe_cfd
+    mods = modules()
+    reached = reached_by_compiled_code(mods, import_graph(mods))
+    hashed = set(pbe_cfd._compiled_sources(PACKAGE))
+    wrong = sorted(m for m in reached if mods[m] not in hashed)
+    assert wrong == []
+    assert len(hashed) < len(mods)                 # the exemption does exempt something
+    for u in pbe_cfd.UNCOMPILED:                   # every entry names a file or directory
+        assert (PACKAGE / u).exists(), u
+
+
+def test_the_cache_key_check_sees_compiled_code_behind_an_import(tmp_path):
+    pkg = tmp_path / "pbe_cfd"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "sub" / "__init__.py").write_text("")
+    (pkg / "sub" / "kernel.py").write_text("from . import constants\n@nb.njit\ndef f(): pass\n")
+    (pkg / "sub" / "constants.py").write_text("X = 1\n")
+    (pkg / "sub" / "draw.py").write_text("from . import kernel\n")
+    mods = modules(pkg)
+    reached = reached_by_compiled_code(mods, import_graph(mods))
+    assert {"pbe_cfd.sub.kernel", "pbe_cfd.sub.constants"} <= reached
+    assert "pbe_cfd.sub.draw" not in reached
 
 
 def test_the_checks_see_a_cycle_and_an_upward_import(tmp_path):

@@ -8,7 +8,8 @@ granules (alpha below the scene's alpha_min: the freeboard) are drawn in one lig
 every field, so an empty cell never looks like a dry or small one.
 ``plot_bed_moments(csv_path, png_path)`` plots ``bed_moments.csv`` in the VTK's units.
 
-VTK is used to read and cut the mesh only; figures are drawn by matplotlib (Agg), so no
+meshio reads a one-cell-thick mesh, VTK (pyvista) cuts any other (cfd/section.py); figures are
+drawn by matplotlib (Agg) outside pyplot, on two cores (cfd/figure_pool.py), so no
 display or OpenGL is needed.
 """
 
@@ -23,6 +24,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+
+from .section import read_section, section  # noqa: F401 - section: part of this module's API
 
 __all__ = ["render_series", "render_mesh_field", "field_figure", "plot_bed_moments",
            "bed_moments_figure",
@@ -143,27 +146,6 @@ def _colour_limits(values: list[np.ndarray], field: str = "") -> tuple[float, fl
 
 
 # ---------------------------------------------------------------------------- geometry
-def section(mesh):
-    """The mid-plane section of a VTK mesh normal to its thinnest extent: (polygons as a list
-    of (k, 2) vertex arrays in m, the cut's cell data (name -> values per polygon), the two
-    in-plane axis names, a note saying where the cut is)."""
-    b = np.asarray(mesh.bounds, dtype=float).reshape(3, 2)
-    ext = b[:, 1] - b[:, 0]
-    normal = int(np.argmin(ext))
-    axes = [a for a in range(3) if a != normal]
-    names = "xyz"
-    origin = b.mean(axis=1)
-    cut = mesh.slice(normal=names[normal], origin=origin)
-    if cut.n_cells == 0:
-        raise ValueError("the mesh has no cells to draw")
-    pts = np.asarray(cut.points)[:, axes]
-    polys = [pts[np.asarray(f)] for f in cut.irregular_faces]
-    data = {k: np.asarray(cut.cell_data[k]) for k in cut.cell_data.keys()}
-    thin = cut.n_cells == mesh.n_cells          # one cell thick: the section is the mesh
-    note = "" if thin else f"section {names[normal]} = {origin[normal]:.3g} m"
-    return polys, data, (names[axes[0]], names[axes[1]]), note
-
-
 def _empty_mask(data: dict) -> np.ndarray | None:
     """Cells that hold no granules: ``active`` = 0 where the series has it, else M00 <= 0."""
     if "active" in data:
@@ -181,12 +163,14 @@ def _values(data: dict, field: str) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------- drawing
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
+def _figure(**kw):
+    """A matplotlib Figure outside pyplot (no GUI backend, no global figure registry: nothing
+    to close, and pyplot is never imported)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    fig = Figure(**kw)
+    FigureCanvasAgg(fig)
+    return fig
 
 
 def _norm(clim, log_scale):
@@ -194,15 +178,23 @@ def _norm(clim, log_scale):
     return LogNorm(*clim) if log_scale else Normalize(*clim)
 
 
+def _shown(values, empty, norm):
+    """Cell values as drawn: empty cells masked (EMPTY_COLOUR), zero in a granule cell at the
+    floor of a log scale."""
+    shown = np.where(empty, np.nan, values) if empty is not None else values
+    if norm.__class__.__name__ == "LogNorm":
+        shown = np.where(shown > 0, shown, norm.vmin)
+    return np.ma.masked_invalid(shown)
+
+
 def _draw_section(ax, polys, values, empty, norm, cmap):
     from matplotlib.collections import PolyCollection
 
+    if len({len(p) for p in polys}) == 1:
+        polys = np.stack(polys)          # one array: matplotlib builds the paths in one go
     full = PolyCollection(polys, cmap=cmap, norm=norm, edgecolors="face", linewidths=0.3,
                           antialiased=False)     # no light seams between cells
-    shown = np.where(empty, np.nan, values) if empty is not None else values
-    if norm.__class__.__name__ == "LogNorm":
-        shown = np.where(shown > 0, shown, norm.vmin)     # zero in a granule cell: the floor
-    full.set_array(np.ma.masked_invalid(shown))
+    full.set_array(_shown(values, empty, norm))
     ax.add_collection(full)
     pts = np.concatenate(polys)
     ax.set_xlim(pts[:, 0].min(), pts[:, 0].max())
@@ -283,12 +275,55 @@ def render_mesh_field(mesh, field: str, png_path: str | os.PathLike, *, title: s
 
 
 def _render_panels(panels, field, png_path: Path, **kw) -> Path:
-    plt = _plt()
-    fig = field_figure(panels, field, **kw)
-    png_path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(png_path, dpi=110, metadata=_png_meta("render"))
-    plt.close(fig)
-    return png_path
+    return _render_times([(panels, png_path)], field, **kw)[0]
+
+
+def _render_times(items, field, **kw) -> list[Path]:
+    """Draw one field at several times (``items``: [(panels, png path)]) on one colour range
+    (``kw``: those of ``field_figure``). The figure is built once and refilled with each
+    time's values where only the values and titles change (same cells, same empty-cell
+    legend, same end of the colour bar); else it is built anew."""
+    out, fig = [], None
+    for panels, png_path in items:
+        if fig is None or not _refill(fig, panels, field):
+            fig = field_figure(panels, field, **kw)
+        png_path.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(png_path, dpi=110, metadata=_png_meta("render"))
+        out.append(png_path)
+    return out
+
+
+def _stacked(polys) -> np.ndarray:
+    return np.concatenate([np.asarray(p, dtype=float).ravel() for p in polys])
+
+
+def _marks(values, empties, clim) -> tuple[bool, bool]:
+    """(a live cell below the colour range, an empty cell to name in the legend)."""
+    below = False
+    for v, e in zip(values, empties):
+        live = v[~e] if e is not None else v
+        below = below or bool(np.any(live[np.isfinite(live)] < clim[0] * (1 - 1e-12)))
+    return below, any(e is not None and e.any() for e in empties)
+
+
+def _refill(fig, panels, field) -> bool:
+    """Put the values and titles of ``panels`` into a figure ``field_figure`` drew for the same
+    cells; False (figure unchanged) where more than that would change."""
+    state = getattr(fig, "_pbe_cfd_state", None)
+    if state is None or len(panels) != len(state["collections"]):
+        return False
+    values = [_values(d, field) for _, d, _ in panels]
+    empties = [_empty_mask(d) for _, d, _ in panels]
+    if _marks(values, empties, state["clim"]) != state["marks"]:
+        return False
+    if any(not np.array_equal(_stacked(polys), old)
+           for (polys, _, _), old in zip(panels, state["polys"])):
+        return False
+    for coll, ax, (_, _, title), v, e in zip(state["collections"], state["axes"], panels,
+                                            values, empties):
+        coll.set_array(_shown(v, e, coll.norm))
+        ax.set_title(title, fontsize=10, y=1.0)
+    return True
 
 
 def field_figure(panels, field, *, clim=None, log_scale=None, cmap="viridis", alpha_min=None,
@@ -296,7 +331,7 @@ def field_figure(panels, field, *, clim=None, log_scale=None, cmap="viridis", al
     """The matplotlib Figure of one field on one or more sections side by side: ``panels`` a
     list of (polygons, cell data, panel title) from ``section``; one colour bar (log scale
     named in its label), axes in m drawn to scale, empty cells in EMPTY_COLOUR."""
-    plt = _plt()
+    import matplotlib
     values = [_values(d, field) for _, d, _ in panels]
     empties = [_empty_mask(d) for _, d, _ in panels]
     if clim is None or log_scale is None:
@@ -305,18 +340,19 @@ def field_figure(panels, field, *, clim=None, log_scale=None, cmap="viridis", al
         clim = clim or (lo, hi)
         log_scale = lg if log_scale is None else log_scale
     norm = _norm(clim, log_scale)
-    cm = plt.get_cmap(cmap).with_extremes(bad=EMPTY_COLOUR)
+    cm = matplotlib.colormaps[cmap].with_extremes(bad=EMPTY_COLOUR)
     head = "\n".join(x for x in (suptitle, note) if x)
     size, rects, bar_rect = _layout(panels[0][0], len(panels), head.count("\n") + 1 if head else 0)
-    fig = plt.figure(figsize=size)
-    below = False
-    mappable = None
+    fig = _figure(figsize=size)
+    below, _ = marks = _marks(values, empties, clim)
+    state = {"collections": [], "axes": [], "polys": [], "clim": clim, "marks": marks}
     for k, ((polys, _, title), v, e) in enumerate(zip(panels, values, empties)):
         ax = fig.add_axes(rects[k])
         mappable = _draw_section(ax, polys, v, e, norm, cm)
-        live = v[~e] if e is not None else v
-        below = below or bool(np.any(live[np.isfinite(live)] < clim[0] * (1 - 1e-12)))
-        ax.set_title(title, fontsize=10)
+        state["collections"].append(mappable)
+        state["axes"].append(ax)
+        state["polys"].append(_stacked(polys))
+        ax.set_title(title, fontsize=10, y=1.0)     # a fixed y: no tight-bbox search per draw
         ax.set_xlabel(f"{axes_names[0]} [m]", fontsize=9)
         ax.tick_params(labelsize=8)
         if k == 0:
@@ -328,6 +364,7 @@ def field_figure(panels, field, *, clim=None, log_scale=None, cmap="viridis", al
                   alpha_min)
     if head:
         fig.suptitle(head, fontsize=9, color="0.25", y=1 - 0.08 / size[1], va="top")
+    fig._pbe_cfd_state = state              # what _refill needs to draw another time
     return fig
 
 
@@ -367,7 +404,6 @@ def plan_render(out_dir, fields: Sequence[str] | None = None,
     """What ``render_series`` would draw: (pvd, entries, chosen indices, fields, notes).
     Raises FileNotFoundError / ValueError with a message for the user."""
     from pbe_cfd.cfd.vtk import read_pvd
-    import pyvista as pv
 
     pvd = _find_pvd(Path(out_dir))
     entries = read_pvd(pvd)
@@ -377,11 +413,7 @@ def plan_render(out_dir, fields: Sequence[str] | None = None,
         raise ValueError("--times: name at least one output time in s")
     if fields is not None and not fields:
         raise ValueError("--fields: name at least one field")
-    try:
-        first = pv.read(entries[idx[0]][1])
-    except Exception as exc:  # noqa: BLE001 - VTK raises plain errors for unreadable files
-        raise ValueError(f"cannot read {entries[idx[0]][1]}: {exc}") from None
-    have = set(first.cell_data.keys())
+    have = set(read_section(entries[idx[0]][1])[1])
     if fields is None:
         fields = [f for f in DEFAULT_FIELDS if f in have]
         if not fields:
@@ -399,7 +431,8 @@ def plan_render(out_dir, fields: Sequence[str] | None = None,
 def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = None,
                   times: Sequence[float] | None = None,
                   png_dir: str | os.PathLike | None = None, notes: list | None = None,
-                  plan=None, sequence: bool = False, info: dict | None = None) -> list[Path]:
+                  plan=None, sequence: bool = False, info: dict | None = None,
+                  extra_tasks: Sequence = ()) -> list[Path]:
     """Render cell fields of the VTK series in ``out_dir`` (its .pvd) at output times (s).
 
     ``fields``: names to draw (default: those of alpha, Theta, M00, d43_m, binder_fraction
@@ -408,7 +441,10 @@ def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = Non
     PNG per field and time, ``<png_dir>/<field>_t<time>s.png`` (png_dir defaults to
     ``out_dir/png``), the same colour range for a field at every time, and with ``sequence``
     ``<field>_sequence.png``: the times side by side on that range. ``plan``: the result of
-    ``plan_render`` (else made here); ``info``: {"name", "alpha_min"} (else from summary.json)."""
+    ``plan_render`` (else made here); ``info``: {"name", "alpha_min"} (else from summary.json).
+    ``extra_tasks``: more figures to draw alongside, as ``figure_pool`` tasks; the pictures are
+    drawn on two cores (``figure_pool.run_tasks``)."""
+    from .figure_pool import run_tasks
     import pyvista as pv
 
     pvd, entries, idx, fields, found = plan or plan_render(out_dir, fields, times)
@@ -417,11 +453,10 @@ def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = Non
             print(f"render: {n}", file=sys.stderr)
     else:
         notes.extend(found)
-    meshes = {i: pv.read(entries[i][1]) for i in idx}
-    cuts = {i: section(meshes[i]) for i in idx}
+    cuts = {i: read_section(entries[i][1]) for i in idx}
     info = info if info is not None else _run_info(pvd.parent, pvd.parent.parent)
     png_dir = Path(png_dir) if png_dir is not None else pvd.parent / "png"
-    out = []
+    tasks = []
     for field in fields:
         vals = []
         for i in idx:
@@ -430,25 +465,24 @@ def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = Non
             vals.append(v[~e] if e is not None else v)
         lo, hi, lg = _colour_limits(vals, field)
         label = field_label(field).split(" [")[0]
-        panels = []
+        kw = dict(clim=(lo, hi), log_scale=lg, cmap="viridis", alpha_min=info.get("alpha_min"))
+        panels, items = [], []
         for i in idx:
             polys, data, axes_names, note = cuts[i]
             t = entries[i][0]
-            panel = (polys, data, f"t = {t:g} s")
-            panels.append(panel)
-            out.append(_render_panels([(polys, data, f"{label} at t = {t:g} s")], field,
-                                      png_dir / f"{field}_t{t:g}s.png", clim=(lo, hi),
-                                      log_scale=lg, cmap="viridis",
-                                      alpha_min=info.get("alpha_min"),
-                                      suptitle=info.get("name", ""), axes_names=axes_names,
-                                      note=note))
+            panels.append((polys, data, f"t = {t:g} s"))
+            items.append(([(polys, data, f"{label} at t = {t:g} s")],
+                          png_dir / f"{field}_t{t:g}s.png"))
+        kw.update(axes_names=axes_names, note=note)
+        tasks.append((_render_times, (items, field), {**kw, "suptitle": info.get("name", "")},
+                      0.4 + 0.6 * len(items)))
         if sequence and len(idx) > 1:
-            out.append(_render_panels(panels, field, png_dir / f"{field}_sequence.png",
-                                      clim=(lo, hi), log_scale=lg, cmap="viridis",
-                                      alpha_min=info.get("alpha_min"),
-                                      suptitle=f"{info.get('name', '')}: {label}".lstrip(": "),
-                                      axes_names=axes_names, note=note))
-    return out
+            tasks.append((_render_panels, (panels, field, png_dir / f"{field}_sequence.png"),
+                          {**kw, "suptitle": f"{info.get('name', '')}: {label}".lstrip(": ")},
+                          0.6 + 0.4 * len(panels)))
+    import matplotlib.backends.backend_agg  # noqa: F401 - loaded once, before any fork
+    drawn = run_tasks(tasks + list(extra_tasks))[:len(tasks)]
+    return [p for d in drawn for p in (d if isinstance(d, list) else [d])]
 
 
 # ---------------------------------------------------------------------------- bed moments
@@ -516,15 +550,17 @@ def _scaled_axis(ax, unit: str):
     ax.set_ylabel(f"[1e{exp} {unit}]" if unit != "-" else f"[1e{exp}]", fontsize=9)
 
 
+#: Drawing cost of bed_moments.png in units of one field section (figure_pool tasks)
+BED_MOMENTS_COST = 4.0
+
+
 def plot_bed_moments(csv_path: str | os.PathLike, png_path: str | os.PathLike,
                      title: str | None = None) -> Path:
     """Plot ``bed_moments.csv`` to a PNG (``bed_moments_figure``); returns the path."""
-    plt = _plt()
     png_path = Path(png_path)
     fig = bed_moments_figure(csv_path, title)
     png_path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(png_path, dpi=110, metadata=_png_meta("bed moments"))
-    plt.close(fig)
     return png_path
 
 
@@ -543,7 +579,6 @@ def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
     fields (moments per m3 of bed: the bed average is the volume-weighted mean of the cells'
     values), diameters in m, time in s, log axes named as such. ``title`` defaults to the
     scene name in the run's summary.json."""
-    plt = _plt()
     csv_path = Path(csv_path)
     header, data = _read_csv(csv_path)
     t = data[:, 0]
@@ -554,7 +589,8 @@ def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
     ncol = min(3, len(panels))
     nrow = -(-len(panels) // ncol)
     width, height = 4.3 * ncol, 3.1 * nrow + 0.6
-    fig, axes = plt.subplots(nrow, ncol, figsize=(width, height), squeeze=False)
+    fig = _figure(figsize=(width, height))
+    axes = fig.subplots(nrow, ncol, squeeze=False)
     _fixed_margins(fig, width, height, nrow, ncol)
     for ax, (name, cols, unit) in zip(axes.ravel(), panels):
         for c in cols:
@@ -569,7 +605,7 @@ def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
             ax.set_ylabel(f"[{unit}]", fontsize=9)
         else:
             _scaled_axis(ax, unit)
-        ax.set_title(name, fontsize=10)
+        ax.set_title(name, fontsize=10, y=1.0)
         ax.set_xlabel("time [s]", fontsize=9)
         ax.grid(True, alpha=0.3)
         ax.tick_params(labelsize=8)

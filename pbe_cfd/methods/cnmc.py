@@ -123,7 +123,6 @@ and +(e - 1)/N = +1.7/N (M00).
 import math
 
 import numpy as np
-from scipy import stats
 
 from ..physics import parameters as P
 from .cnmc_box import (MAX_TRIALS, MOMENT_NAMES, N_QUANTITIES, QUANTITY_NAMES,
@@ -274,6 +273,7 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
 
     mean = data.mean(axis=0)
     if replicas > 1:
+        from scipy import stats    # here: scipy loads only for the confidence band
         half = (stats.t.ppf(0.975, replicas - 1) * data.std(axis=0, ddof=1)
                 / math.sqrt(replicas))
     else:

@@ -13,7 +13,6 @@ State of one cell (scaled by N_ref [1/m3] and p_ref [kg]):
 granules' mixed moments, the dry granules' moments in p, free droplets.
 """
 import numpy as np
-from scipy.special import gammaincc
 
 from ..physics import parameters as P
 from .laguerre_basis import (SPACINGS, basis_values, gamma_weight, mass_nodes,  # noqa: F401
@@ -120,6 +119,7 @@ def _gamma_tail(mean, var, limit, extra):
     if not (var > 1e-12 * mean * mean):
         return 1.0 if mean > limit else 0.0
     k = mean * mean / var
+    from scipy.special import gammaincc    # here: scipy loads only for a Laguerre escape check
     return float(gammaincc(k + extra, limit / (var / mean)))
 
 
