@@ -259,7 +259,8 @@ def bench_command(args):
         files = "accuracy.csv, accuracy.md, pareto.png"
         print(bench.accuracy_markdown(res))
     elif study == "throughput":
-        res = bench.throughput_study(out, quick=quick,
+        res = bench.throughput_study(out, quick=quick, cells=args.cells, threads=args.threads,
+                                     methods=args.methods,
                                      scene_name=args.scene or bench.DEFAULT_THROUGHPUT_SCENE)
         files = "throughput.csv, throughput.md, throughput.png, machine.json"
         print(bench.throughput_markdown(res))
@@ -271,6 +272,38 @@ def bench_command(args):
         print((out / f"{study}.md").read_text())
     print(f"bench {study}: {time.perf_counter() - start:.1f} s; wrote {out}/{{{files}}}")
     return 0
+
+
+def _int_list(text):
+    try:
+        values = tuple(int(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected whole numbers separated by commas, got "
+                                         f"{text!r}") from None
+    if not values or min(values) < 1:
+        raise argparse.ArgumentTypeError(f"expected positive whole numbers, got {text!r}")
+    return values
+
+
+def _method_list(text):
+    """'qmom:3,laguerre:3,cqmom:2x2' -> (("qmom", 3), ("laguerre", 3), ("cqmom", (2, 2)))."""
+    out = []
+    for item in (x.strip() for x in text.split(",") if x.strip()):
+        name, _, order = item.partition(":")
+        try:
+            if name in ("qmom", "laguerre"):
+                out.append((name, int(order)))
+            elif name == "cqmom":
+                n1, _, n2 = order.partition("x")
+                out.append((name, (int(n1), int(n2))))
+            else:
+                raise ValueError
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{item!r}: expected qmom:N, laguerre:M or cqmom:N1xN2") from None
+    if not out:
+        raise argparse.ArgumentTypeError("name at least one method")
+    return tuple(out)
 
 
 def build_parser():
@@ -357,6 +390,13 @@ def build_parser():
     p.add_argument("scene", nargs="?", help="scene for the accuracy study")
     p.add_argument("--out", default="bench-out")
     p.add_argument("--quick", action="store_true", help="a tiny configuration (plumbing check)")
+    p.add_argument("--methods", type=_method_list, default=None, metavar="LIST",
+                   help="throughput: methods and orders, e.g. qmom:3,laguerre:3,cqmom:2x2 "
+                        "(default: all)")
+    p.add_argument("--cells", type=_int_list, default=None, metavar="LIST",
+                   help="throughput: cell counts, e.g. 1000,100000")
+    p.add_argument("--threads", type=_int_list, default=None, metavar="LIST",
+                   help="throughput: thread counts, e.g. 1,2")
     _add_overwrite(p, "the files of this study an earlier pbe-cfd bench wrote")
     p.set_defaults(func=bench_command)
     return parser

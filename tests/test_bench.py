@@ -146,6 +146,14 @@ def test_throughput_tiny(tmp_path):
     md = (tmp_path / "tp" / "throughput.md").read_text()
     assert "NumPy/SciPy" in md and "speed-up" in md
     assert "CQMOM against QMOM N = 3" in md
+    # a breakdown per QMOM and Laguerre method, its parts timed (finite, not negative)
+    assert [b["label"] for b in res["breakdown"]] == ["QMOM N = 2", "Laguerre m = 2",
+                                                      "QMOM N = 3"]
+    for b in res["breakdown"]:
+        parts = b["parts"]
+        assert all(ns >= 0 and math.isfinite(ns) for ns in parts.values()), b
+        assert "pair rates" in parts if b["label"].startswith("QMOM") else len(parts) >= 2
+        assert b["full_ns"] > 0 and f"*{b['label']}*" in md
     rows = _csv(tmp_path / "tp" / "throughput.csv")
     assert rows[-1]["method"] == "numpy-scipy-qmom"
 
@@ -184,3 +192,17 @@ def test_study_scenes_are_bundled_and_run():
     assert set(ktgf.aggregation.efficiency) == {"geometric", "physical"}
     res = run_well_mixed(ktgf.with_method(name="qmom", nodes=2))
     assert np.all(np.isfinite(res.columns["M00"]))
+
+
+def test_bench_method_and_count_lists_are_checked():
+    from pbe_cfd.cli import _int_list, _method_list
+    assert _method_list("qmom:3, laguerre:2,cqmom:3x2") == (("qmom", 3), ("laguerre", 2),
+                                                            ("cqmom", (3, 2)))
+    assert _int_list("1,2") == (1, 2)
+    import argparse
+    for bad in ("qmom", "fancy:3", "cqmom:3", ""):
+        with pytest.raises(argparse.ArgumentTypeError):
+            _method_list(bad)
+    for bad in ("0", "a,b", ""):
+        with pytest.raises(argparse.ArgumentTypeError):
+            _int_list(bad)

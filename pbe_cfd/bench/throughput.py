@@ -19,6 +19,7 @@ from ..physics import parameters as P
 from ..physics.kernels import collision_velocity
 from ..physics.properties import N_PROPS
 from ..scene import load_scene
+from .breakdown import breakdown_markdown, rhs_breakdown
 from .common import _git_describe, _machine_line, _say, _write_csv, machine_info
 from .numpy_baseline import NumpyQMOM
 from .sweeps import (cqmom_point_properties, laguerre_contraction_sweep, points_kernel_sweep,
@@ -298,9 +299,17 @@ def throughput_study(out_dir="bench-out", quick=False, cells=None, threads=None,
         baseline = measure_baseline(cases[key], n_cells=1 if quick else 4, interval=interval,
                                     rhs_samples=30 if quick else 300)
         baseline["order"] = key[1]
+    breakdown = []
+    for (method, order), case in cases.items():
+        if method in ("qmom", "laguerre"):
+            n = min(max(cells), 10_000)
+            _say(quiet, f"  {case.label}: RHS breakdown on {n} cells, 1 thread ...")
+            breakdown.append(rhs_breakdown(case, synthetic_cells(n, seed=0),
+                                           cell_states(case.trajectory, n, seed=1),
+                                           reps=2 if quick else 20, repeats=repeats + 2))
     result = {"machine": machine, "commit": _git_describe(), "quick": quick,
               "interval_s": interval, "repeats": repeats, "rows": rows, "baseline": baseline,
-              "scene": scene_name}
+              "scene": scene_name, "breakdown": breakdown}
     _write_throughput(Path(out_dir), result)
     return result
 
@@ -426,6 +435,8 @@ def throughput_markdown(result) -> str:
                 "|---|" + "---|" * len(sp),
                 "| RHS evaluations | " + " | ".join(f"{s['rhs']:.0f}x" for s in sp) + " |",
                 "| cell-steps | " + " | ".join(f"{s['steps']:.0f}x" for s in sp) + " |"]
+    if result.get("breakdown"):
+        out += [""] + breakdown_markdown(result["breakdown"])
     out += ["", f"RHS rates: best of {result['repeats']} sweeps; cell-steps: one interval of "
             f"{result['interval_s']:g} s after a warm-up interval. Machine: "
             f"{_machine_line(result['machine'])}."]

@@ -25,7 +25,7 @@ from numba.extending import overload
 from ..methods.dispatch import WORK_SIZE, conserved, project, realizable, rhs
 from ..physics import parameters as P
 from .codes import (ACCEPT, ACCEPTED, AUTO, EXPLICIT, F0, FTMP, IMPLICIT, IMPLICIT_STEPS,
-                    JACOBIANS, N_BUF, NOT_FINITE, OK, REJECT_ERROR, REJECT_NOT_FINITE,
+                    JACOBIANS, KC, N_BUF, NOT_FINITE, OK, REJECT_ERROR, REJECT_NOT_FINITE,
                     REJECT_REALIZABILITY, REJECTED_ERROR, REJECTED_REALIZABILITY, RHS_CALLS,
                     STEP_FLOOR, SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START, YNEW, YTMP)
 from .explicit import bs3_attempt
@@ -240,6 +240,21 @@ def _next_mode(auto, mode, h, h_try, h_rho, sw, jac, buf, n, stats):
     return 0, h
 
 
+#: relative change of an entry below which re-projection has only rounded the state
+ROUND_OFF = 8.0 * 2.220446049250313e-16
+
+
+@nb.njit(cache=True)
+def _round_off_apart(state, candidate, n):
+    """True if re-projection changed no entry of the accepted candidate by more than
+    ROUND_OFF relative: the rate the explicit pair evaluated at the candidate (its last
+    stage) is then the rate at the state to round-off, and is reused (FSAL)."""
+    for i in range(n):
+        if abs(state[i] - candidate[i]) > ROUND_OFF * abs(candidate[i]):
+            return False
+    return True
+
+
 @nb.njit(cache=True, inline="always")
 def _memory(scheme, mode, h):
     """Step memory: the next step [s], negative if an auto cell is implicit."""
@@ -299,6 +314,7 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
             return STEP_FLOOR, t
         taken += 1
         h_rho = 0.0
+        expo = False
         if mode == 0:
             expo = droplets and _capture_pays(state, f0, cell, params, h_try, droplet, n, rtol,
                                               atol)
@@ -327,8 +343,16 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
                 _absorb_droplets(method, state, droplet, atol, pivots, coefs, n_inv, aux,
                                  params, config, work, buf[FTMP])
             project(method, state, aux, params, config, work)
-            rhs(method, state, f0, cell, aux, params, config, work)
-            stats[RHS_CALLS] += 1
+            if mode == 0 and _round_off_apart(state, y_new, n):
+                # first same as last: the pair's last stage evaluated the rate at the new
+                # state (the plain pair keeps it in KC, the exponential step in FTMP, which
+                # _absorb_droplets only overwrites when it changes the state)
+                last_rate = buf[FTMP] if expo else buf[KC]
+                for i in range(n):
+                    f0[i] = last_rate[i]
+            else:
+                rhs(method, state, f0, cell, aux, params, config, work)
+                stats[RHS_CALLS] += 1
             stats[ACCEPTED] += 1
             have_capture = False
             factor = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** (-1.0 / 3.0)))
