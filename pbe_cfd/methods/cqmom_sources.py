@@ -6,7 +6,8 @@ the masses only and is evaluated once per pair of size nodes, the success probab
 depends on the binder fractions) once per pair of their points. The gains of every moment are
 written as sums of non-negative terms, so the number loses exactly the aggregating pairs and
 M10, M01 gain exactly nothing; droplet capture moves a granule (p, b) to (p + p_d, b + p_d).
-All quantities are scaled (see ``methods.cqmom``); no allocation.
+Breakage: the size moments by quadrature over the size nodes, each mixed moment as its carried
+value times the points' mean selection (``_breakage``). All quantities are scaled (see ``methods.cqmom``); no allocation.
 """
 import numba as nb
 
