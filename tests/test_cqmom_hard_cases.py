@@ -1,11 +1,16 @@
 """The hard-case suite (tests/test_hard_cases.py) for CQMOM: degenerate starts, empty cells,
-extreme injection, huge growth, gelation, extreme cells in one mesh, random scenes.
+extreme injection, huge growth, gelation, extreme cells in one mesh, random scenes; and the same
+with breakage (a monodisperse start breaking, the number multiplied by 1e8, dry granules breaking
+while binder arrives, steep power selection on the seed scenario, collisional selection in the
+extreme cells, random scenes with breakage).
 
 Invariants asserted wherever they apply: finite values; every stored state realizable; M10 and
 M01 conserved to 1e-10 without injection and growing at exactly the injected rate with it;
 M00 non-increasing under pure aggregation; every point's binder within [0, its mass].
 """
 import dataclasses
+import math
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -17,7 +22,7 @@ from pbe_cfd.couple import Domain, run_coupled
 from pbe_cfd.methods import cqmom
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.injection import droplet_mass
-from pbe_cfd.scene import load_scene
+from pbe_cfd.scene import Breakage, load_scene
 from pbe_cfd.simulate import run_well_mixed
 
 from conftest import make_scene
@@ -242,3 +247,134 @@ def test_step_floor_reports_the_time_reached():
     assert status[0] == integrate.STEP_FLOOR
     assert 0.0 <= reached[0] < 1.0
     assert np.all(np.isfinite(state))
+
+
+# ------------------------------------------------------------------ breakage
+def constant_breakage(rate, daughters="uniform"):
+    return {"selection": "constant", "rate": rate, "daughters": daughters}
+
+
+@pytest.mark.parametrize("n1", [1, 2, 3, 4])
+@pytest.mark.parametrize("n2", [1, 2, 3])
+def test_monodisperse_start_breaking_with_every_node_count(n1, n2):
+    """A single atom (zero Hankel determinants, one binder fraction) that breakage spreads from
+    the first step, no aggregation: constant selection s, uniform daughters (F(k) = 2/(k + 1)),
+    so M00 = N0 exp(s t) (F(0) = 2) and the binder fraction stays 0.2 on every daughter; after
+    s t = 5 the number has grown 150-fold."""
+    s = 0.5
+    scene = make_scene(scene={"end_time": 10.0, "output_interval": 1.0},
+                       initial={"binder_fraction": 0.2}, breakage=constant_breakage(s),
+                       method=method(n1, n2))
+    c = run_well_mixed(scene).columns
+    assert_invariants(scene, c)
+    t = c["time_s"]
+    assert np.max(np.abs(c["M00"] / (1e10 * np.exp(s * t)) - 1)) < 1e-6
+    assert np.max(np.abs(c["binder_fraction"] - 0.2)) < 1e-12
+
+
+@pytest.mark.parametrize("n1", [2, 3])
+def test_breakage_multiplies_the_number_by_1e8(n1):
+    """Constant selection with s t = ln(1e8): the mean granule mass falls from 1e-9 to 1e-17 kg
+    (the scaled nodes span eight decades below their start). Every carried moment of total
+    order below 2 N1 follows M_kl(0) exp(s t (F(k + l) - 1)) (tests/test_cqmom_breakage.py);
+    checked here for M00 and M20 (M20 falls by exp(-s t / 3): 2e-3)."""
+    s = 1.0
+    end = math.log(1e8) / s
+    scene = make_scene(scene={"end_time": end, "output_interval": end / 10},
+                       initial={"distribution": "exponential", "binder_fraction": 0.3},
+                       breakage=constant_breakage(s), method=method(n1, 2))
+    c = run_well_mixed(scene).columns
+    assert c["M00"][-1] / c["M00"][0] == pytest.approx(1e8, rel=1e-6)
+    assert_invariants(scene, c)
+    t = c["time_s"]
+    assert np.max(np.abs(c["M20"] / (c["M20"][0] * np.exp(-s * t / 3.0)) - 1)) < 1e-6
+
+
+def test_dry_granules_breaking_while_binder_arrives():
+    """Dry granules (every conditional set an atom on y = 0) met by droplets while they break
+    into equal halves (dry daughters stay dry): dry and wet points side by side, finite,
+    realizable, mass and binder growing at exactly the injected rate."""
+    scene = make_scene(scene={"end_time": 20.0, "output_interval": 2.0},
+                       material={"accessible_binder_slope": 35.1,
+                                 "accessible_binder_centre": 0.129},
+                       initial={"droplet_number_density": 1e9},
+                       aggregation={"kernel": "constant", "rate": 1e-11,
+                                    "efficiency": ["geometric"], "droplet_factor": 100.0},
+                       binder_injection={"rate": 1e8, "droplet_diameter": 60e-6},
+                       breakage=constant_breakage(0.2, "equal"), method=method(3, 2))
+    res = run_well_mixed(scene)
+    assert_invariants(scene, res.columns, injected_mass_rate=1e8 * PD)
+    arrays, rows = states_of(scene, res.columns)
+    x, w, b = cqmom.quadrature_of(rows[-1], arrays.config)
+    assert np.any(b / x < 0.01) and np.any(b / x > 0.05)
+
+
+@pytest.mark.parametrize("n1,n2", [(2, 2), (3, 2), (3, 3)])
+def test_steep_power_breakage_on_the_seed_scenario(n1, n2):
+    """The seed scenario (eke kernel, geometric and physical efficiency, droplets a population
+    of their own, injection) with a steep power selection S = 0.05 (p / p0)^3 1/s and uniform
+    daughters: large granules break as fast as they form; 120 s."""
+    scene = load_scene("seed-wurster")
+    breakage = Breakage(selection="power", rate=0.05, daughters="uniform", exponent=3.0)
+    scene = dataclasses.replace(scene, end_time=120.0, output_interval=10.0, breakage=breakage)
+    scene = scene.with_method(name="cqmom", nodes=n1, binder_nodes=n2)
+    res = run_well_mixed(scene)
+    assert_invariants(scene, res.columns, injected_mass_rate=SEED_RATE * PD)
+
+
+def test_collisional_breakage_in_extreme_cells_next_to_ordinary_ones():
+    """The bundled bed's collisional breakage (S = s0 g0 sqrt(Theta / Theta_ref) p / p_ref)
+    in the extreme cells of ``extreme_mesh`` (alpha = 0, next to packing, Theta = 0,
+    Theta = 1 m2/s2: 100 times Theta_ref), with aggregation and droplets sprayed everywhere:
+    finite, mass and binder growing at exactly the injected rate; a cell without motion
+    (Theta = 0) neither aggregates nor breaks."""
+    scene = load_scene("fluid-bed-breakage")
+    scene = dataclasses.replace(scene, end_time=20.0, output_interval=5.0,
+                                binder_injection=dataclasses.replace(scene.binder_injection,
+                                                                     zone=None),
+                                domain=dataclasses.replace(scene.domain,
+                                                           alpha_min_friction=0.5))
+    scene = scene.with_method(name="cqmom", nodes=2, binder_nodes=2)
+    res = run_coupled(scene, Domain(cells=extreme_mesh(), flux=None, description="extreme"))
+    first, last = res.cell_fields[0], res.cell_fields[-1]
+    assert last["M00"][0] == 0.0                       # alpha = 0: no granules, untouched
+    for name, values in last.items():
+        assert np.all(np.isfinite(values)), name
+    t = res.times[-1]
+    for c in range(1, 6):
+        assert last["M10"][c] == pytest.approx(first["M10"][c] + 2.0e10 * PD * t, rel=1e-10)
+        assert last["M01"][c] == pytest.approx(first["M01"][c] + 2.0e10 * PD * t, rel=1e-10)
+        assert last["M20"][c] * last["M00"][c] >= last["M10"][c] ** 2 * (1 - 1e-12)
+        assert 0.0 <= last["M01"][c] <= last["M10"][c]
+    nd_first = first.get("droplet_number_density", np.zeros(6))
+    nd_last = last.get("droplet_number_density", np.zeros(6))
+    assert last["M00"][2] - nd_last[2] == pytest.approx(first["M00"][2] - nd_first[2],
+                                                        rel=1e-12)
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(kernel=st.sampled_from(["constant", "sum", "eke"]),
+       n1=st.integers(1, 4), n2=st.integers(1, 3),
+       dist=st.sampled_from(["monodisperse", "exponential"]),
+       binder=st.floats(0.0, 0.5), inject=st.booleans(), tau=st.floats(0.1, 5.0),
+       selection=st.sampled_from(["constant", "power"]),
+       daughters=st.sampled_from(["uniform", "equal"]), st_break=st.floats(0.1, 5.0))
+def test_random_scenes_with_breakage_run_to_the_end(kernel, n1, n2, dist, binder, inject, tau,
+                                                    selection, daughters, st_break):
+    """Random scenes of the validated range with breakage (selection, daughters, s0 t up to 5)
+    on top of aggregation: finite, realizable, mass and binder exact."""
+    n0, p0 = 1e10, 1e-9
+    rate = {"constant": tau / (n0 * 10.0), "sum": tau / (n0 * p0 * 10.0),
+            "eke": tau / (n0 * 10.0 * 6.0)}[kernel]
+    breakage = {"selection": selection, "rate": st_break / 10.0, "daughters": daughters}
+    tables = dict(scene={"end_time": 10.0, "output_interval": 2.0},
+                  initial={"distribution": dist, "binder_fraction": binder},
+                  aggregation={"kernel": kernel, "rate": rate}, breakage=breakage,
+                  method=method(n1, n2))
+    if inject:
+        tables["binder_injection"] = {"rate": 1e8, "droplet_diameter": 60e-6}
+    if binder == 0.0 and not inject:
+        tables["initial"]["binder_fraction"] = 0.01
+    scene = make_scene(**tables)
+    res = run_well_mixed(scene)
+    assert_invariants(scene, res.columns, injected_mass_rate=1e8 * PD if inject else 0.0)

@@ -88,6 +88,7 @@ SEED_ROWS = {
     "Laguerre m = 4, before the dry class *": ("seed-wurster-laguerre", dict(BEFORE_DRY, order=4)),
     "CQMOM N1 = 2, N2 = 2": ("seed-wurster-cqmom", {"nodes": 2, "binder_nodes": 2}),
     "CQMOM N1 = 3, N2 = 2": ("seed-wurster-cqmom", {"nodes": 3, "binder_nodes": 2}),
+    "CQMOM N1 = 3, N2 = 3": ("seed-wurster-cqmom", {"nodes": 3, "binder_nodes": 3}),
 }
 COLUMN = {"M00": "M00", "M20": "M20", "M11": "M11", "M02": "M02", "d43": "d43_m"}
 
@@ -170,6 +171,10 @@ def variant_for(method, knob):
                                              "consistent": consistent, "grid_mass": g,
                                              "grid_binder": g})
                 for m in orders for g in grids]
+    if method == "CQMOM":
+        n1, n2 = (int(x) for x in re.search(r"=\s*(\d+)\s*x\s*(\d+)", knob).groups())
+        return [V("cqmom", f"N1={n1} N2={n2}", {"name": "cqmom", "nodes": n1,
+                                                "binder_nodes": n2})]
     if method == "cNMC":
         particles, replicas = (float(x) for x in knob.split("x"))
         return [V("cnmc", knob, {"name": "cnmc", "particles": int(particles),

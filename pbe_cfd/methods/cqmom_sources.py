@@ -6,7 +6,8 @@ the masses only and is evaluated once per pair of size nodes, the success probab
 depends on the binder fractions) once per pair of their points. The gains of every moment are
 written as sums of non-negative terms, so the number loses exactly the aggregating pairs and
 M10, M01 gain exactly nothing; droplet capture moves a granule (p, b) to (p + p_d, b + p_d).
-All quantities are scaled (see ``methods.cqmom``); no allocation.
+Breakage: the size moments by quadrature over the size nodes, each mixed moment as its carried
+value times the points' mean selection (``_breakage``). All quantities are scaled (see ``methods.cqmom``); no allocation.
 """
 import numba as nb
 
@@ -234,22 +235,34 @@ def _droplet_capture(out, state, work, n_max, m, n, factor, u0, params, config, 
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _breakage(out, work, n_max, m, n, cell, params, config, bivariate):
+def _breakage(out, state, work, n_max, m, n, cell, params, config, bivariate):
     """Breakage birth and death (``physics.breakage``; binder splits in proportion to mass, so
-    both daughters keep the parent's fraction) by quadrature over the N1 x N2 points
-    (x_a, b_ab) with weights w_a r_ab:
+    both daughters keep the parent's fraction), S the selection at the node's mass, F the
+    daughter rule's moment factor.
 
-        dM_kl/dt = sum_a S(x_a) (F(k + l) - 1) x_a^k sum_b w_a r_ab b_ab^l,
+    Size moments, by quadrature over the size nodes (which reproduce every M_k0, k < 2 N1):
 
-    F the daughter rule's moment factor, S the selection at the node's mass. The points are
-    realizable (b_ab in [0, x_a], positive weights), so every term is that of a real
-    population: the source is exact for each moment the points reproduce when S is constant.
-    Where a node's conditional moments are not realizable the points are their nearest
-    realizable reading; the raw conditional moments of the Vandermonde solve are not used
-    (power selection, N1 = N2 = 2, y0 = 0.25 on every granule of an exponential start: the
-    solve gives <y^3> < 0 on the small node and 1.25 y0^3 on the large one, and M03 ended 60%
-    below the exact value after k v0 t = 1, the points 7% above it). F(1) = 1: M10 and M01 get
-    exactly nothing (skipped, not summed to zero). Free droplets never break."""
+        dM_k0/dt = sum_a w_a S(x_a) (F(k) - 1) x_a^k.
+
+    Mixed moments (l >= 1), as a relative rate: the carried moment times the mean selection
+    over the N1 x N2 points (x_a, b_ab), weights w_a r_ab, weighted by the moment's integrand,
+
+        dM_kl/dt = (F(k + l) - 1) M_kl <S>_kl,
+        <S>_kl = sum_ab w_a r_ab S(x_a) x_a^k b_ab^l / sum_ab w_a r_ab x_a^k b_ab^l
+
+    (where no point holds binder: the size nodes' mean selection weighted by x_a^k). For a
+    state the points reproduce, this is their quadrature sum_ab w_a r_ab S (F - 1) x^k b^l, the
+    source of a real population; it is exact for every carried moment under a constant
+    selection, and since F(k + l) < 1 for k + l >= 2 a mixed moment decays at most at the
+    largest selection rate: it can never be driven below zero. The quadrature sum itself can:
+    where a size node sits on a binder bound the Vandermonde shares of the other nodes need not
+    be realizable, and their points may then hold far more of M_kl than the state (measured:
+    collisional selection next to dry fragments, N1 = N2 = 2, alpha 0.4, Theta = 1 m2/s2 with
+    droplets sprayed in: the points held 650 times the carried M03, the source took M03 below
+    zero within 5 ms and the step fell to its floor; the raw Vandermonde conditional moments
+    instead are not realizable at all, a negative <y^3> on a node, and put M03 60% below its
+    exact value under power selection). F(1) = 1: M10 and M01 get exactly nothing (skipped,
+    not summed to zero). Free droplets never break."""
     factor = cell_selection_factor(cell, params, config)
     if factor == 0.0:
         return
@@ -258,28 +271,47 @@ def _breakage(out, work, n_max, m, n, cell, params, config, bivariate):
     op = off_points(n_max)
     npt = n_max * m
     counts = off_counts(n_max, m)
-    lmax = 2 * m if bivariate else 1
+    acc = off_acc(n_max, m)
+    sel = work[acc:acc + n_max]                          # S(x_a) per size node
+    any_break = False
     for a in range(n):
         xa = work[a]
-        sel = node_selection_rate(xa, factor, params, config)
-        if sel == 0.0:
+        sel[a] = node_selection_rate(xa, factor, params, config)
+        if sel[a] == 0.0:
             continue
-        power = work[n_max + a] * sel                    # w S x^k
+        any_break = True
+        power = work[n_max + a] * sel[a]                 # w S x^k
         for k in range(n_size):
             if k != 1:
                 out[k] += power * (daughter_moment_factor(code, float(k)) - 1.0)
             power *= xa
-        for l in range(1, lmax):
-            moment = 0.0                                 # sum_b w_a r_ab b_ab^l
-            for b in range(int(work[counts + a])):
-                i = a * m + b
-                moment += work[op + 2 * npt + i] * work[op + npt + i] ** l
-            power = moment * sel
-            for k in range(n_max):
-                if k + l != 1:
-                    out[mixed_index(n_max, k, l)] += power * (
-                        daughter_moment_factor(code, float(k + l)) - 1.0)
-                power *= xa
+    if not bivariate or not any_break:
+        return
+    for l in range(1, 2 * m):
+        for k in range(n_max):
+            if k + l == 1:
+                continue
+            i = mixed_index(n_max, k, l)
+            if state[i] == 0.0:
+                continue
+            num = 0.0
+            den = 0.0
+            for a in range(n):
+                xk = work[a] ** k
+                moment = 0.0                             # sum_b w_a r_ab b_ab^l
+                for b in range(int(work[counts + a])):
+                    j = a * m + b
+                    moment += work[op + 2 * npt + j] * work[op + npt + j] ** l
+                num += sel[a] * xk * moment
+                den += xk * moment
+            if not (den > 0.0):                          # no binder on any point
+                for a in range(n):
+                    xk = work[n_max + a] * work[a] ** k
+                    num += sel[a] * xk
+                    den += xk
+            if den > 0.0:
+                out[i] += (daughter_moment_factor(code, float(k + l)) - 1.0) * state[i] * (
+                    num / den)
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -305,7 +337,7 @@ def cqmom_rhs(state, out, cell, aux, params, config, work):
     if factor != 0.0:
         _aggregation(out, work, n_max, m, n, factor, u0, params, config, bivariate)
     if n > 0 and config[P.BREAKAGE] == 1:
-        _breakage(out, work, n_max, m, n, cell, params, config, bivariate)
+        _breakage(out, state, work, n_max, m, n, cell, params, config, bivariate)
     inj = cell[P.INJECTION] / params[P.NUMBER_SCALE]
     xd = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
     if separate:
