@@ -24,8 +24,9 @@ from numba.extending import overload
 
 from ..methods.dispatch import WORK_SIZE, conserved, project, realizable, rhs
 from ..physics import parameters as P
-from .codes import (ACCEPT, ACCEPTED, AUTO, EXPLICIT, F0, FTMP, IMPLICIT, IMPLICIT_STEPS,
-                    JACOBIANS, N_BUF, NOT_FINITE, OK, REJECT_ERROR, REJECT_NOT_FINITE,
+from .codes import (ACCEPT, ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, F0, FTMP, GCOL,
+                    IMPLICIT, IMPLICIT_STEPS, JACOBIANS, KC, N_BUF, NOT_FINITE, OK,
+                    REJECT_ERROR, REJECT_NOT_FINITE,
                     REJECT_REALIZABILITY, REJECTED_ERROR, REJECTED_REALIZABILITY, RHS_CALLS,
                     STEP_FLOOR, SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START, YNEW, YTMP)
 from .explicit import bs3_attempt
@@ -37,7 +38,10 @@ N_STIFF = 15             # such steps in a row before an auto cell goes implicit
 N_SLOW = 8               # implicit steps in a row not worth their cost before going back
 POSITIVITY_LIMIT = 1.6   # |h lambda| up to which the explicit pair keeps a decay positive
 MAX_WAIT = 4096          # longest wait (explicit steps) before another implicit attempt
-CAPTURE_DOMINANCE = 10.0  # droplet / granule relative rates above which capture is exact
+CAPTURE_DOMINANCE = 10.0  # droplet / remaining relative rates above which capture is exact
+CAPTURE_SHARE = 0.1      # share of the error budget the droplets' own decay may use unnoticed
+FSAL_CHANGE = 8.0 * 2.220446049250313e-16   # projection change (relative) up to which
+#                                             f(y_new) is reused: round-off only
 
 # switch memory of one cell (float array)
 SW_STIFF = 0             # stability-limited explicit steps in a row
@@ -178,27 +182,69 @@ def _after_implicit(h_try, sw, jac, buf, n):
 
 
 @nb.njit(cache=True)
-def _capture_pays(state, f0, cell, params, h, d, n, rtol, atol):
-    """Auto: True if the next explicit step should integrate the droplet capture exactly.
-
-    It pays where the droplets, not the granules, limit the explicit pair's step: in a
-    droplet transient, where the droplets' relative rate |dn_d/dt| / n_d exceeds the fastest
-    relative rate of the other entries CAPTURE_DOMINANCE times (fresh droplets after a
-    transport step, an initial charge being captured). Elsewhere the plain pair is used:
-    with quasi-steady droplets it is as accurate per step and cheaper, and where their
-    capture is stiff (h lambda above the pair's limit) the Rosenbrock method is more accurate
-    than the exponential step, which has classical order 3 only (measured: 3.8 times longer
-    steps for RODAS3 at lambda = 1e6 /s, rtol 1e-8)."""
+def _droplet_rates(state, f0, g, d, n, rtol, atol):
+    """(relative rate of the droplets |dn_d/dt| / n_d, fastest relative rate of the other
+    entries) [1/s]; with ``g`` (a capture column d f / d n_d) the other entries' rates count
+    only what is left after the capture, f - g n_d, else all of f."""
     floor = atol / rtol
     nd = state[d]
-    if nd <= 0.0:
-        return cell[P.INJECTION] > 0.0
     rate_d = abs(f0[d]) / max(nd, floor)
     rate_g = 0.0
     for i in range(n):
         if i != d:
-            rate_g = max(rate_g, abs(f0[i]) / max(abs(state[i]), floor))
+            rate = f0[i] - g[i] * nd if g.shape[0] > 0 else f0[i]
+            rate_g = max(rate_g, abs(rate) / max(abs(state[i]), floor))
+    return rate_d, rate_g
+
+
+@nb.njit(cache=True)
+def _capture_pays(state, f0, g, d, n, rtol, atol):
+    """Auto: True if the next explicit step should integrate the droplet capture exactly
+    (g: buf[GCOL], the capture column d f / d n_d at this state or a recent one, or an empty
+    array where none is known yet; then the test counts all of the other entries' rates).
+
+    It pays where the droplets, not the granules, limit the explicit pair's step: in a
+    droplet transient, where the droplets' relative rate |dn_d/dt| / n_d exceeds
+    CAPTURE_DOMINANCE times the fastest relative rate of the other entries (fresh droplets
+    after a transport step, an initial charge being captured). With a capture column the other
+    entries count only what is left after the capture, f - g n_d: the capture's own share is
+    integrated exactly by the exponential step, and counting it (the binder entries of dry
+    granules grow at the droplets' rate) kept the plain pair resolving those transients.
+    Elsewhere the plain pair is used: with quasi-steady droplets it is as accurate per step
+    and cheaper, and where their capture is stiff (h lambda above the pair's limit) the
+    Rosenbrock method is more accurate than the exponential step, which has classical order 3
+    only (measured: 3.8 times longer steps for RODAS3 at lambda = 1e6 /s, rtol 1e-8)."""
+    if state[d] <= 0.0:
+        return True
+    rate_d, rate_g = _droplet_rates(state, f0, g, d, n, rtol, atol)
     return rate_d > CAPTURE_DOMINANCE * rate_g
+
+
+@nb.njit(cache=True)
+def _capture_worth_testing(state, f0, h, d, rtol, atol):
+    """Auto: True if a capture column is worth one RHS call to test ``_capture_pays`` on
+    what is left after the capture: the droplets' own change over the step h [s] would use
+    more than CAPTURE_SHARE of the pair's error budget. The pair's embedded estimate of a decay
+    at rate r is (r h)^3 / 48 (relative), so that is h |dn_d/dt| / n_d above
+    (48 CAPTURE_SHARE rtol)^(1/3) (0.017 at rtol 1e-6): a droplet transient, or a step long
+    compared with the droplets' rate. Quasi-steady droplets (spraying balanced by capture)
+    change at the granules' slow rates; they pass only on long steps, and then the capture
+    column is evaluated once per call and the test keeps the plain pair."""
+    limit = (48.0 * CAPTURE_SHARE * rtol) ** (1.0 / 3.0)
+    return h * abs(f0[d]) > limit * max(state[d], atol / rtol)
+
+
+@nb.njit(cache=True)
+def _projection_small(state, y_new, n):
+    """True if the accepted state differs from the step's candidate y_new by round-off only
+    (FSAL_CHANGE relative in every entry): then f(y_new), which the pair's last stage
+    evaluated, serves as the rate of the next step. Anything larger (nodes lost, a binder
+    clipped, droplets absorbed) may turn a rate across the realizable set's boundary: a
+    vanishing entry with the old, negative rate would reject every later step."""
+    for i in range(n):
+        if abs(state[i] - y_new[i]) > FSAL_CHANGE * abs(y_new[i]):
+            return False
+    return True
 
 
 @nb.njit(cache=True)
@@ -287,7 +333,8 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
     t = t_start
     taken = 0
     have_jac = False
-    have_capture = False
+    capture_known = False       # buf[GCOL] holds a capture column (of this or a recent state)
+    capture_fresh = False       # ... of this state
     while t < t_end:
         if taken >= max_steps:
             step[0] = _memory(scheme, mode, h)
@@ -299,13 +346,28 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
             return STEP_FLOOR, t
         taken += 1
         h_rho = 0.0
+        expo = False
         if mode == 0:
-            expo = droplets and _capture_pays(state, f0, cell, params, h_try, droplet, n, rtol,
-                                              atol)
-            if expo and not have_capture:
+            if droplets:
+                if state[droplet] <= 0.0:
+                    expo = cell[P.INJECTION] > 0.0
+                elif capture_known:
+                    expo = (_capture_pays(state, f0, buf[GCOL], droplet, n, rtol, atol)
+                            or _capture_pays(state, f0, buf[GCOL][:0], droplet, n, rtol, atol))
+                else:
+                    expo = _capture_pays(state, f0, buf[GCOL][:0], droplet, n, rtol, atol)
+                    if not expo and _capture_worth_testing(state, f0, h_try, droplet, rtol,
+                                                           atol):
+                        _capture(scheme, method, state, buf, cell, aux, params, config, work,
+                                 droplet, n)
+                        stats[RHS_CALLS] += 1
+                        capture_known = True
+                        capture_fresh = True
+                        expo = _capture_pays(state, f0, buf[GCOL], droplet, n, rtol, atol)
+            if expo and not capture_fresh:
                 _capture(scheme, method, state, buf, cell, aux, params, config, work, droplet, n)
                 stats[RHS_CALLS] += 1
-                have_capture = True
+                capture_fresh = True
             outcome, err, h_rho, calls = _explicit(scheme, method, state, h_try, buf, phis,
                                                    expo, cell, aux, params, config, work, rtol,
                                                    atol, droplet, n)
@@ -327,10 +389,18 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
                 _absorb_droplets(method, state, droplet, atol, pivots, coefs, n_inv, aux,
                                  params, config, work, buf[FTMP])
             project(method, state, aux, params, config, work)
-            rhs(method, state, f0, cell, aux, params, config, work)
-            stats[RHS_CALLS] += 1
+            if mode == 0 and _projection_small(state, y_new, n):
+                # first same as last: the pair's last stage evaluated f(y_new)
+                last_rate = buf[FTMP] if expo else buf[KC]
+                for i in range(n):
+                    f0[i] = last_rate[i]
+            else:
+                rhs(method, state, f0, cell, aux, params, config, work)
+                stats[RHS_CALLS] += 1
             stats[ACCEPTED] += 1
-            have_capture = False
+            if expo:
+                stats[EXPONENTIAL_STEPS] += 1
+            capture_fresh = False
             factor = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** (-1.0 / 3.0)))
             h = h_try * factor if not last else max(h, h_try * factor)
             have_jac = False
