@@ -14,6 +14,12 @@ take instead (max of its last explicit step and 1.6 / rho(J), rho from power ite
 N_SLOW implicit steps in a row that are not, the cell goes back to explicit and waits a number
 of steps (doubling after each unproductive episode) before it may switch again. The scheme a
 cell ended with is remembered in the sign of its step memory (negative: implicit).
+
+In a droplet transient auto integrates the capture exactly (``_capture_chosen``: the
+exponential pair of ``exponential``), judged on what is left of the rates after the capture;
+the capture column is kept for the call. The explicit pair reuses its last stage's rate for the
+next step when the projection moved the state by round-off only. A call that opened on a
+transient hands the next call its opening step (with transport every split step opens on one).
 """
 import math
 
@@ -248,6 +254,81 @@ def _projection_small(state, y_new, n):
     return True
 
 
+# what a cell's capture column buf[GCOL] is (int array of N_CAP)
+CAP_KNOWN = 0            # 1: it holds the capture column of this or a recent state
+CAP_FRESH = 1            # 1: recent enough for an exponential step
+CAP_AGE = 2              # accepted steps since it was evaluated
+N_CAP = 3
+
+
+@nb.njit(cache=True)
+def _capture_chosen(scheme, method, state, h, buf, cap, cell, aux, params, config, work, rtol,
+                    atol, d, n, stats):
+    """Auto: True if the next explicit step of h [s] integrates the droplet capture exactly
+    (``_capture_pays``); evaluates the capture column (one RHS call, counted in stats) where
+    the test needs it or the exponential step does."""
+    f0 = buf[F0]
+    g = buf[GCOL]
+    if state[d] <= 0.0:
+        expo = cell[P.INJECTION] > 0.0
+    elif cap[CAP_KNOWN] == 1:
+        expo = (_capture_pays(state, f0, g, d, n, rtol, atol)
+                or _capture_pays(state, f0, g[:0], d, n, rtol, atol))
+    else:
+        expo = _capture_pays(state, f0, g[:0], d, n, rtol, atol)
+        if not expo and _capture_worth_testing(state, f0, h, d, rtol, atol):
+            _capture(scheme, method, state, buf, cell, aux, params, config, work, d, n)
+            stats[RHS_CALLS] += 1
+            cap[CAP_KNOWN] = 1
+            cap[CAP_FRESH] = 1
+            cap[CAP_AGE] = 0
+            expo = _capture_pays(state, f0, g, d, n, rtol, atol)
+    if expo and cap[CAP_FRESH] == 0:
+        _capture(scheme, method, state, buf, cell, aux, params, config, work, d, n)
+        stats[RHS_CALLS] += 1
+        cap[CAP_KNOWN] = 1
+        cap[CAP_FRESH] = 1
+        cap[CAP_AGE] = 0
+    return expo
+
+
+@nb.njit(cache=True)
+def _rate_after_step(method, explicit, expo, state, buf, cell, aux, params, config, work, n,
+                     stats):
+    """buf[F0] = f(state) after an accepted step: first same as last where the explicit pair's
+    last stage evaluated f(y_new) and the projection moved the state by round-off only
+    (``_projection_small``), else one RHS call (counted in stats)."""
+    f0 = buf[F0]
+    if explicit and _projection_small(state, buf[YNEW], n):
+        last_rate = buf[FTMP] if expo else buf[KC]
+        for i in range(n):
+            f0[i] = last_rate[i]
+    else:
+        rhs(method, state, f0, cell, aux, params, config, work)
+        stats[RHS_CALLS] += 1
+
+
+@nb.njit(cache=True)
+def _after_reject(outcome, err, h_try, stats):
+    """Count a rejected attempt of h_try [s] and return the step to try next [s]."""
+    if outcome == REJECT_ERROR:
+        stats[REJECTED_ERROR] += 1
+        return h_try * max(0.2, 0.9 * err ** (-1.0 / 3.0))
+    if outcome == REJECT_REALIZABILITY:
+        stats[REJECTED_REALIZABILITY] += 1
+    else:
+        stats[REJECTED_ERROR] += 1
+    return 0.5 * h_try
+
+
+@nb.njit(cache=True)
+def _all_finite(values, n):
+    for i in range(n):
+        if not math.isfinite(values[i]):
+            return False
+    return True
+
+
 @nb.njit(cache=True)
 def _absorb_droplets(method, state, d, atol, pivots, coefs, n_inv, aux, params, config, work,
                      saved):
@@ -308,37 +389,27 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
     if not realizable(method, state, aux, params, config, work):
         return UNREALIZABLE_START, t_start
     buf = np.empty((N_BUF, n))
-    jac = np.empty((n, n))
-    lu = np.empty((n, n))
+    jac, lu = np.empty((n, n)), np.empty((n, n))
     piv = np.empty(n, dtype=np.int64)
-    pivots = np.zeros(2, dtype=np.int64)
-    coefs = np.zeros((2, n))
+    pivots, coefs = np.zeros(2, dtype=np.int64), np.zeros((2, n))
     n_inv = conserved(method, config, params, pivots, coefs)
     sw = np.zeros(N_SW)
     phis = np.empty((3, 6))
     droplet = n - 1 if config[P.SEPARATE_DROPLETS] == 1 else -1
     droplets = scheme == AUTO and droplet >= 0     # auto: capture exact where it pays
     mode = 1 if (scheme == IMPLICIT or (scheme == AUTO and step[0] < 0.0)) else 0
-    h = abs(step[0])
-    if not (h > 0.0):
-        h = (t_end - t_start) * 1e-3
-    f0 = buf[F0]
-    y_new = buf[YNEW]
-    rhs(method, state, f0, cell, aux, params, config, work)
+    h = abs(step[0]) if abs(step[0]) > 0.0 else (t_end - t_start) * 1e-3
+    rhs(method, state, buf[F0], cell, aux, params, config, work)
     stats[RHS_CALLS] += 1
-    for i in range(n):
-        if not math.isfinite(f0[i]):
-            step[0] = _memory(scheme, mode, h)
-            return NOT_FINITE, t_start
+    if not _all_finite(buf[F0], n):
+        step[0] = _memory(scheme, mode, h)
+        return NOT_FINITE, t_start
     floor = params[P.STEP_FLOOR]
-    t = t_start
-    taken = 0
-    have_jac = False
-    capture_known = False       # buf[GCOL] holds a capture column (of this or a recent state)
-    capture_fresh = False       # ... recent enough for an exponential step
-    capture_age = 0             # accepted steps since it was evaluated
-    h_opening = 0.0             # the step proposed after this call's first accepted step [s]
-    opening_tight = False       # that step was rejected first, or accepted with little margin
+    t, taken, have_jac = t_start, 0, False
+    cap = np.zeros(N_CAP, dtype=np.int64)   # what buf[GCOL] holds (CAP_* below)
+    # the step proposed after this call's first accepted step [s]; whether that step was
+    # rejected first or accepted with little margin
+    h_opening, opening_tight = 0.0, False
     while t < t_end:
         if taken >= max_steps:
             step[0] = _memory(scheme, mode, h)
@@ -349,31 +420,11 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
             step[0] = _memory(scheme, mode, h)
             return STEP_FLOOR, t
         taken += 1
-        h_rho = 0.0
-        expo = False
+        h_rho, expo = 0.0, False
         if mode == 0:
-            if droplets:
-                if state[droplet] <= 0.0:
-                    expo = cell[P.INJECTION] > 0.0
-                elif capture_known:
-                    expo = (_capture_pays(state, f0, buf[GCOL], droplet, n, rtol, atol)
-                            or _capture_pays(state, f0, buf[GCOL][:0], droplet, n, rtol, atol))
-                else:
-                    expo = _capture_pays(state, f0, buf[GCOL][:0], droplet, n, rtol, atol)
-                    if not expo and _capture_worth_testing(state, f0, h_try, droplet, rtol,
-                                                           atol):
-                        _capture(scheme, method, state, buf, cell, aux, params, config, work,
-                                 droplet, n)
-                        stats[RHS_CALLS] += 1
-                        capture_known = True
-                        capture_fresh = True
-                        capture_age = 0
-                        expo = _capture_pays(state, f0, buf[GCOL], droplet, n, rtol, atol)
-            if expo and not capture_fresh:
-                _capture(scheme, method, state, buf, cell, aux, params, config, work, droplet, n)
-                stats[RHS_CALLS] += 1
-                capture_fresh = True
-                capture_age = 0
+            expo = droplets and _capture_chosen(scheme, method, state, h_try, buf, cap, cell,
+                                                aux, params, config, work, rtol, atol,
+                                                droplet, n, stats)
             outcome, err, h_rho, calls = _explicit(scheme, method, state, h_try, buf, phis,
                                                    expo, cell, aux, params, config, work, rtol,
                                                    atol, droplet, n)
@@ -390,26 +441,20 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
         if outcome == ACCEPT:
             t = t_end if last else t + h_try
             for i in range(n):
-                state[i] = y_new[i]
+                state[i] = buf[YNEW, i]
             if scheme != EXPLICIT and droplet >= 0:
                 _absorb_droplets(method, state, droplet, atol, pivots, coefs, n_inv, aux,
                                  params, config, work, buf[FTMP])
             project(method, state, aux, params, config, work)
-            if mode == 0 and _projection_small(state, y_new, n):
-                # first same as last: the pair's last stage evaluated f(y_new)
-                last_rate = buf[FTMP] if expo else buf[KC]
-                for i in range(n):
-                    f0[i] = last_rate[i]
-            else:
-                rhs(method, state, f0, cell, aux, params, config, work)
-                stats[RHS_CALLS] += 1
+            _rate_after_step(method, mode == 0, expo, state, buf, cell, aux, params, config,
+                             work, n, stats)
             stats[ACCEPTED] += 1
             if expo:
                 stats[EXPONENTIAL_STEPS] += 1
             # the exponential step stays exact in the invariants and realizable-checked with a
             # capture column of an earlier state (its linear part is then the capture there;
             # the error estimate sees the rest): kept for the call, renewed after a rejection
-            capture_age += 1
+            cap[CAP_AGE] += 1
             factor = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** (-1.0 / 3.0)))
             h = h_try * factor if not last else max(h, h_try * factor)
             have_jac = False
@@ -420,24 +465,15 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
         else:
             if h_opening == 0.0:
                 opening_tight = True
-            if capture_age > 0:
-                capture_fresh = False
-            if outcome == REJECT_ERROR:
-                stats[REJECTED_ERROR] += 1
-                h = h_try * max(0.2, 0.9 * err ** (-1.0 / 3.0))
-            elif outcome == REJECT_REALIZABILITY:
-                stats[REJECTED_REALIZABILITY] += 1
-                h = 0.5 * h_try
-            else:
-                stats[REJECTED_ERROR] += 1
-                h = 0.5 * h_try
+            if cap[CAP_AGE] > 0:
+                cap[CAP_FRESH] = 0
+            h = _after_reject(outcome, err, h_try, stats)
     # a call that opened on a transient (its first attempt rejected, or its first step accepted
     # with little margin) hands the next call the step it opened with, not the one it ended
     # with: with transport every call opens on a fresh transient (droplets carried in) and the
     # step that ended the last one was rejected there three times out of four (split 0.5 s)
-    if opening_tight and h_opening > 0.0:
-        h = min(h, h_opening)
-    step[0] = _memory(scheme, mode, h)
+    step[0] = _memory(scheme, mode, min(h, h_opening) if opening_tight and h_opening > 0.0
+                      else h)
     return OK, t
 
 
