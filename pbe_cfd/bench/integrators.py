@@ -10,9 +10,11 @@ of the explicit pair at a 100 times tighter tolerance (an independent step seque
 implicit and auto, an independent scheme).
 
 Transport part: the bundled ``fluid-bed-transport`` scene against the same scene without
-``[transport]``: the solver time (run wall time without compile, median of ``repeats``) and
-the whole-process time of ``python -m pbe_cfd.cli couple`` (median of ``repeats``, one
-process each, in this session), and their ratios.
+``[transport]``: the solve phase (``phases['solve_s']``: first step to last, compile and
+outputs excluded; median of ``repeats`` runs alternating between the two scenes in one
+process, warm cache), the RHS calls, and the whole-process time of
+``python -m pbe_cfd.cli couple`` (median of ``repeats``, one process each, alternating), and
+their ratios.
 """
 from __future__ import annotations
 
@@ -126,7 +128,13 @@ def _process_seconds(scene_path, out_dir) -> tuple[float, float]:
 
 
 def transport_rows(repeats, quiet, quick=False) -> list:
-    """Solver and whole-process time of fluid-bed-transport with and without [transport]."""
+    """Solve phase and whole-process time of fluid-bed-transport with and without [transport].
+
+    Both scenes are loaded and run once first (kernels compiled or loaded from the cache),
+    then ``repeats`` times alternately in this process, so that load changes hit both alike;
+    the solve phase is ``phases['solve_s']`` of the run (first step to last, no compile, no
+    output). The whole process (``python -m pbe_cfd.cli couple``, outputs and renders
+    written) alternates the same way."""
     from ..couple import run_coupled
     from ..domain import load_domain
     with_transport = load_scene("fluid-bed-transport")
@@ -135,45 +143,63 @@ def transport_rows(repeats, quiet, quick=False) -> list:
     with tempfile.TemporaryDirectory() as tmp:
         plain_path = Path(tmp) / "fluid-bed-no-transport.toml"
         plain_path.write_text(_scene_text_without_transport(text))
-        scenes = [("with [transport]", Path(with_transport.source)),
-                  ("without [transport]", plain_path)]
-        for label, path in scenes:
+        paths = {"with [transport]": Path(with_transport.source),
+                 "without [transport]": plain_path}
+        scenes, domains = {}, {}
+        for label, path in paths.items():
             scene = load_scene(str(path))
             if quick:
                 scene = dataclasses.replace(scene, end_time=2.0, output_interval=1.0)
-            domain = load_domain(scene, need_flux=scene.transport is not None)
-            solver, cpu, source, stats = [], [], [], None
-            run_coupled(scene, domain)                       # compile or load the kernels
-            for _ in range(repeats):
+            scenes[label] = scene
+            domains[label] = load_domain(scene, need_flux=scene.transport is not None)
+            run_coupled(scene, domains[label])               # compile or load the kernels
+        solve = {k: [] for k in paths}
+        cpu = {k: [] for k in paths}
+        source = {k: [] for k in paths}
+        stats = {}
+        for _ in range(repeats):
+            for label in paths:
                 cpu0 = time.process_time()
-                res = run_coupled(scene, domain)
-                cpu.append(time.process_time() - cpu0)
-                solver.append(res.wall_time_s)
-                stats = res.stats
+                res = run_coupled(scenes[label], domains[label])
+                cpu[label].append(time.process_time() - cpu0)
+                solve[label].append(res.phases["solve_s"])
+                stats[label] = res.stats
                 if "transport" in res.stats:
-                    source.append(res.stats["transport"]["source_wall_s"])
-            process = [] if quick else [_process_seconds(path, Path(tmp) / "out")
-                                        for _ in range(repeats)]
-            nan = float("nan")
-            rows.append({"scene": label, "solver_s": statistics.median(solver),
-                         "solver_cpu_s": statistics.median(cpu),
-                         "source_s": statistics.median(source) if source else nan,
-                         "process_s": statistics.median(p[0] for p in process) if process
+                    source[label].append(res.stats["transport"]["source_wall_s"])
+        process = {k: [] for k in paths}
+        if not quick:
+            for _ in range(repeats):
+                for label, path in paths.items():
+                    process[label].append(_process_seconds(path, Path(tmp) / "out"))
+        nan = float("nan")
+        for label in paths:
+            st = stats[label]
+            rows.append({"scene": label, "solver_s": statistics.median(solve[label]),
+                         "solver_all_s": [round(x, 4) for x in solve[label]],
+                         "solver_cpu_s": statistics.median(cpu[label]),
+                         "source_s": statistics.median(source[label]) if source[label]
                          else nan,
-                         "process_cpu_s": statistics.median(p[1] for p in process) if process
-                         else nan,
-                         "accepted_steps": stats["accepted_steps"],
-                         "rhs_calls": stats["rhs_calls"],
-                         "implicit_steps": stats["implicit_steps"]})
-            _say(quiet, f"  {label}: solver {rows[-1]['solver_s']:.3g} s, process "
+                         "process_s": statistics.median(p[0] for p in process[label])
+                         if process[label] else nan,
+                         "process_cpu_s": statistics.median(p[1] for p in process[label])
+                         if process[label] else nan,
+                         "accepted_steps": st["accepted_steps"],
+                         "rejected_error": st["rejected_error"],
+                         "rhs_calls": st["rhs_calls"],
+                         "implicit_steps": st["implicit_steps"],
+                         "exponential_steps": st.get("exponential_steps", 0)})
+            _say(quiet, f"  {label}: solve {rows[-1]['solver_s']:.3g} s, process "
                  f"{rows[-1]['process_s']:.3g} s")
     return rows
 
 
 def integrator_markdown(result) -> str:
     """The study's tables (Markdown)."""
-    lines = [f"Machine: {_machine_line(result['machine'])}; commit {result['commit']}; "
-             f"wall times are medians of {result['repeats']} runs.", "",
+    end_load = result.get("load_average_at_end")
+    lines = [f"Machine: {_machine_line(result['machine'])}"
+             + (f"; at the end {' / '.join(str(x) for x in end_load)}" if end_load else "")
+             + f"; commit {result['commit']}; wall times are medians of {result['repeats']} runs.",
+             "",
              "| scene | integrator | wall [s] | RHS calls | steps (implicit) | max rel. error |",
              "|---|---|---|---|---|---|"]
     for r in result["well_mixed"]:
@@ -185,19 +211,22 @@ def integrator_markdown(result) -> str:
                      f"{r['error']:.1e} |")
     rows = result["transport"]
     if rows:
-        lines += ["", "| fluid-bed-transport | solver wall [s] | solver CPU [s] | sources [s] "
-                  "| process wall [s] | process CPU [s] | steps (implicit) | RHS calls |",
-                  "|---|---|---|---|---|---|---|---|"]
+        lines += ["", "| fluid-bed-transport | solve phase [s] | run CPU [s] | sources [s] "
+                  "| process wall [s] | process CPU [s] | steps (implicit, exponential) "
+                  "| error rejections | RHS calls |",
+                  "|---|---|---|---|---|---|---|---|---|"]
         for r in rows:
             lines.append(f"| {r['scene']} | {r['solver_s']:.3g} | {r['solver_cpu_s']:.3g} | "
                          f"{r['source_s']:.3g} | {r['process_s']:.3g} | "
                          f"{r['process_cpu_s']:.3g} | {r['accepted_steps']} "
-                         f"({r['implicit_steps']}) | {r['rhs_calls']} |")
+                         f"({r['implicit_steps']}, {r.get('exponential_steps', 0)}) | "
+                         f"{r.get('rejected_error', 0)} | {r['rhs_calls']} |")
         if len(rows) == 2:
             a, b = rows
-            lines += ["", f"Ratios with / without transport: solver wall "
-                      f"{a['solver_s'] / b['solver_s']:.2f} (CPU "
-                      f"{a['solver_cpu_s'] / b['solver_cpu_s']:.2f}), whole process wall "
+            lines += ["", f"Ratios with / without transport: solve phase "
+                      f"{a['solver_s'] / b['solver_s']:.2f}, RHS calls "
+                      f"{a['rhs_calls'] / b['rhs_calls']:.2f}, run CPU "
+                      f"{a['solver_cpu_s'] / b['solver_cpu_s']:.2f}, whole process wall "
                       f"{a['process_s'] / b['process_s']:.2f} (CPU "
                       f"{a['process_cpu_s'] / b['process_cpu_s']:.2f})."]
     return "\n".join(lines) + "\n"
@@ -207,6 +236,7 @@ def integrator_study(out_dir="bench-out", quick=False, quiet=False, repeats=None
     """Run both parts (quick: short scenes, one repeat, no subprocess timing) and write
     integrators.csv, integrators.md and integrators.json into out_dir."""
     repeats = repeats or (1 if quick else 3)
+    machine = machine_info()                 # its load average: when the study started
     end = 20.0 if quick else None
     seed = load_scene("seed-wurster")
     ktgf = load_scene("study-ktgf")
@@ -217,8 +247,9 @@ def integrator_study(out_dir="bench-out", quick=False, quiet=False, repeats=None
               ("stiff: ktgf cell at packing, 1e4 x injection, 2 s", stiff_scene(2.0))]
     well_mixed = well_mixed_rows(scenes, repeats, quiet)
     transport = transport_rows(repeats, quiet, quick=quick)
-    result = {"machine": machine_info(), "commit": _git_describe(), "repeats": repeats,
-              "well_mixed": well_mixed, "transport": transport}
+    result = {"machine": machine, "commit": _git_describe(), "repeats": repeats,
+              "well_mixed": well_mixed, "transport": transport,
+              "load_average_at_end": [round(x, 2) for x in os.getloadavg()]}
     rows = [{"part": "well-mixed", **r} for r in well_mixed] + \
         [{"part": "transport", **r} for r in transport]
     keys = list(dict.fromkeys(k for r in rows for k in r))

@@ -24,7 +24,8 @@ from numba.core import types
 
 from ..physics import parameters as P
 from .cell import integrate_cell, integrate_cells_kernel  # noqa: F401
-from .codes import (ACCEPTED, AUTO, EXPLICIT, IMPLICIT, IMPLICIT_STEPS, JACOBIANS,  # noqa: F401
+from .codes import (ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, IMPLICIT,  # noqa: F401
+                    IMPLICIT_STEPS, JACOBIANS,
                     MAX_STEPS_PER_INTERVAL, N_STATS, NOT_FINITE, OK, REJECTED_ERROR,
                     REJECTED_REALIZABILITY, RHS_CALLS, SCHEMES, STATUS_TEXT, STEP_FLOOR,
                     SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START)
@@ -86,7 +87,8 @@ def failure_reason(code, stats, params, config) -> str:
 
 def stats_summary(stats) -> dict:
     """JSON-able counters of the integration from a stats row (or rows, summed over cells):
-    accepted and rejected steps, RHS calls, implicit steps, Jacobians and scheme switches."""
+    accepted and rejected steps, RHS calls, implicit steps, Jacobians, scheme switches and
+    the explicit steps that integrated the droplet capture exactly."""
     st = np.asarray(stats)
     if st.ndim > 1:
         st = st.sum(axis=0)
@@ -96,7 +98,8 @@ def stats_summary(stats) -> dict:
             "rhs_calls": int(st[RHS_CALLS]),
             "implicit_steps": int(st[IMPLICIT_STEPS]),
             "jacobians": int(st[JACOBIANS]),
-            "scheme_switches": int(st[SWITCHES])}
+            "scheme_switches": int(st[SWITCHES]),
+            "exponential_steps": int(st[EXPONENTIAL_STEPS])}
 
 
 def compile_kernels(aux, params, config, n_cells=1) -> float:

@@ -14,6 +14,12 @@ take instead (max of its last explicit step and 1.6 / rho(J), rho from power ite
 N_SLOW implicit steps in a row that are not, the cell goes back to explicit and waits a number
 of steps (doubling after each unproductive episode) before it may switch again. The scheme a
 cell ended with is remembered in the sign of its step memory (negative: implicit).
+
+In a droplet transient auto integrates the capture exactly (``_capture_chosen``: the
+exponential pair of ``exponential``), judged on what is left of the rates after the capture;
+the capture column is kept for the call. The explicit pair reuses its last stage's rate for the
+next step when the projection moved the state by round-off only. A call that opened on a
+transient hands the next call its opening step (with transport every split step opens on one).
 """
 import math
 
@@ -24,8 +30,9 @@ from numba.extending import overload
 
 from ..methods.dispatch import WORK_SIZE, conserved, project, realizable, rhs
 from ..physics import parameters as P
-from .codes import (ACCEPT, ACCEPTED, AUTO, EXPLICIT, F0, FTMP, IMPLICIT, IMPLICIT_STEPS,
-                    JACOBIANS, KC, N_BUF, NOT_FINITE, OK, REJECT_ERROR, REJECT_NOT_FINITE,
+from .codes import (ACCEPT, ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, F0, FTMP, GCOL,
+                    IMPLICIT, IMPLICIT_STEPS, JACOBIANS, KC, N_BUF, NOT_FINITE, OK,
+                    REJECT_ERROR, REJECT_NOT_FINITE,
                     REJECT_REALIZABILITY, REJECTED_ERROR, REJECTED_REALIZABILITY, RHS_CALLS,
                     STEP_FLOOR, SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START, YNEW, YTMP)
 from .explicit import bs3_attempt
@@ -37,7 +44,11 @@ N_STIFF = 15             # such steps in a row before an auto cell goes implicit
 N_SLOW = 8               # implicit steps in a row not worth their cost before going back
 POSITIVITY_LIMIT = 1.6   # |h lambda| up to which the explicit pair keeps a decay positive
 MAX_WAIT = 4096          # longest wait (explicit steps) before another implicit attempt
-CAPTURE_DOMINANCE = 10.0  # droplet / granule relative rates above which capture is exact
+CAPTURE_DOMINANCE = 10.0  # droplet / remaining relative rates above which capture is exact
+CAPTURE_SHARE = 0.1      # share of the error budget the droplets' own decay may use unnoticed
+OPENING_MARGIN = 2.0     # step growth below which a call's first step counts as tight
+FSAL_CHANGE = 8.0 * 2.220446049250313e-16   # projection change (relative) up to which
+#                                             f(y_new) is reused: round-off only
 
 # switch memory of one cell (float array)
 SW_STIFF = 0             # stability-limited explicit steps in a row
@@ -178,27 +189,144 @@ def _after_implicit(h_try, sw, jac, buf, n):
 
 
 @nb.njit(cache=True)
-def _capture_pays(state, f0, cell, params, h, d, n, rtol, atol):
-    """Auto: True if the next explicit step should integrate the droplet capture exactly.
-
-    It pays where the droplets, not the granules, limit the explicit pair's step: in a
-    droplet transient, where the droplets' relative rate |dn_d/dt| / n_d exceeds the fastest
-    relative rate of the other entries CAPTURE_DOMINANCE times (fresh droplets after a
-    transport step, an initial charge being captured). Elsewhere the plain pair is used:
-    with quasi-steady droplets it is as accurate per step and cheaper, and where their
-    capture is stiff (h lambda above the pair's limit) the Rosenbrock method is more accurate
-    than the exponential step, which has classical order 3 only (measured: 3.8 times longer
-    steps for RODAS3 at lambda = 1e6 /s, rtol 1e-8)."""
+def _droplet_rates(state, f0, g, d, n, rtol, atol):
+    """(relative rate of the droplets |dn_d/dt| / n_d, fastest relative rate of the other
+    entries) [1/s]; with ``g`` (a capture column d f / d n_d) the other entries' rates count
+    only what is left after the capture, f - g n_d, else all of f."""
     floor = atol / rtol
     nd = state[d]
-    if nd <= 0.0:
-        return cell[P.INJECTION] > 0.0
     rate_d = abs(f0[d]) / max(nd, floor)
     rate_g = 0.0
     for i in range(n):
         if i != d:
-            rate_g = max(rate_g, abs(f0[i]) / max(abs(state[i]), floor))
+            rate = f0[i] - g[i] * nd if g.shape[0] > 0 else f0[i]
+            rate_g = max(rate_g, abs(rate) / max(abs(state[i]), floor))
+    return rate_d, rate_g
+
+
+@nb.njit(cache=True)
+def _capture_pays(state, f0, g, d, n, rtol, atol):
+    """Auto: True if the next explicit step should integrate the droplet capture exactly
+    (g: buf[GCOL], the capture column d f / d n_d at this state or a recent one, or an empty
+    array where none is known yet; then the test counts all of the other entries' rates).
+
+    It pays where the droplets, not the granules, limit the explicit pair's step: in a
+    droplet transient, where the droplets' relative rate |dn_d/dt| / n_d exceeds
+    CAPTURE_DOMINANCE times the fastest relative rate of the other entries (fresh droplets
+    after a transport step, an initial charge being captured). With a capture column the other
+    entries count only what is left after the capture, f - g n_d: the capture's own share is
+    integrated exactly by the exponential step, and counting it (the binder entries of dry
+    granules grow at the droplets' rate) kept the plain pair resolving those transients.
+    Elsewhere the plain pair is used: with quasi-steady droplets it is as accurate per step
+    and cheaper, and where their capture is stiff (h lambda above the pair's limit) the
+    Rosenbrock method is more accurate than the exponential step, which has classical order 3
+    only (measured: 3.8 times longer steps for RODAS3 at lambda = 1e6 /s, rtol 1e-8)."""
+    if state[d] <= 0.0:
+        return True
+    rate_d, rate_g = _droplet_rates(state, f0, g, d, n, rtol, atol)
     return rate_d > CAPTURE_DOMINANCE * rate_g
+
+
+@nb.njit(cache=True)
+def _capture_worth_testing(state, f0, h, d, rtol, atol):
+    """Auto: True if a capture column is worth one RHS call to test ``_capture_pays`` on
+    what is left after the capture: the droplets' own change over the step h [s] would use
+    more than CAPTURE_SHARE of the pair's error budget. The pair's embedded estimate of a decay
+    at rate r is (r h)^3 / 48 (relative), so that is h |dn_d/dt| / n_d above
+    (48 CAPTURE_SHARE rtol)^(1/3) (0.017 at rtol 1e-6): a droplet transient, or a step long
+    compared with the droplets' rate. Quasi-steady droplets (spraying balanced by capture)
+    change at the granules' slow rates; they pass only on long steps, and then the capture
+    column is evaluated once per call and the test keeps the plain pair."""
+    limit = (48.0 * CAPTURE_SHARE * rtol) ** (1.0 / 3.0)
+    return h * abs(f0[d]) > limit * max(state[d], atol / rtol)
+
+
+@nb.njit(cache=True)
+def _projection_small(state, y_new, n):
+    """True if the accepted state differs from the step's candidate y_new by round-off only
+    (FSAL_CHANGE relative in every entry): then f(y_new), which the pair's last stage
+    evaluated, serves as the rate of the next step. Anything larger (nodes lost, a binder
+    clipped, droplets absorbed) may turn a rate across the realizable set's boundary: a
+    vanishing entry with the old, negative rate would reject every later step."""
+    for i in range(n):
+        if abs(state[i] - y_new[i]) > FSAL_CHANGE * abs(y_new[i]):
+            return False
+    return True
+
+
+# what a cell's capture column buf[GCOL] is (int array of N_CAP)
+CAP_KNOWN = 0            # 1: it holds the capture column of this or a recent state
+CAP_FRESH = 1            # 1: recent enough for an exponential step
+CAP_AGE = 2              # accepted steps since it was evaluated
+N_CAP = 3
+
+
+@nb.njit(cache=True)
+def _capture_chosen(scheme, method, state, h, buf, cap, cell, aux, params, config, work, rtol,
+                    atol, d, n, stats):
+    """Auto: True if the next explicit step of h [s] integrates the droplet capture exactly
+    (``_capture_pays``); evaluates the capture column (one RHS call, counted in stats) where
+    the test needs it or the exponential step does."""
+    f0 = buf[F0]
+    g = buf[GCOL]
+    if state[d] <= 0.0:
+        expo = cell[P.INJECTION] > 0.0
+    elif cap[CAP_KNOWN] == 1:
+        expo = (_capture_pays(state, f0, g, d, n, rtol, atol)
+                or _capture_pays(state, f0, g[:0], d, n, rtol, atol))
+    else:
+        expo = _capture_pays(state, f0, g[:0], d, n, rtol, atol)
+        if not expo and _capture_worth_testing(state, f0, h, d, rtol, atol):
+            _capture(scheme, method, state, buf, cell, aux, params, config, work, d, n)
+            stats[RHS_CALLS] += 1
+            cap[CAP_KNOWN] = 1
+            cap[CAP_FRESH] = 1
+            cap[CAP_AGE] = 0
+            expo = _capture_pays(state, f0, g, d, n, rtol, atol)
+    if expo and cap[CAP_FRESH] == 0:
+        _capture(scheme, method, state, buf, cell, aux, params, config, work, d, n)
+        stats[RHS_CALLS] += 1
+        cap[CAP_KNOWN] = 1
+        cap[CAP_FRESH] = 1
+        cap[CAP_AGE] = 0
+    return expo
+
+
+@nb.njit(cache=True)
+def _rate_after_step(method, explicit, expo, state, buf, cell, aux, params, config, work, n,
+                     stats):
+    """buf[F0] = f(state) after an accepted step: first same as last where the explicit pair's
+    last stage evaluated f(y_new) and the projection moved the state by round-off only
+    (``_projection_small``), else one RHS call (counted in stats)."""
+    f0 = buf[F0]
+    if explicit and _projection_small(state, buf[YNEW], n):
+        last_rate = buf[FTMP] if expo else buf[KC]
+        for i in range(n):
+            f0[i] = last_rate[i]
+    else:
+        rhs(method, state, f0, cell, aux, params, config, work)
+        stats[RHS_CALLS] += 1
+
+
+@nb.njit(cache=True)
+def _after_reject(outcome, err, h_try, stats):
+    """Count a rejected attempt of h_try [s] and return the step to try next [s]."""
+    if outcome == REJECT_ERROR:
+        stats[REJECTED_ERROR] += 1
+        return h_try * max(0.2, 0.9 * err ** (-1.0 / 3.0))
+    if outcome == REJECT_REALIZABILITY:
+        stats[REJECTED_REALIZABILITY] += 1
+    else:
+        stats[REJECTED_ERROR] += 1
+    return 0.5 * h_try
+
+
+@nb.njit(cache=True)
+def _all_finite(values, n):
+    for i in range(n):
+        if not math.isfinite(values[i]):
+            return False
+    return True
 
 
 @nb.njit(cache=True)
@@ -240,21 +368,6 @@ def _next_mode(auto, mode, h, h_try, h_rho, sw, jac, buf, n, stats):
     return 0, h
 
 
-#: relative change of an entry below which re-projection has only rounded the state
-ROUND_OFF = 8.0 * 2.220446049250313e-16
-
-
-@nb.njit(cache=True)
-def _round_off_apart(state, candidate, n):
-    """True if re-projection changed no entry of the accepted candidate by more than
-    ROUND_OFF relative: the rate the explicit pair evaluated at the candidate (its last
-    stage) is then the rate at the state to round-off, and is reused (FSAL)."""
-    for i in range(n):
-        if abs(state[i] - candidate[i]) > ROUND_OFF * abs(candidate[i]):
-            return False
-    return True
-
-
 @nb.njit(cache=True, inline="always")
 def _memory(scheme, mode, h):
     """Step memory: the next step [s], negative if an auto cell is implicit."""
@@ -276,33 +389,27 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
     if not realizable(method, state, aux, params, config, work):
         return UNREALIZABLE_START, t_start
     buf = np.empty((N_BUF, n))
-    jac = np.empty((n, n))
-    lu = np.empty((n, n))
+    jac, lu = np.empty((n, n)), np.empty((n, n))
     piv = np.empty(n, dtype=np.int64)
-    pivots = np.zeros(2, dtype=np.int64)
-    coefs = np.zeros((2, n))
+    pivots, coefs = np.zeros(2, dtype=np.int64), np.zeros((2, n))
     n_inv = conserved(method, config, params, pivots, coefs)
     sw = np.zeros(N_SW)
     phis = np.empty((3, 6))
     droplet = n - 1 if config[P.SEPARATE_DROPLETS] == 1 else -1
     droplets = scheme == AUTO and droplet >= 0     # auto: capture exact where it pays
     mode = 1 if (scheme == IMPLICIT or (scheme == AUTO and step[0] < 0.0)) else 0
-    h = abs(step[0])
-    if not (h > 0.0):
-        h = (t_end - t_start) * 1e-3
-    f0 = buf[F0]
-    y_new = buf[YNEW]
-    rhs(method, state, f0, cell, aux, params, config, work)
+    h = abs(step[0]) if abs(step[0]) > 0.0 else (t_end - t_start) * 1e-3
+    rhs(method, state, buf[F0], cell, aux, params, config, work)
     stats[RHS_CALLS] += 1
-    for i in range(n):
-        if not math.isfinite(f0[i]):
-            step[0] = _memory(scheme, mode, h)
-            return NOT_FINITE, t_start
+    if not _all_finite(buf[F0], n):
+        step[0] = _memory(scheme, mode, h)
+        return NOT_FINITE, t_start
     floor = params[P.STEP_FLOOR]
-    t = t_start
-    taken = 0
-    have_jac = False
-    have_capture = False
+    t, taken, have_jac = t_start, 0, False
+    cap = np.zeros(N_CAP, dtype=np.int64)   # what buf[GCOL] holds (CAP_* below)
+    # the step proposed after this call's first accepted step [s]; whether that step was
+    # rejected first or accepted with little margin
+    h_opening, opening_tight = 0.0, False
     while t < t_end:
         if taken >= max_steps:
             step[0] = _memory(scheme, mode, h)
@@ -313,15 +420,11 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
             step[0] = _memory(scheme, mode, h)
             return STEP_FLOOR, t
         taken += 1
-        h_rho = 0.0
-        expo = False
+        h_rho, expo = 0.0, False
         if mode == 0:
-            expo = droplets and _capture_pays(state, f0, cell, params, h_try, droplet, n, rtol,
-                                              atol)
-            if expo and not have_capture:
-                _capture(scheme, method, state, buf, cell, aux, params, config, work, droplet, n)
-                stats[RHS_CALLS] += 1
-                have_capture = True
+            expo = droplets and _capture_chosen(scheme, method, state, h_try, buf, cap, cell,
+                                                aux, params, config, work, rtol, atol,
+                                                droplet, n, stats)
             outcome, err, h_rho, calls = _explicit(scheme, method, state, h_try, buf, phis,
                                                    expo, cell, aux, params, config, work, rtol,
                                                    atol, droplet, n)
@@ -338,37 +441,39 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
         if outcome == ACCEPT:
             t = t_end if last else t + h_try
             for i in range(n):
-                state[i] = y_new[i]
+                state[i] = buf[YNEW, i]
             if scheme != EXPLICIT and droplet >= 0:
                 _absorb_droplets(method, state, droplet, atol, pivots, coefs, n_inv, aux,
                                  params, config, work, buf[FTMP])
             project(method, state, aux, params, config, work)
-            if mode == 0 and _round_off_apart(state, y_new, n):
-                # first same as last: the pair's last stage evaluated the rate at the new
-                # state (the plain pair keeps it in KC, the exponential step in FTMP, which
-                # _absorb_droplets only overwrites when it changes the state)
-                last_rate = buf[FTMP] if expo else buf[KC]
-                for i in range(n):
-                    f0[i] = last_rate[i]
-            else:
-                rhs(method, state, f0, cell, aux, params, config, work)
-                stats[RHS_CALLS] += 1
+            _rate_after_step(method, mode == 0, expo, state, buf, cell, aux, params, config,
+                             work, n, stats)
             stats[ACCEPTED] += 1
-            have_capture = False
+            if expo:
+                stats[EXPONENTIAL_STEPS] += 1
+            # the exponential step stays exact in the invariants and realizable-checked with a
+            # capture column of an earlier state (its linear part is then the capture there;
+            # the error estimate sees the rest): kept for the call, renewed after a rejection
+            cap[CAP_AGE] += 1
             factor = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** (-1.0 / 3.0)))
             h = h_try * factor if not last else max(h, h_try * factor)
             have_jac = False
             mode, h = _next_mode(scheme == AUTO, mode, h, h_try, h_rho, sw, jac, buf, n, stats)
-        elif outcome == REJECT_ERROR:
-            stats[REJECTED_ERROR] += 1
-            h = h_try * max(0.2, 0.9 * err ** (-1.0 / 3.0))
-        elif outcome == REJECT_REALIZABILITY:
-            stats[REJECTED_REALIZABILITY] += 1
-            h = 0.5 * h_try
+            if h_opening == 0.0:
+                h_opening = h
+                opening_tight = opening_tight or factor < OPENING_MARGIN
         else:
-            stats[REJECTED_ERROR] += 1
-            h = 0.5 * h_try
-    step[0] = _memory(scheme, mode, h)
+            if h_opening == 0.0:
+                opening_tight = True
+            if cap[CAP_AGE] > 0:
+                cap[CAP_FRESH] = 0
+            h = _after_reject(outcome, err, h_try, stats)
+    # a call that opened on a transient (its first attempt rejected, or its first step accepted
+    # with little margin) hands the next call the step it opened with, not the one it ended
+    # with: with transport every call opens on a fresh transient (droplets carried in) and the
+    # step that ended the last one was rejected there three times out of four (split 0.5 s)
+    step[0] = _memory(scheme, mode, min(h, h_opening) if opening_tight and h_opening > 0.0
+                      else h)
     return OK, t
 
 

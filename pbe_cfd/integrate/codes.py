@@ -33,7 +33,8 @@ RHS_CALLS = 3            # right-hand-side evaluations, Jacobian columns include
 IMPLICIT_STEPS = 4       # accepted Rosenbrock steps
 JACOBIANS = 5            # Jacobians evaluated (finite differences)
 SWITCHES = 6             # scheme switches of the auto integrator
-N_STATS = 7
+EXPONENTIAL_STEPS = 7    # accepted explicit steps with the droplet capture integrated exactly
+N_STATS = 8
 
 # ---- outcome of one attempted step -------------------------------------------------------
 ACCEPT = 0
