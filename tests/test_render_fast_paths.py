@@ -119,3 +119,24 @@ def test_one_process_when_asked(monkeypatch, tmp_path):
     monkeypatch.setenv("PBE_CFD_DRAW_PROCESSES", "1")
     tasks = [(_write, (tmp_path / f"{k}.txt", str(k)), {}, 1.0) for k in range(5)]
     assert {r[1] for r in figure_pool.run_tasks(tasks)} == {os.getpid()}
+
+
+def test_started_drawing_processes_draw_every_task_and_lose_none(tmp_path):
+    if not figure_pool._two_processes_allowed():
+        pytest.skip("one core or no fork: drawing stays in this process")
+    parent = os.getpid()
+    try:
+        assert figure_pool.start_processes() and figure_pool.drawing_elsewhere()
+        tasks = [(_write, (tmp_path / f"{k}.txt", str(k)), {}, 1.0 + k) for k in range(6)]
+        results = figure_pool.run_tasks(tasks)
+        assert [r[0] for r in results] == [str(tmp_path / f"{k}.txt") for k in range(6)]
+        assert parent not in {r[1] for r in results}          # drawn by the started ones
+        with pytest.raises(ValueError, match="bad"):
+            figure_pool.run_tasks([(_fail, ("bad",), {}, 1.0)])
+        dying = [(_write, (tmp_path / f"d{k}.txt", str(k)), {"die_in_child_of": parent}, 1.0)
+                 for k in range(4)]
+        figure_pool.run_tasks(dying)                           # the pool breaks ...
+        assert all((tmp_path / f"d{k}.txt").read_text() == str(k) for k in range(4))
+    finally:
+        figure_pool.stop_processes()
+    assert not figure_pool.drawing_elsewhere()

@@ -126,6 +126,7 @@ def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
         log = pos.size > 1 and pos.max() / pos.min() > 100 and np.all(ys[np.isfinite(ys)] >= 0)
         if log:
             ax.set_yscale("log")
+            ax.minorticks_off()      # decades and the grid: minor ticks cost a third of the draw
             name += " (log scale)"
             ax.set_ylabel(f"[{unit}]", fontsize=9)
         else:

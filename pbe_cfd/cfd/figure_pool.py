@@ -8,12 +8,18 @@ milliseconds. The child only draws (no numba, no OpenMP), which keeps the fork s
 solver's threads have run. Without fork, with one core, with few tasks, or with
 ``PBE_CFD_DRAW_PROCESSES=1``, everything is drawn here in order. A task the child could not
 draw is drawn again here, so a failure in the child never loses a picture silently.
+
+A command that knows early that it will draw (``pbe-cfd couple``) calls ``start_processes``
+first: two drawing processes are forked before the solver starts any thread and import
+matplotlib and meshio while the run computes; ``run_tasks`` then hands every task to them.
 """
 from __future__ import annotations
 
+import atexit
 import multiprocessing as mp
 import os
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable, Sequence
 
 #: A task: (function, positional args, keyword args, relative cost).
@@ -24,12 +30,61 @@ def _run_all(tasks: Sequence[Task]) -> list:
     return [fn(*args, **kwargs) for fn, args, kwargs, _ in tasks]
 
 
-def _use_child(tasks: Sequence[Task]) -> bool:
+def _two_processes_allowed() -> bool:
     if os.environ.get("PBE_CFD_DRAW_PROCESSES", "").strip() == "1":
         return False
-    if len(os.sched_getaffinity(0)) < 2 or len(tasks) < 3:
-        return False
-    return "fork" in mp.get_all_start_methods()
+    return len(os.sched_getaffinity(0)) >= 2 and "fork" in mp.get_all_start_methods()
+
+
+def _use_child(tasks: Sequence[Task]) -> bool:
+    return len(tasks) >= 3 and _two_processes_allowed()
+
+
+_POOL: ProcessPoolExecutor | None = None
+
+
+def _preload():
+    import matplotlib.backends.backend_agg  # noqa: F401
+    import matplotlib.figure  # noqa: F401
+    import meshio  # noqa: F401
+
+
+def start_processes() -> bool:
+    """Fork two drawing processes now (before any solver thread exists) that import the
+    drawing libraries in the background; False where drawing stays in this process."""
+    global _POOL
+    if _POOL is not None or not _two_processes_allowed():
+        return _POOL is not None
+    _POOL = ProcessPoolExecutor(max_workers=2, mp_context=mp.get_context("fork"),
+                                initializer=_preload)
+    _POOL.submit(int)                    # forks both processes now
+    atexit.register(stop_processes)
+    return True
+
+
+def drawing_elsewhere() -> bool:
+    """True once ``start_processes`` has forked the drawing processes."""
+    return _POOL is not None
+
+
+def stop_processes() -> None:
+    """Let the drawing processes end (nothing to do if none were started)."""
+    global _POOL
+    if _POOL is not None:
+        _POOL.shutdown(wait=True, cancel_futures=True)
+        _POOL = None
+
+
+def _run_in_pool(pool, tasks: Sequence[Task]) -> list:
+    order = sorted(range(len(tasks)), key=lambda k: -tasks[k][3])   # costliest first
+    futures = {i: pool.submit(_run_all, [tasks[i]]) for i in order}
+    results: list = [None] * len(tasks)
+    for i in range(len(tasks)):
+        try:
+            results[i] = futures[i].result()[0]
+        except BrokenProcessPool:        # a drawing process died: draw the task here
+            results[i] = _run_all([tasks[i]])[0]
+    return results
 
 
 def split_by_cost(tasks: Sequence[Task]) -> tuple[list[int], list[int]]:
@@ -51,6 +106,8 @@ def run_tasks(tasks: Sequence[Task]) -> list:
     """Run every task and return their results in the order given. Functions and arguments
     must be picklable (module-level functions; arrays, paths, dicts)."""
     tasks = list(tasks)
+    if _POOL is not None:
+        return _run_in_pool(_POOL, tasks)
     if not _use_child(tasks):
         return _run_all(tasks)
     here, child = split_by_cost(tasks)

@@ -420,7 +420,9 @@ def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = Non
             tasks.append((_render_panels, (panels, field, png_dir / f"{field}_sequence.png"),
                           {**kw, "suptitle": f"{info.get('name', '')}: {label}".lstrip(": ")},
                           0.6 + 0.4 * len(panels)))
-    import matplotlib.backends.backend_agg  # noqa: F401 - loaded once, before any fork
+    from .figure_pool import drawing_elsewhere
+    if not drawing_elsewhere():
+        import matplotlib.backends.backend_agg  # noqa: F401 - loaded once, before any fork
     drawn = run_tasks(tasks + list(extra_tasks))[:len(tasks)]
     return [p for d in drawn for p in (d if isinstance(d, list) else [d])]
 
