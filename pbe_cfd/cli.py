@@ -163,14 +163,8 @@ def _fresh_case(scene, mesh: str, overwrite: bool = False):
 
 def couple_command(args):
     """``pbe-cfd couple [SCENE] --out DIR``: the per-cell run over an OpenFOAM bed."""
-    import time
-
     from . import output
-    from .couple import check_foam_fields, run_coupled, write_coupled, write_foam_fields
-    from .domain import load_domain
-    from .executor import SerialExecutor
-    from .progress import Progress
-    from .scene import SceneError, load_scene
+    from .cfd import figure_pool
 
     if args.resume:
         _apply_resume(args)
@@ -180,8 +174,24 @@ def couple_command(args):
         check_store(args.out, args.overwrite)
     phases = {"startup_s": _process_age()}
     if not _cluster_wanted(args):
-        from .cfd.figure_pool import start_processes
-        start_processes()        # the drawing processes load matplotlib while the run computes
+        figure_pool.start_processes()   # they load matplotlib while the run computes
+    try:
+        return _couple(args, out, phases)
+    finally:
+        figure_pool.stop_processes()
+
+
+def _couple(args, out, phases):
+    """The run and its outputs (``couple_command`` after the output directory was checked)."""
+    import time
+
+    from . import output
+    from .couple import check_foam_fields, run_coupled, write_coupled, write_foam_fields
+    from .domain import load_domain
+    from .executor import SerialExecutor
+    from .progress import Progress
+    from .scene import SceneError, load_scene
+
     t_read = time.perf_counter()
     scene = load_scene(args.scene or DEFAULT_COUPLED)
     if scene.domain.type != "openfoam":

@@ -151,6 +151,14 @@ def coupled_run(tmp_path_factory):
     return root / "c"
 
 
+def test_couple_leaves_no_drawing_process_behind(coupled_run):
+    """The drawing processes live as long as the command: a caller that goes on (a test, a
+    notebook) must not inherit them."""
+    from pbe_cfd.cfd import figure_pool
+    assert (coupled_run / "png" / "bed_moments.png").stat().st_size > 0
+    assert not figure_pool.drawing_elsewhere()
+
+
 def test_render_draws_the_nearest_written_time_and_says_which(coupled_run, capsys):
     capsys.readouterr()
     assert main(["render", str(coupled_run), "--fields", "M00", "--times", "7"]) == 2

@@ -71,19 +71,32 @@ def stop_processes() -> None:
     """Let the drawing processes end (nothing to do if none were started)."""
     global _POOL
     if _POOL is not None:
-        _POOL.shutdown(wait=True, cancel_futures=True)
-        _POOL = None
+        pool, _POOL = _POOL, None
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _run_in_pool(pool, tasks: Sequence[Task]) -> list:
-    order = sorted(range(len(tasks)), key=lambda k: -tasks[k][3])   # costliest first
-    futures = {i: pool.submit(_run_all, [tasks[i]]) for i in order}
+    """Every task by the started processes, costliest first; a task they could not take or
+    finish because a process died is drawn here (and the broken pool is let go)."""
+    order = sorted(range(len(tasks)), key=lambda k: -tasks[k][3])
+    futures = {}
+    for i in order:
+        try:
+            futures[i] = pool.submit(_run_all, [tasks[i]])
+        except BrokenProcessPool:
+            break
     results: list = [None] * len(tasks)
+    broken = len(futures) < len(tasks)
     for i in range(len(tasks)):
         try:
+            if i not in futures:
+                raise BrokenProcessPool("not submitted")
             results[i] = futures[i].result()[0]
         except BrokenProcessPool:        # a drawing process died: draw the task here
+            broken = True
             results[i] = _run_all([tasks[i]])[0]
+    if broken:
+        stop_processes()
     return results
 
 
