@@ -25,65 +25,33 @@ from ..methods.laguerre_layout import AUX_NSLICE, AUX_NWC, AUX_NWD
 from ..methods.qmom import invert as qmom_invert
 from ..methods.quadrature import wheeler_nodes
 from ..physics import parameters as P
-from ..physics.kernels import kernel_cell_factor
-from ..physics.properties import DIAMETER, N_PROPS
-from ..physics.rates import particle_properties
-from .sweeps import laguerre_contraction_sweep, qmom_kernel_sweep, qmom_node_properties, rhs_sweep
+from ..physics.properties import N_PROPS
+from .sweeps import (laguerre_contraction_sweep, node_property_rows, qmom_kernel_sweep,
+                     qmom_node_properties, rhs_sweep)
 
 
 @nb.njit(cache=True)
-def _wheeler_sweep(states, config, reps, out):
-    n_max = config[P.ORDER]
-    nodes = np.zeros(n_max)
-    weights = np.zeros(n_max)
-    work = np.empty(WORK_SIZE)
-    n = states.shape[0]
-    for c in range(n):
-        for r in range(reps):
-            out[c] += wheeler_nodes(states[(c + 7919 * r) % n], n_max, nodes, weights, work)
-
-
-@nb.njit(cache=True)
-def _invert_sweep(states, config, reps, out):
-    n_max = config[P.ORDER]
-    nodes = np.zeros(n_max)
-    weights = np.zeros(n_max)
-    binder = np.zeros(n_max)
-    work = np.empty(WORK_SIZE)
-    n = states.shape[0]
-    for c in range(n):
-        for r in range(reps):
-            out[c] += qmom_invert(states[(c + 7919 * r) % n], config, nodes, weights, binder,
-                                  work)
-
-
-@nb.njit(cache=True)
-def _properties_sweep(states, cells, params, config, reps, out):
-    """Inversion, then the property rows of the nodes and the droplet and the cell factor, as
-    the RHS computes them."""
+def _qmom_part_sweep(states, cells, params, config, reps, out, part):
+    """The first ``part`` of the QMOM RHS per cell and repetition: 0 the Wheeler recurrence
+    with its eigen-solve, 1 the whole inversion (with the binder solve), 2 the inversion with
+    the property rows and the cell factor."""
     n_max = config[P.ORDER]
     nodes = np.zeros(n_max)
     weights = np.zeros(n_max)
     binder = np.zeros(n_max)
     work = np.empty(WORK_SIZE)
     props = np.zeros((n_max + 1, N_PROPS))
-    scale = params[P.MASS_SCALE]
     n = states.shape[0]
     for c in range(n):
         for r in range(reps):
-            k = qmom_invert(states[(c + 7919 * r) % n], config, nodes, weights, binder, work)
-            num = 0.0
-            den = 0.0
-            for a in range(k):
-                b = min(max(binder[a], 0.0), nodes[a])
-                particle_properties(nodes[a] * scale, b * scale, params, config, props, a)
-                num += weights[a] * nodes[a] * props[a, DIAMETER]
-                den += weights[a] * nodes[a]
-            if config[P.SEPARATE_DROPLETS] == 1:
-                pd = params[P.DROPLET_MASS]
-                particle_properties(pd, pd, params, config, props, n_max)
-            out[c] += kernel_cell_factor(config[P.KERNEL], cells[c, P.ALPHA], cells[c, P.THETA],
-                                         num / den if den > 0.0 else 0.0, params)
+            state = states[(c + 7919 * r) % n]
+            if part == 0:
+                out[c] += wheeler_nodes(state, n_max, nodes, weights, work)
+            elif part == 1:
+                out[c] += qmom_invert(state, config, nodes, weights, binder, work)
+            else:
+                out[c] += node_property_rows(state, cells[c], params, config, nodes, weights,
+                                             binder, work, props)[1]
 
 
 @nb.njit(cache=True)
@@ -133,9 +101,9 @@ def rhs_breakdown(case, cells, states, reps=20, repeats=5) -> dict:
     full = _median_ns(lambda k: rhs_sweep(states, cells, aux, params, config,
                                           1 if k == 1 else reps, out), evals, repeats)
     if case.method == "qmom":
-        wheeler = timed(lambda r: _wheeler_sweep(states, config, r, acc))
-        inversion = timed(lambda r: _invert_sweep(states, config, r, acc))
-        props = timed(lambda r: _properties_sweep(states, cells, params, config, r, acc))
+        wheeler = timed(lambda r: _qmom_part_sweep(states, cells, params, config, r, acc, 0))
+        inversion = timed(lambda r: _qmom_part_sweep(states, cells, params, config, r, acc, 1))
+        props = timed(lambda r: _qmom_part_sweep(states, cells, params, config, r, acc, 2))
         n_max = int(config[P.ORDER])
         rows = np.zeros((n, n_max + 1, N_PROPS))
         counts = np.zeros(n, dtype=np.int64)

@@ -26,31 +26,35 @@ def rhs_sweep(states, cells, aux, params, config, reps, out):
             method_rhs(states[s], out[c], cells[c], aux, params, config, work)
 
 
+@nb.njit(cache=True)
+def node_property_rows(state, cell, params, config, nodes, weights, binder, work, props):
+    """One cell's quadrature (into nodes, weights, binder), the property rows of its nodes and
+    of the droplet (row n_max) and the kernel's cell factor, as qmom_rhs computes them.
+    Returns (node count, cell factor)."""
+    n_max = config[P.ORDER]
+    n = _qmom_invert(state, config, nodes, weights, binder, work)
+    num = 0.0
+    den = 0.0
+    for a in range(n):
+        b = min(max(binder[a], 0.0), nodes[a])
+        particle_properties(nodes[a] * params[P.MASS_SCALE], b * params[P.MASS_SCALE],
+                            params, config, props, a)
+        num += weights[a] * nodes[a] * props[a, DIAMETER]
+        den += weights[a] * nodes[a]
+    pd = params[P.DROPLET_MASS]
+    particle_properties(pd, pd, params, config, props, n_max)
+    return n, kernel_cell_factor(config[P.KERNEL], cell[P.ALPHA], cell[P.THETA],
+                                 num / den if den > 0 else 0.0, params)
+
+
 @nb.njit(cache=True, parallel=True)
 def qmom_node_properties(states, cells, params, config, props, counts, factors):
-    """Per cell: the quadrature's property rows (nodes, then the droplet in row n_max), the
-    node count and the kernel's cell factor, as qmom_rhs computes them (setup of the
-    kernel-only sweep)."""
-    from_q = config[P.ORDER]
+    """Per cell: ``node_property_rows`` (setup of the kernel-only sweep)."""
+    n_max = config[P.ORDER]
     for c in nb.prange(states.shape[0]):
-        nodes = np.zeros(from_q)
-        weights = np.zeros(from_q)
-        binder = np.zeros(from_q)
-        work = np.empty(WORK_SIZE)
-        n = _qmom_invert(states[c], config, nodes, weights, binder, work)
-        counts[c] = n
-        num = 0.0
-        den = 0.0
-        for a in range(n):
-            b = min(max(binder[a], 0.0), nodes[a])
-            particle_properties(nodes[a] * params[P.MASS_SCALE], b * params[P.MASS_SCALE],
-                                params, config, props[c], a)
-            num += weights[a] * nodes[a] * props[c][a, DIAMETER]
-            den += weights[a] * nodes[a]
-        pd = params[P.DROPLET_MASS]
-        particle_properties(pd, pd, params, config, props[c], from_q)
-        factors[c] = kernel_cell_factor(config[P.KERNEL], cells[c, P.ALPHA], cells[c, P.THETA],
-                                        num / den if den > 0 else 0.0, params)
+        counts[c], factors[c] = node_property_rows(
+            states[c], cells[c], params, config, np.zeros(n_max), np.zeros(n_max),
+            np.zeros(n_max), np.empty(WORK_SIZE), props[c])
 
 
 @nb.njit(cache=True, parallel=True)
