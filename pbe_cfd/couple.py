@@ -215,7 +215,8 @@ def write_coupled(out_dir: Path, scene, domain: Domain, result: CoupledResult,
 FOAM_UNITS = {"M00": "[0 -3 0 0 0 0 0]", "M10": "[1 -3 0 0 0 0 0]", "M01": "[1 -3 0 0 0 0 0]",
               "M20": "[2 -3 0 0 0 0 0]", "M11": "[2 -3 0 0 0 0 0]", "M02": "[2 -3 0 0 0 0 0]",
               "d32_m": "[0 1 0 0 0 0 0]", "d43_m": "[0 1 0 0 0 0 0]",
-              "droplet_number_density": "[0 -3 0 0 0 0 0]"}
+              "droplet_number_density": "[0 -3 0 0 0 0 0]",
+              "active": "[0 0 0 0 0 0 0]"}     # 1 in a cell holding granules, 0 elsewhere
 
 
 def check_foam_fields(scene, domain: Domain, overwrite: bool = False):

@@ -1,13 +1,18 @@
 """VTK time series of cell fields: one ``.vtu`` per output time plus a ``.pvd`` collection.
 
 Readable by meshio, pyvista and ParaView. Field values are SI and named by their unit where it
-is not obvious (``M00`` per m3, ``d43_m``, ``Theta`` in m2/s2, ...). The ``.pvd`` is rewritten
-atomically after every step, so a run that stops early still leaves a valid series.
+is not obvious (``M00`` per m3, ``d43_m``, ``Theta`` in m2/s2, ...). Each ``.vtu`` carries its
+time as FieldData: ``TimeValue`` (the process time [s], which ParaView reads as the file's
+time) and, where the mesh came from a CFD case, ``CFDTime`` (the time [s] of the CFD fields).
+The ``.pvd`` is rewritten atomically after every step, so a run that stops early still leaves a
+valid series. meshio reads each ``.vtu`` but has no ``.pvd`` reader: ``read_series`` gives the
+(time, meshio.Mesh) pairs of a collection.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from pathlib import Path
@@ -15,7 +20,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 
-__all__ = ["VtkSeries", "read_pvd"]
+__all__ = ["VtkSeries", "read_pvd", "read_series", "time_values"]
 
 
 def _mesh_parts(mesh_like) -> tuple[np.ndarray, list[tuple[str, np.ndarray]], np.ndarray]:
@@ -60,6 +65,8 @@ class VtkSeries:
         self.points, self.cells, self.cell_id = _mesh_parts(mesh_like)
         self.n_cells = int(self.cell_id.max()) + 1 if len(self.cell_id) else 0
         self.static_fields = dict(static_fields or {})
+        cfd_time = float(getattr(mesh_like, "time", np.nan))   # CellData: the CFD time [s]
+        self.cfd_time_s = cfd_time if np.isfinite(cfd_time) else None
         self.entries: list[tuple[float, str]] = []
         self.closed = False
 
@@ -98,6 +105,10 @@ class VtkSeries:
         path = self.out_dir / fname
         tmp = path.with_name(path.name + ".tmp")
         meshio.write(tmp, mesh, file_format="vtu", compression="zlib")
+        times = {"TimeValue": time_s}
+        if self.cfd_time_s is not None:
+            times["CFDTime"] = self.cfd_time_s
+        _insert_field_data(tmp, times)
         os.replace(tmp, path)
         self.entries.append((time_s, fname))
         self._write_pvd()
@@ -126,6 +137,37 @@ class VtkSeries:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _insert_field_data(path: Path, values: Mapping[str, float]) -> None:
+    """Put one-value FieldData arrays into a .vtu meshio wrote (its writer leaves them out)."""
+    arrays = "".join(f'<DataArray type="Float64" Name="{k}" NumberOfTuples="1" '
+                     f'format="ascii">\n{float(v)!r}\n</DataArray>\n' for k, v in values.items())
+    text = path.read_bytes()
+    head = b"<UnstructuredGrid>\n"
+    at = text.index(head) + len(head)
+    path.write_bytes(text[:at] + f"<FieldData>\n{arrays}</FieldData>\n".encode() + text[at:])
+
+
+#: FieldData of a .vtu written by VtkSeries: name="..." then the value, at the file's head
+_FIELD_VALUE = re.compile(rb'<DataArray type="Float64" Name="(\w+)" NumberOfTuples="1" '
+                          rb'format="ascii">\s*([^<\s]+)\s*</DataArray>')
+
+
+def time_values(vtu_path: str | os.PathLike) -> dict[str, float]:
+    """The FieldData times of a .vtu VtkSeries wrote: {"TimeValue": process time [s],
+    "CFDTime": CFD field time [s] (where known)}; {} for a file without them."""
+    with open(vtu_path, "rb") as fh:
+        head = fh.read(4096)
+    end = head.find(b"</FieldData>")
+    return ({k.decode(): float(v) for k, v in _FIELD_VALUE.findall(head[:end])}
+            if end >= 0 else {})
+
+
+def read_series(pvd_path: str | os.PathLike) -> list[tuple[float, meshio.Mesh]]:
+    """Every time of a .pvd collection read with meshio: [(time [s], meshio.Mesh)], in file
+    order (meshio itself reads the .vtu files, not the .pvd)."""
+    return [(t, meshio.read(p)) for t, p in read_pvd(pvd_path)]
 
 
 def read_pvd(pvd_path: str | os.PathLike) -> list[tuple[float, Path]]:
