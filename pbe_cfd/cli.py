@@ -252,7 +252,8 @@ def case_command(args):
 def render_command(args):
     """``pbe-cfd render DIR``: PNGs of a coupled run's VTK series."""
     from .results import render_run
-    for p in render_run(args.dir, args.fields, args.times, args.overwrite):
+    for p in render_run(args.dir, args.fields, args.times, args.overwrite,
+                        section=args.section):
         print(p)
     return 0
 
@@ -394,7 +395,10 @@ def build_parser():
                    help="fields to draw (default: alpha, Theta, M00, d43_m, binder_fraction)")
     p.add_argument("--times", nargs="+", type=float, default=None,
                    help="output times in s (nearest written; default: first and last)")
-    _add_overwrite(p, "PNGs an earlier pbe-cfd run or render wrote")
+    p.add_argument("--section", default=None, metavar="AXIS=POSITION",
+                   help="the plane drawn, e.g. z=0.01 (m; default: the mid-plane normal to "
+                        "the thinnest extent)")
+    _add_overwrite(p, "PNGs an earlier pbe-cfd run or render wrote (others are skipped)")
     p.set_defaults(func=render_command)
 
     p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")

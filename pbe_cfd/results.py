@@ -75,12 +75,14 @@ def compare_runs(results, out, overwrite: bool = False, say=print) -> int:
 
 
 def render_run(directory, fields=None, times=None, overwrite: bool = False,
-               note=None) -> list[Path]:
+               note=None, section: str | None = None) -> list[Path]:
     """``pbe-cfd render DIR``: PNGs of the VTK series of a coupled run into ``DIR/png/`` (and
     ``bed_moments.png`` when DIR holds bed_moments.csv). Times that are not written are drawn
-    at the nearest written time; ``note`` (default: stderr) is told which. A PNG an earlier run
-    or render wrote is replaced only with ``overwrite``; other files never. Returns the
-    PNGs."""
+    at the nearest written time; ``note`` (default: stderr) is told which. Pictures drawn
+    already are skipped (``note`` says which, in one line) and redrawn only with
+    ``overwrite``; a request of nothing but those is refused; other files are never replaced.
+    ``section``: "AXIS=POSITION" (m) of the plane drawn (default the mid-plane). Returns the
+    PNGs written."""
     from .cfd import render
 
     say = note or (lambda text: print(f"render: {text}", file=sys.stderr))
@@ -90,7 +92,8 @@ def render_run(directory, fields=None, times=None, overwrite: bool = False,
                          "`pbe-cfd couple`)")
     vtk_dir = d / "vtk" if (d / "vtk").is_dir() else d
     try:
-        plan = render.plan_render(vtk_dir, fields, times)
+        plane = render.parse_plane(section) if section is not None else None
+        plan = render.plan_render(vtk_dir, fields, times, plane)
     except (FileNotFoundError, ValueError) as exc:
         raise UsageError(str(exc)) from None
     pvd, entries, idx, fields, notes = plan
@@ -104,8 +107,15 @@ def render_run(directory, fields=None, times=None, overwrite: bool = False,
     bed = (d / "bed_moments.csv").is_file() and (
         overwrite or not (root / (prefix + "bed_moments.png")).exists())
     sequence = times is not None and len(idx) > 1
-    names = [prefix + n for n in render.png_names(fields, [entries[i][0] for i in idx],
-                                                  sequence)]
+    wanted = render.png_names(fields, [entries[i][0] for i in idx], sequence)
+    drawn = [] if overwrite else [n for n in wanted if (root / (prefix + n)).exists()]
+    names = [prefix + n for n in wanted if n not in drawn]
+    if drawn and not names:
+        raise UsageError(f"every picture asked for is drawn already in {root} "
+                         f"({_short_list(drawn)}); --overwrite redraws them")
+    if drawn:
+        say(f"skipped {len(drawn)} picture(s) drawn already ({_short_list(drawn)}); "
+            "--overwrite redraws them")
     if bed:
         names.append(prefix + "bed_moments.png")
     output.prepare_directory(root, overwrite, flag="render", names=names, allow_cwd=True)
@@ -114,5 +124,10 @@ def render_run(directory, fields=None, times=None, overwrite: bool = False,
         extra = [(render.plot_bed_moments, (d / "bed_moments.csv", png_dir / "bed_moments.png"),
                   {}, render.BED_MOMENTS_COST)] if bed else []
         render.render_series(vtk_dir, png_dir=png_dir, notes=[], plan=plan, sequence=sequence,
-                             extra_tasks=extra)
+                             extra_tasks=extra, skip=drawn, plane=plane)
     return [root / n for n in names]
+
+
+def _short_list(names, first: int = 4) -> str:
+    more = len(names) - first
+    return ", ".join(names[:first]) + (f" and {more} more" if more > 0 else "")

@@ -185,10 +185,15 @@ def test_field_figure_axes_in_metres_log_bar_named_and_no_empty_canvas(series_di
     assert bed.get_aspect() == 1.0                 # drawn to scale
     assert bar.get_ylabel() == "M20 [kg2/m3], log scale"
     lin = field_figure([(polys, data, "d43")], "d43_m")
-    assert lin.axes[1].get_ylabel() == "d43 [1e-4 m]"     # the power of ten in the unit
+    assert lin.axes[1].get_ylabel() == "d43 [um]"          # diameters in um in pictures
     lin.canvas.draw()
-    ticks = [float(t.get_text()) for t in lin.axes[1].get_yticklabels() if t.get_text()]
-    assert ticks and all(1.0 <= v <= 10.0 for v in ticks), ticks
+    lo, hi = lin.axes[1].get_ylim()
+    ticks = [float(t.get_text()) for t in lin.axes[1].get_yticklabels()
+             if t.get_text() and lo <= t.get_position()[1] <= hi]
+    # the bar in um spans the bed's d43 (round-off of the float32 VTK values: 1e-6)
+    bed_d43 = np.asarray(data["d43_m"])[np.asarray(data["active"]) > 0] * 1e6
+    assert (lo, hi) == pytest.approx((bed_d43.min(), bed_d43.max()), rel=1e-6, abs=0)
+    assert len(ticks) >= 3 and all(lo <= v <= hi for v in ticks), (ticks, lo, hi)
     # no half-empty canvas: no white band wider than 10 % of the picture
     import matplotlib.image as mpimg
     for png in render_series(series_dir, times=[0.0, 600.0], png_dir=tmp_path):
@@ -213,7 +218,7 @@ def test_plot_bed_moments(tmp_path):
     var, colours = image_stats(png)
     assert var > 0 and colours > 10
     # a real title; each panel in the units of the VTK cell field of the same name
-    from pbe_cfd.cfd.render import bed_moments_figure, field_label
+    from pbe_cfd.cfd.render import bed_moments_figure, picture_scale
     fig = bed_moments_figure(csv, title="my-bed")
     assert fig._suptitle.get_text().startswith("my-bed: bed averages")
     assert "per m3 of bed" in fig._suptitle.get_text()
@@ -222,14 +227,15 @@ def test_plot_bed_moments(tmp_path):
         for line in ax.get_lines():
             name = {"d43": "d43_m"}.get(line.get_label(), line.get_label())
             if name in cols:
-                unit = field_label(name).split("[")[1].rstrip("]")
-                # the unit of the VTK field, a power of ten in front where the axis needs one
+                unit = picture_scale(name)[1]
+                # the unit of the VTK field (diameters in um), a power of ten in front where
+                # the axis needs one
                 assert re.fullmatch(r"\[(1e-?\d+ )?" + re.escape(unit) + r"\]",
                                     ax.get_ylabel()), (name, ax.get_ylabel())
                 seen.add(name)
     assert seen == set(cols) - {"time_s"}
     d43_axis = [ax for ax in fig.axes if "d43" in [ln.get_label() for ln in ax.get_lines()]][0]
-    assert d43_axis.get_ylabel() == "[1e-4 m]"
+    assert d43_axis.get_ylabel() == "[um]"
     bad = tmp_path / "bad.csv"
     bad.write_text("t,M00\n0,1\n")
     with pytest.raises(ValueError, match="first column must be 'time_s'"):

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .figure_parts import _LABELS, _figure, _png_meta, _run_info, field_label
+from .figure_parts import (PICTURE_UNITS, _LABELS, _figure, _png_meta, _run_info,
+                           distinct_formatter, field_label)
 
 def _read_csv(csv_path: Path) -> tuple[list[str], np.ndarray]:
     with open(csv_path, newline="") as fh:
@@ -63,15 +64,15 @@ def _bed_panels(header) -> list:
 
 
 def _scaled_axis(ax, unit: str):
-    """A power of ten of a linear axis goes into its unit ("[1e-4 m]"), not above the axis."""
+    """A power of ten of a linear axis goes into its unit ("[1e10 1/m3]"), not above the axis;
+    tick labels keep the digits they need to differ."""
     lo, hi = ax.get_ylim()
     big = max(abs(lo), abs(hi))
     exp = int(np.floor(np.log10(big))) if big > 0 else 0
     if -3 < exp < 4:
         ax.set_ylabel(f"[{unit}]", fontsize=9)
         return
-    from matplotlib.ticker import FuncFormatter
-    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v / 10.0 ** exp:.4g}"))
+    ax.yaxis.set_major_formatter(distinct_formatter(exp))
     ax.set_ylabel(f"[1e{exp} {unit}]" if unit != "-" else f"[1e{exp}]", fontsize=9)
 
 
@@ -102,7 +103,7 @@ def _fixed_margins(fig, width, height, nrow, ncol, left=0.8, right=0.2, top=0.75
 def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
     """The figure of ``bed_moments.csv``: one panel per quantity, in the units of the VTK cell
     fields (moments per m3 of bed: the bed average is the volume-weighted mean of the cells'
-    values), diameters in m, time in s, log axes named as such. ``title`` defaults to the
+    values), diameters in um, time in s, log axes named as such. ``title`` defaults to the
     scene name in the run's summary.json."""
     csv_path = Path(csv_path)
     header, data = _read_csv(csv_path)
@@ -118,10 +119,11 @@ def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
     axes = fig.subplots(nrow, ncol, squeeze=False)
     _fixed_margins(fig, width, height, nrow, ncol)
     for ax, (name, cols, unit) in zip(axes.ravel(), panels):
+        factor, unit = PICTURE_UNITS.get(unit, (1.0, unit))     # diameters in um
         for c in cols:
-            y = col[c]
+            y = col[c] * factor
             ax.plot(t, y, lw=1.6, label=_LABELS.get(c, (c,))[0] if c.endswith("_m") else c)
-        ys = np.concatenate([col[c] for c in cols])
+        ys = np.concatenate([col[c] * factor for c in cols])
         pos = ys[np.isfinite(ys) & (ys > 0)]
         log = pos.size > 1 and pos.max() / pos.min() > 100 and np.all(ys[np.isfinite(ys)] >= 0)
         if log:
@@ -143,6 +145,6 @@ def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
         info = _run_info(csv_path.parent)
         title = info.get("name")
     head = f"{title}: " if title else ""
-    fig.suptitle(f"{head}bed averages (per m3 of bed, the units of the VTK cell fields; "
-                 "time in s)", fontsize=10)
+    fig.suptitle(f"{head}bed averages (per m3 of bed, the SI units of the VTK cell fields "
+                 "but diameters in um; time in s)", fontsize=10)
     return fig

@@ -1,9 +1,12 @@
 """Pictures of a coupled run: cell fields of the VTK series and the bed-averaged moments.
 
 ``render_series(out_dir, fields, times)`` draws each cell field on the mid-plane section of
-the bed (the pseudo-2-D fluid bed seen along its thin axis), one PNG per (field, time) and, for
-several times, one sequence figure sharing one colour bar. Axes are in m and equal in scale;
-the colour bar names the field, its SI unit and, where used, the log scale. Cells holding no
+the bed (the pseudo-2-D fluid bed seen along its thin axis, or a plane ``section`` names), one
+PNG per (field, time) and, for several times, one sequence figure sharing one colour bar. Axes
+are in m and equal in scale; the colour bar names the field, its unit (SI; diameters in um)
+and, where used, the log scale, with distinct tick labels; a 0/1 flag (``active``,
+``spray_zone``) gets two colours and two labels. The CFD input fields (alpha, Theta) are titled
+with the time of the CFD fields, not the process time. Cells holding no
 granules (alpha below the scene's alpha_min: the freeboard) are drawn in one light grey in
 every field, so an empty cell never looks like a dry or small one.
 ``plot_bed_moments(csv_path, png_path)`` plots ``bed_moments.csv`` in the VTK's units.
@@ -24,8 +27,9 @@ import numpy as np
 
 from .bed_moments import (BED_MOMENTS_COST, BED_PANELS, bed_moments_figure,  # noqa: F401
                           plot_bed_moments)  # (re-exported: part of this module's API)
-from .figure_parts import _LABELS, _figure, _png_meta, _run_info, field_label  # noqa: F401
-from .section import read_section, section  # noqa: F401 - section: part of this module's API
+from .figure_parts import (_LABELS, FLAG_FIELDS, _figure, _png_meta, _run_info,  # noqa: F401
+                           distinct_formatter, field_label, picture_label, picture_scale)
+from .section import parse_plane, read_section, section  # noqa: F401 - part of the API
 
 __all__ = ["render_series", "render_mesh_field", "field_figure", "plot_bed_moments",
            "bed_moments_figure",
@@ -127,15 +131,45 @@ def _empty_mask(data: dict) -> np.ndarray | None:
 
 
 def _values(data: dict, field: str) -> np.ndarray:
+    """The cell values of ``field`` in the picture's unit (``picture_scale``: um for m)."""
     if field not in data:
         raise KeyError(field)
     v = np.asarray(data[field], dtype=float)
-    return np.linalg.norm(v, axis=1) if v.ndim > 1 else v
+    v = np.linalg.norm(v, axis=1) if v.ndim > 1 else v
+    return v * picture_scale(field)[0]
+
+
+def _is_flag(field: str) -> bool:
+    return field in FLAG_FIELDS
+
+
+def _field_empty(data: dict, field: str) -> np.ndarray | None:
+    """Cells drawn as holding no granules in ``field``: none for a flag, whose 0 is drawn in
+    its own colour."""
+    return None if _is_flag(field) else _empty_mask(data)
+
+
+#: Fields the CFD run computed (the inputs of the population balance), not this run.
+def is_cfd_field(field: str) -> bool:
+    """True for the CFD input fields (alpha, Theta and their OpenFOAM names)."""
+    return field.split(".")[0] in ("alpha", "Theta")
+
+
+def panel_title(field: str, time_s: float, cfd_time_s: float | None) -> str:
+    """The title of one field's picture at process time ``time_s`` [s]: a CFD input field
+    says the time of the CFD fields [s] instead ("alpha (CFD, t = 0.5 s)")."""
+    label = picture_label(field).split(" [")[0]
+    if is_cfd_field(field):
+        return (f"{label} (CFD, t = {cfd_time_s:g} s)" if cfd_time_s is not None
+                else f"{label} (CFD input)")
+    return f"{label} at t = {time_s:g} s"
 
 
 # ---------------------------------------------------------------------------- drawing
-def _norm(clim, log_scale):
-    from matplotlib.colors import LogNorm, Normalize
+def _norm(clim, log_scale, flag=False):
+    from matplotlib.colors import BoundaryNorm, LogNorm, Normalize
+    if flag:
+        return BoundaryNorm([-0.5, 0.5, 1.5], 2)
     return LogNorm(*clim) if log_scale else Normalize(*clim)
 
 
@@ -191,18 +225,25 @@ def _layout(polys, panels: int, head_lines: int):
 
 def _colour_bar(fig, mappable, rect, field, log_scale, below):
     cax = fig.add_axes(rect)
+    if _is_flag(field):
+        cb = fig.colorbar(mappable, cax=cax, ticks=[0, 1])
+        cb.ax.set_yticklabels(["0 no", "1 yes"])
+        cb.set_label(field_label(field).split(" [")[0], fontsize=9)
+        cb.ax.tick_params(labelsize=8)
+        return cb
     cb = fig.colorbar(mappable, cax=cax, extend="min" if below else "neither")
-    label = field_label(field)
+    label = picture_label(field)
     if log_scale:
         label += ", log scale"
     else:
-        # a power of ten goes into the unit ("d43 [1e-4 m]"), not above the bar
+        # a power of ten goes into the unit ("M00 [1e10 1/m3]"), not above the bar; the
+        # tick labels keep as many digits as they need to differ
         big = max(abs(mappable.norm.vmin), abs(mappable.norm.vmax))
         exp = int(np.floor(np.log10(big))) if big > 0 else 0
-        if exp <= -3 or exp >= 4:
-            from matplotlib.ticker import FuncFormatter
-            cb.formatter = FuncFormatter(lambda v, _: f"{v / 10.0 ** exp:.3g}")
-            cb.update_ticks()
+        exp = exp if exp <= -3 or exp >= 4 else 0
+        cb.formatter = distinct_formatter(exp)
+        cb.update_ticks()
+        if exp:
             name, unit = label.rsplit(" [", 1)
             label = f"{name} [1e{exp} {unit}" if unit != "-]" else f"{name} [1e{exp}]"
     cb.set_label(label, fontsize=9)
@@ -274,7 +315,7 @@ def _refill(fig, panels, field) -> bool:
     if state is None or len(panels) != len(state["collections"]):
         return False
     values = [_values(d, field) for _, d, _ in panels]
-    empties = [_empty_mask(d) for _, d, _ in panels]
+    empties = [_field_empty(d, field) for _, d, _ in panels]
     if _marks(values, empties, state["clim"]) != state["marks"]:
         return False
     if any(not np.array_equal(_stacked(polys), old)
@@ -294,14 +335,18 @@ def field_figure(panels, field, *, clim=None, log_scale=None, cmap="viridis", al
     named in its label), axes in m drawn to scale, empty cells in EMPTY_COLOUR."""
     import matplotlib
     values = [_values(d, field) for _, d, _ in panels]
-    empties = [_empty_mask(d) for _, d, _ in panels]
+    empties = [_field_empty(d, field) for _, d, _ in panels]
     if clim is None or log_scale is None:
         sel = [v[~e] if e is not None else v for v, e in zip(values, empties)]
         lo, hi, lg = _colour_limits(sel, field)
         clim = clim or (lo, hi)
         log_scale = lg if log_scale is None else log_scale
-    norm = _norm(clim, log_scale)
-    cm = matplotlib.colormaps[cmap].with_extremes(bad=EMPTY_COLOUR)
+    norm = _norm(clim, log_scale, _is_flag(field))
+    cm = matplotlib.colormaps[cmap]
+    if _is_flag(field):                    # two colours: the ends of the colour map
+        from matplotlib.colors import ListedColormap
+        cm = ListedColormap([cm(0.15), cm(0.85)], name=f"{cmap}_flag")
+    cm = cm.with_extremes(bad=EMPTY_COLOUR)
     head = "\n".join(x for x in (suptitle, note) if x)
     size, rects, bar_rect = _layout(panels[0][0], len(panels), head.count("\n") + 1 if head else 0)
     fig = _figure(figsize=size)
@@ -341,9 +386,10 @@ def png_names(fields: Sequence[str], times: Sequence[float], sequence: bool = Fa
 
 
 def plan_render(out_dir, fields: Sequence[str] | None = None,
-                times: Sequence[float] | None = None):
-    """What ``render_series`` would draw: (pvd, entries, chosen indices, fields, notes).
-    Raises FileNotFoundError / ValueError with a message for the user."""
+                times: Sequence[float] | None = None, plane: tuple[str, float] | None = None):
+    """What ``render_series`` would draw: (pvd, entries, chosen indices, fields, notes);
+    ``plane`` (axis, position [m]) is checked against the mesh. Raises FileNotFoundError /
+    ValueError with a message for the user."""
     from pbe_cfd.cfd.vtk import read_pvd
 
     pvd = _find_pvd(Path(out_dir))
@@ -354,7 +400,7 @@ def plan_render(out_dir, fields: Sequence[str] | None = None,
         raise ValueError("--times: name at least one output time in s")
     if fields is not None and not fields:
         raise ValueError("--fields: name at least one field")
-    have = set(read_section(entries[idx[0]][1])[1])
+    have = set(read_section(entries[idx[0]][1], plane)[1])
     if fields is None:
         fields = [f for f in DEFAULT_FIELDS if f in have]
         if not fields:
@@ -373,7 +419,8 @@ def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = Non
                   times: Sequence[float] | None = None,
                   png_dir: str | os.PathLike | None = None, notes: list | None = None,
                   plan=None, sequence: bool = False, info: dict | None = None,
-                  extra_tasks: Sequence = ()) -> list[Path]:
+                  extra_tasks: Sequence = (), skip: Sequence[str] = (),
+                  plane: tuple[str, float] | None = None) -> list[Path]:
     """Render cell fields of the VTK series in ``out_dir`` (its .pvd) at output times (s).
 
     ``fields``: names to draw (default: those of alpha, Theta, M00, d43_m, binder_fraction
@@ -384,8 +431,11 @@ def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = Non
     ``<field>_sequence.png``: the times side by side on that range. ``plan``: the result of
     ``plan_render`` (else made here); ``info``: {"name", "alpha_min"} (else from summary.json).
     ``extra_tasks``: more figures to draw alongside, as ``figure_pool`` tasks; the pictures are
-    drawn on two cores (``figure_pool.run_tasks``)."""
+    drawn on two cores (``figure_pool.run_tasks``). ``skip``: PNG file names not to draw
+    (drawn already). ``plane``: (axis, position [m]) of the section, e.g. ("z", 0.01); default
+    the mid-plane normal to the thinnest extent."""
     from .figure_pool import run_tasks
+    from .vtk import time_values
 
     pvd, entries, idx, fields, found = plan or plan_render(out_dir, fields, times)
     if notes is None:
@@ -393,30 +443,35 @@ def render_series(out_dir: str | os.PathLike, fields: Sequence[str] | None = Non
             print(f"render: {n}", file=sys.stderr)
     else:
         notes.extend(found)
-    cuts = {i: read_section(entries[i][1]) for i in idx}
+    cuts = {i: read_section(entries[i][1], plane) for i in idx}
+    cfd_time = time_values(entries[idx[0]][1]).get("CFDTime")
     info = info if info is not None else _run_info(pvd.parent, pvd.parent.parent)
     png_dir = Path(png_dir) if png_dir is not None else pvd.parent / "png"
+    skip = set(skip)
     tasks = []
     for field in fields:
         vals = []
         for i in idx:
             _, data, _, _ = cuts[i]
-            v, e = _values(data, field), _empty_mask(data)
+            v, e = _values(data, field), _field_empty(data, field)
             vals.append(v[~e] if e is not None else v)
         lo, hi, lg = _colour_limits(vals, field)
-        label = field_label(field).split(" [")[0]
+        label = panel_title(field, 0.0, cfd_time).split(" at t = ")[0]
         kw = dict(clim=(lo, hi), log_scale=lg, cmap="viridis", alpha_min=info.get("alpha_min"))
         panels, items = [], []
         for i in idx:
             polys, data, axes_names, note = cuts[i]
             t = entries[i][0]
-            panels.append((polys, data, f"t = {t:g} s"))
-            items.append(([(polys, data, f"{label} at t = {t:g} s")],
-                          png_dir / f"{field}_t{t:g}s.png"))
+            panels.append((polys, data, f"process t = {t:g} s" if is_cfd_field(field)
+                           else f"t = {t:g} s"))
+            if f"{field}_t{t:g}s.png" not in skip:
+                items.append(([(polys, data, panel_title(field, t, cfd_time))],
+                              png_dir / f"{field}_t{t:g}s.png"))
         kw.update(axes_names=axes_names, note=note)
-        tasks.append((_render_times, (items, field), {**kw, "suptitle": info.get("name", "")},
-                      0.4 + 0.6 * len(items)))
-        if sequence and len(idx) > 1:
+        if items:
+            tasks.append((_render_times, (items, field),
+                          {**kw, "suptitle": info.get("name", "")}, 0.4 + 0.6 * len(items)))
+        if sequence and len(idx) > 1 and f"{field}_sequence.png" not in skip:
             tasks.append((_render_panels, (panels, field, png_dir / f"{field}_sequence.png"),
                           {**kw, "suptitle": f"{info.get('name', '')}: {label}".lstrip(": ")},
                           0.6 + 0.4 * len(panels)))

@@ -5,7 +5,9 @@ one cell thick along that axis (a 2-D OpenFOAM case: hexahedra and prisms extrud
 layer) is its own section: each cell's polygon is its face in the plane of the layer,
 read with meshio in a few milliseconds. Any other mesh is cut with pyvista (VTK's slice filter).
 Both give (polygons as (k, 2) vertex arrays in m, cell data per polygon, the two in-plane
-axis names, a note saying where the cut is; empty for a one-cell-thick mesh).
+axis names, a note saying where the cut is; empty for a one-cell-thick mesh). A plane named by
+the user (``plane = ("z", 0.01)``: normal to z at z = 0.01 m, ``parse_plane("z=0.01")``) is
+cut with pyvista on any mesh.
 """
 from __future__ import annotations
 
@@ -68,11 +70,37 @@ def thin_section(path: str | os.PathLike):
     return polys, data, (AXIS_NAMES[axes[0]], AXIS_NAMES[axes[1]]), ""
 
 
-def section(mesh):
-    """The mid-plane section of a pyvista mesh normal to its thinnest extent: (polygons as a
-    list of (k, 2) vertex arrays in m, the cut's cell data (name -> values per polygon), the
-    two in-plane axis names, a note saying where the cut is)."""
-    normal, axes, origin = _plane(np.asarray(mesh.bounds, dtype=float).reshape(3, 2))
+def parse_plane(text: str) -> tuple[str, float]:
+    """``"z=0.01"`` -> ("z", 0.01): the axis normal to a section plane and its position [m].
+    Raises ValueError naming the expected form."""
+    axis, sep, value = str(text).replace(" ", "").partition("=")
+    try:
+        pos = float(value)
+    except ValueError:
+        pos = float("nan")
+    if not sep or axis.lower() not in AXIS_NAMES or not np.isfinite(pos):
+        raise ValueError(f"--section {text!r}: expected AXIS=POSITION with AXIS x, y or z and "
+                         "the position in m, e.g. z=0.01")
+    return axis.lower(), pos
+
+
+def section(mesh, plane: tuple[str, float] | None = None):
+    """The section of a pyvista mesh: through ``plane`` = (axis, position [m]) where given,
+    else the mid-plane normal to its thinnest extent. Returns (polygons as a list of (k, 2)
+    vertex arrays in m, the cut's cell data (name -> values per polygon), the two in-plane
+    axis names, a note saying where the cut is). A plane outside the mesh is a ValueError
+    naming the mesh's extent along that axis."""
+    bounds = np.asarray(mesh.bounds, dtype=float).reshape(3, 2)
+    normal, axes, origin = _plane(bounds)
+    if plane is not None:
+        normal = AXIS_NAMES.index(plane[0])
+        axes = [a for a in range(3) if a != normal]
+        lo, hi = bounds[normal]
+        if not lo <= plane[1] <= hi:
+            raise ValueError(f"--section {plane[0]}={plane[1]:g}: outside the mesh, which "
+                             f"spans {plane[0]} = {lo:.4g} to {hi:.4g} m")
+        origin = origin.copy()
+        origin[normal] = plane[1]
     cut = mesh.slice(normal=AXIS_NAMES[normal], origin=origin)
     if cut.n_cells == 0:
         raise ValueError("the mesh has no cells to draw")
@@ -80,14 +108,16 @@ def section(mesh):
     polys = [pts[np.asarray(f)] for f in cut.irregular_faces]
     data = {k: np.asarray(cut.cell_data[k]) for k in cut.cell_data.keys()}
     thin = cut.n_cells == mesh.n_cells          # one cell thick: the section is the mesh
-    note = "" if thin else f"section {AXIS_NAMES[normal]} = {origin[normal]:.3g} m"
+    note = ("" if thin and plane is None
+            else f"section {AXIS_NAMES[normal]} = {origin[normal]:.3g} m")
     return polys, data, (AXIS_NAMES[axes[0]], AXIS_NAMES[axes[1]]), note
 
 
-def read_section(path: str | os.PathLike):
-    """The section of the VTK file at ``path`` (``thin_section`` where it applies, else
-    pyvista's cut). Raises ValueError for a file neither can read."""
-    thin = thin_section(path)
+def read_section(path: str | os.PathLike, plane: tuple[str, float] | None = None):
+    """The section of the VTK file at ``path`` through ``plane`` (``section``; default the
+    mid-plane: ``thin_section`` where it applies, else pyvista's cut). Raises ValueError for a
+    file neither can read."""
+    thin = thin_section(path) if plane is None else None
     if thin is not None:
         return thin
     import warnings
@@ -101,4 +131,4 @@ def read_section(path: str | os.PathLike):
         raise ValueError(f"cannot read {path}: {exc}") from None
     if mesh.n_cells == 0:
         raise ValueError(f"cannot read {path}: no cells in it (not a VTK mesh file?)")
-    return section(mesh)
+    return section(mesh, plane)

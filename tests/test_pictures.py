@@ -1,0 +1,151 @@
+"""Pictures a granulation engineer reads: diameters in um, tick labels that differ, CFD fields
+titled with their CFD time, flags with a two-colour bar, a chosen section of a 3-D bed, and
+render adding only the pictures not drawn yet."""
+from __future__ import annotations
+
+import meshio
+import numpy as np
+import pytest
+from test_data_safety import box, coupled, refused, tree  # noqa: F401 - fixtures
+
+from pbe_cfd.cfd import render
+from pbe_cfd.cfd.section import read_section
+from pbe_cfd.cfd.vtk import VtkSeries
+from pbe_cfd.cli import main
+
+
+def _block(tmp_path, n=4, spacing=(0.1, 0.1, 0.05)):
+    """A 3-D block of (n-1)^3 hexahedra as a meshio mesh; z spans 0 to 3 * 0.05 m."""
+    idx = np.arange(n ** 3).reshape(n, n, n)          # point index [i, j, k] along x, y, z
+    i, j, k = np.meshgrid(np.arange(n), np.arange(n), np.arange(n), indexing="ij")
+    points = np.stack([i, j, k], axis=-1).reshape(-1, 3) * np.asarray(spacing)
+    points = points[np.argsort(idx.ravel())]
+    m = n - 1
+    a, b, c = (g.ravel() for g in np.meshgrid(np.arange(m), np.arange(m), np.arange(m),
+                                                indexing="ij"))
+    hexes = np.stack([idx[a, b, c], idx[a + 1, b, c], idx[a + 1, b + 1, c], idx[a, b + 1, c],
+                      idx[a, b, c + 1], idx[a + 1, b, c + 1], idx[a + 1, b + 1, c + 1],
+                      idx[a, b + 1, c + 1]], axis=1)
+    centres = points[hexes].mean(axis=1)
+    return meshio.Mesh(points, [("hexahedron", hexes)]), centres
+
+
+@pytest.fixture
+def block_series(tmp_path):
+    """A series on a 3-D block: M00 [1/m3] and d43 [m] set from each cell's centre."""
+    mesh, c = _block(tmp_path)
+    out = tmp_path / "block"
+    fields = {"M00": 1e10 * (1 + c[:, 2]), "d43_m": 1e-4 * (1 + c[:, 0]),
+              "active": np.ones(len(c))}
+    with VtkSeries(out, mesh, name="pbe") as s:
+        s.write(0.0, fields)
+        s.write(1.0, fields)
+    return out, c
+
+
+def _bar_labels(fig):
+    fig.canvas.draw()
+    bar = fig.axes[-1]
+    lo, hi = bar.get_ylim()
+    return [(t.get_position()[1], t.get_text()) for t in bar.get_yticklabels()
+            if t.get_text() and lo <= t.get_position()[1] <= hi], bar
+
+
+@pytest.mark.parametrize("field,lo,hi,unit,scale", [
+    ("d43_m", 103.0e-6, 103.9e-6, "d43 [um]", 1e6),          # a narrow size range, in um
+    ("M00", 1.030e10, 1.039e10, "M00 [1e10 1/m3]", 1e-10),    # the power of ten in the unit
+])
+def test_colour_bar_tick_labels_are_distinct_and_true(block_series, field, lo, hi, unit, scale):
+    out, c = block_series
+    polys, data, _, _ = read_section(out / "pbe_00000.vtu")
+    data = dict(data)
+    data[field] = np.linspace(lo, hi, len(polys))
+    fig = render.field_figure([(polys, data, "")], field)
+    labels, bar = _bar_labels(fig)
+    texts = [t for _, t in labels]
+    assert len(texts) >= 3 and len(set(texts)) == len(texts), texts
+    assert bar.get_ylabel() == unit
+    for pos, text in labels:
+        # each label is its tick's value in the bar's unit, to its last printed digit
+        digits = len(text.replace("-", "").replace(".", "").lstrip("0"))
+        last = 10.0 ** (np.floor(np.log10(abs(float(text)))) - digits + 1)
+        assert float(text) == pytest.approx(pos * scale if field == "M00" else pos,
+                                            rel=0, abs=0.5 * last), (text, pos)
+
+
+@pytest.mark.parametrize("field", ["active", "spray_zone"])
+def test_a_flag_gets_two_colours_and_two_labels(block_series, field):
+    out, c = block_series
+    polys, data, _, _ = read_section(out / "pbe_00000.vtu")
+    data = dict(data)
+    data[field] = (np.arange(len(polys)) % 2).astype(float)
+    fig = render.field_figure([(polys, data, "")], field)
+    labels, bar = _bar_labels(fig)
+    assert [t for _, t in labels] == ["0 no", "1 yes"]
+    assert [p for p, _ in labels] == [0.0, 1.0]
+    assert "[SI]" not in bar.get_ylabel() and "[" not in bar.get_ylabel()
+    coll = fig.axes[0].collections[0]
+    colours = {tuple(np.round(rgba, 6)) for rgba in coll.get_facecolors()}
+    assert len(colours) == 2          # 0 and 1, and no cell in the empty-cell grey
+
+
+def test_cfd_fields_are_titled_with_their_cfd_time(monkeypatch, tmp_path):
+    from pbe_cfd.cfd import openfoam as of
+
+    assert render.panel_title("alpha", 60.0, 0.5) == "alpha (CFD, t = 0.5 s)"
+    assert render.panel_title("Theta", 60.0, None) == "Theta (CFD input)"
+    assert render.panel_title("d43_m", 60.0, 0.5) == "d43 at t = 60 s"
+    cells = of.load_snapshot()
+    cells.time = 0.5                       # the CFD time of the fields (s)
+    with VtkSeries(tmp_path / "s", cells, name="pbe",
+                   static_fields={"alpha": cells.alpha, "Theta": cells.theta}) as s:
+        for t in (0.0, 60.0):
+            s.write(t, {"M00": np.ones(cells.n_cells), "active": np.ones(cells.n_cells)})
+    titles = {}
+
+    def record(items, field, **kw):
+        titles[field] = [panels[0][2] for panels, _ in items]
+        return [p for _, p in items]
+    monkeypatch.setattr(render, "_render_times", record)
+    monkeypatch.setenv("PBE_CFD_DRAW_PROCESSES", "1")
+    render.render_series(tmp_path / "s", fields=["alpha", "Theta", "M00"], times=[0, 60],
+                         png_dir=tmp_path / "png")
+    assert titles == {"alpha": ["alpha (CFD, t = 0.5 s)"] * 2,
+                      "Theta": ["Theta (CFD, t = 0.5 s)"] * 2,
+                      "M00": ["M00 at t = 0 s", "M00 at t = 60 s"]}
+
+
+def test_a_chosen_section_of_a_3d_bed(block_series, capsys):
+    out, c = block_series
+    polys, data, axes, note = read_section(out / "pbe_00000.vtu", ("z", 0.02))
+    # z = 0.02 m cuts the first layer (0 to 0.05 m): its 9 cells and their values
+    assert axes == ("x", "y") and note == "section z = 0.02 m" and len(polys) == 9
+    np.testing.assert_allclose(np.sort(data["M00"]), np.full(9, 1e10 * (1 + 0.025)),
+                               rtol=1e-6, atol=0)          # float32 VTK values
+    polys, data, axes, note = read_section(out / "pbe_00000.vtu", ("x", 0.25))
+    assert axes == ("y", "z") and len(polys) == 9
+    np.testing.assert_allclose(data["d43_m"], np.full(9, 1e-4 * 1.25), rtol=1e-6, atol=0)
+    assert main(["render", str(out), "--section", "x=0.25", "--fields", "d43_m"]) == 0
+    assert (out / "png" / "d43_m_t1s.png").is_file()
+    refused(["render", str(out), "--section", "z=0.5", "--overwrite"], capsys,
+            "z=0.5", "outside the mesh", "z = 0 to 0.15 m")
+    refused(["render", str(out), "--section", "q0.5", "--overwrite"], capsys, "AXIS=POSITION")
+
+
+def test_render_draws_the_times_not_drawn_yet_and_names_the_rest(coupled, capsys):
+    png = coupled / "png"
+    before = tree(png)
+    assert {"d43_m_t0s.png", "d43_m_t2s.png"} <= set(before)     # couple drew 0 and 2 s
+    capsys.readouterr()
+    assert main(["render", "c", "--fields", "d43_m", "--times", "0", "1", "2"]) == 0
+    err = [ln for ln in capsys.readouterr().err.splitlines() if "skipped" in ln]
+    assert len(err) == 1 and "d43_m_t0s.png" in err[0] and "d43_m_t2s.png" in err[0]
+    assert "--overwrite" in err[0]
+    after = tree(png)
+    assert "d43_m_t1s.png" in after and "d43_m_sequence.png" in after
+    for name in ("d43_m_t0s.png", "d43_m_t2s.png"):
+        assert after[name] == before[name]                         # not redrawn
+    # nothing new to draw: refused, naming --overwrite; with it, redrawn
+    refused(["render", "c", "--fields", "d43_m", "--times", "0", "2"], capsys, "--overwrite")
+    assert main(["render", "c", "--fields", "d43_m", "--times", "0", "2", "--overwrite"]) == 0
+    assert tree(png)["d43_m_t0s.png"][1] != before["d43_m_t0s.png"][1]     # mtime: redrawn
