@@ -12,12 +12,15 @@ draw is drawn again here, so a failure in the child never loses a picture silent
 A command that knows early that it will draw (``pbe-cfd couple``) calls ``start_processes``
 first: two drawing processes are forked before the solver starts any thread and import
 matplotlib and meshio while the run computes; ``run_tasks`` then hands every task to them.
+The drawing processes ignore Ctrl-C (SIGINT): the command's own process stops and ends them,
+so an interrupted run prints no traceback of theirs.
 """
 from __future__ import annotations
 
 import atexit
 import multiprocessing as mp
 import os
+import signal
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable, Sequence
@@ -43,7 +46,13 @@ def _use_child(tasks: Sequence[Task]) -> bool:
 _POOL: ProcessPoolExecutor | None = None
 
 
+def _ignore_interrupt():
+    """In a drawing process: Ctrl-C is for the command's own process, which ends this one."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _preload():
+    _ignore_interrupt()
     import matplotlib.backends.backend_agg  # noqa: F401
     import matplotlib.figure  # noqa: F401
     import meshio  # noqa: F401
@@ -125,7 +134,8 @@ def run_tasks(tasks: Sequence[Task]) -> list:
         return _run_all(tasks)
     here, child = split_by_cost(tasks)
     results: list = [None] * len(tasks)
-    with ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("fork")) as pool:
+    with ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("fork"),
+                             initializer=_ignore_interrupt) as pool:
         future = pool.submit(_run_all, [tasks[i] for i in child])
         for i, value in zip(here, _run_all([tasks[i] for i in here])):
             results[i] = value
