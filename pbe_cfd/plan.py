@@ -1,5 +1,15 @@
-"""``pbe-cfd plan``: what a scene will compute, and what it leaves out, without running it."""
+"""``pbe-cfd plan``: what a scene will compute, and what it leaves out, without running it.
+
+For a coupled scene it also reads the CFD case: the cells, the active and spray cells and the
+criterion that removed the others, the fields found (time-averaged or instantaneous), the
+averaging window and the CFD time. Read-only: it opens a snapshot or a case whose converted
+fields already exist, and writes nothing anywhere."""
 from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
 
 from . import model
 from .methods.registry import method_of
@@ -19,6 +29,7 @@ def describe_plan(scene) -> str:
     else:
         lines.append(f"  domain: OpenFOAM case {dom.case} at time {dom.time}; cells with "
                      f"alpha >= {dom.alpha_min:g} solved, the rest left empty")
+        lines.extend(case_lines(scene))
     coords = "p (granule mass) and b (binder mass)" if scene.bivariate else "p (granule mass) only"
     lines.append(f"  coordinates: {coords}")
     left_out = []
@@ -103,3 +114,105 @@ def _breakage_lines(scene, brk):
                  "proportion to mass" + ("; free droplets never break"
                                          if scene.separate_droplets else ""))
     return lines
+
+
+
+def _case_dir(scene) -> Path:
+    """The case directory named by ``[domain] case``, relative to the scene file."""
+    path = Path(scene.domain.case)
+    if not path.is_absolute() and scene.source:
+        path = Path(scene.source).parent / path
+    return path
+
+
+def unconverted_reason(scene) -> str | None:
+    """Why reading the scene's case would write (its fields at the chosen time are not yet
+    converted by foamToVTK, which a run does first), or None where it reads without writing
+    (a snapshot, or converted fields that exist)."""
+    from .cfd import openfoam as of
+    from .cfd.openfoam.fields import _vtk_internal_file
+    from .domain import BUNDLED_PREFIX
+
+    case = scene.domain.case
+    if case.startswith(BUNDLED_PREFIX) or case.endswith(".vtu"):
+        return None
+    path = _case_dir(scene)
+    if not path.is_dir():
+        return None                      # load_domain names what is wrong
+    try:
+        t = of.pick_time(path, "latest" if scene.domain.time == "latest"
+                         else float(scene.domain.time))
+    except (of.OpenFOAMError, ValueError):
+        return None
+    if _vtk_internal_file(path, t) is None:
+        return (f"its fields at t = {t:g} s are not converted yet; a run converts them with "
+                "foamToVTK first, which plan does not do (it writes nothing)")
+    return None
+
+
+def _control_entry(text: str, key: str) -> str | None:
+    m = re.search(rf"^\s*{key}\s+([^;\s]+)\s*;", text, flags=re.M)
+    return m.group(1) if m else None
+
+
+def averaging_window(scene, cells) -> str:
+    """The fieldAverage window [s] the time-averaged fields cover, as text."""
+    control = cells.source.get("control") or {}
+    if "avgStart" in control:
+        return f"{control['avgStart']:g} to {cells.time:g} s"
+    path = _case_dir(scene) / "system" / "controlDict"
+    try:
+        text = path.read_text()
+    except OSError:
+        return "unknown (no system/controlDict to read it from)"
+    start = _control_entry(text, "timeStart")
+    if start is not None and start.startswith("$"):
+        start = _control_entry(text, start[1:])
+    if start is None:
+        first = _control_entry(text, "startTime") or "0"
+        return (f"{first} to {cells.time:g} s (fieldAverage has no timeStart: the whole run, "
+                "start-up included)")
+    return f"{start} to {cells.time:g} s"
+
+
+def spray_lines(scene, cells, active: np.ndarray) -> list[str]:
+    """The spray zone among the active cells and what removed the other active cells."""
+    inj = scene.binder_injection
+    if inj is None:
+        return []
+    if inj.zone is None:
+        return [f"  spray zone: every active cell ({int(active.sum())})"]
+    z = inj.zone
+    centre = np.asarray(cells.cell_centre)
+    alpha = np.asarray(cells.alpha)
+    inside = np.all((centre >= np.array(z.box_min)) & (centre <= np.array(z.box_max)), axis=1)
+    window = (alpha >= z.alpha_low) & (alpha <= z.alpha_high)
+    spray = active & inside & window
+    return [f"  spray zone: {int(spray.sum())} of the {int(active.sum())} active cells; "
+            f"removed {int((active & ~inside).sum())} outside the box, "
+            f"{int((active & inside & (alpha > z.alpha_high)).sum())} above alpha_high = "
+            f"{z.alpha_high:g}, {int((active & inside & (alpha < z.alpha_low)).sum())} below "
+            f"alpha_low = {z.alpha_low:g}"]
+
+
+def case_lines(scene) -> list[str]:
+    """The plan's lines about the CFD case of an OpenFOAM-domain scene (one read of it)."""
+    from .domain import load_domain
+
+    reason = unconverted_reason(scene)
+    if reason is not None:
+        return [f"  case not opened: {reason}"]
+    domain = load_domain(scene)
+    cells = domain.cells
+    alpha = np.asarray(cells.alpha)
+    active = alpha >= scene.domain.alpha_min
+    kind = ("time-averaged" if cells.averaged
+            else "instantaneous (no fieldAverage output at this time)")
+    src = cells.source
+    return [f"  case read: {domain.description}; CFD time {cells.time:g} s",
+            f"  fields: {src.get('alpha_field')} and {src.get('theta_field')}, {kind}",
+            f"  averaging window: {averaging_window(scene, cells)}" if cells.averaged
+            else "  averaging window: none (instantaneous fields)",
+            f"  cells: {cells.n_cells}; active {int(active.sum())} (alpha >= alpha_min = "
+            f"{scene.domain.alpha_min:g}; {int((~active).sum())} below it hold no granules)",
+            *spray_lines(scene, cells, active)]

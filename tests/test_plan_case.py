@@ -1,0 +1,66 @@
+"""``pbe-cfd plan`` opens the CFD case and says what a run would use, writing nothing."""
+from __future__ import annotations
+
+import json
+import re
+import shutil
+
+from test_data_safety import _fake_case, box, tiny_couple_text, tree  # noqa: F401 - fixture
+
+from pbe_cfd.cli import main
+
+
+def _plan(capsys, scene) -> str:
+    capsys.readouterr()
+    assert main(["plan", str(scene)]) == 0
+    return capsys.readouterr().out
+
+
+def _numbers(text: str) -> dict:
+    cells = re.search(r"cells: (\d+); active (\d+) \(alpha >= alpha_min = [\d.]+; (\d+) below",
+                      text)
+    spray = re.search(r"spray zone: (\d+) of the (\d+) active cells; removed (\d+) outside the "
+                      r"box, (\d+) above alpha_high = [\d.]+, (\d+) below alpha_low", text)
+    assert cells and spray, text
+    n, active, below = map(int, cells.groups())
+    s, s_active, box_out, high, low = map(int, spray.groups())
+    assert n == active + below and s_active == active
+    assert s + box_out + high + low == active          # every active cell counted once
+    return {"cells": n, "active_cells": active, "spray_cells": s}
+
+
+def test_plan_says_what_the_run_uses_and_writes_nothing(box, capsys):
+    case = _fake_case(box)
+    (box / "s.toml").write_text(tiny_couple_text("case"))
+    before = tree(box)
+    text = _plan(capsys, box / "s.toml")
+    assert tree(box) == before                  # nothing written: case, cwd, anywhere below
+    assert "CFD time 1.5 s" in text
+    assert "fields: alpha.particlesMean and Theta.particlesMean, time-averaged" in text
+    assert "averaging window: unknown (no system/controlDict" in text
+    planned = _numbers(text)
+    # the run's own count of the same cells
+    assert main(["couple", "s.toml", "--out", "c"]) == 0
+    stats = json.loads((box / "c" / "summary.json").read_text())["stats"]
+    assert planned == {k: stats[k] for k in planned}
+    # a fieldAverage without timeStart averages the whole run, start-up included
+    (case / "system").mkdir()
+    (case / "system" / "controlDict").write_text("startTime 0;\nfunctions\n{\n}\n")
+    assert "averaging window: 0 to 1.5 s (fieldAverage has no timeStart" in _plan(
+        capsys, box / "s.toml")
+
+
+def test_plan_of_an_unconverted_case_says_so_and_writes_nothing(box, capsys):
+    case = _fake_case(box)
+    shutil.rmtree(case / "VTK")                 # fields not converted by foamToVTK yet
+    (box / "s.toml").write_text(tiny_couple_text("case"))
+    before = tree(box)
+    text = _plan(capsys, box / "s.toml")
+    assert tree(box) == before
+    assert "case not opened: its fields at t = 1.5 s are not converted yet" in text
+
+
+def test_plan_of_the_bundled_snapshot_names_its_window(capsys):
+    text = _plan(capsys, "fluid-bed")
+    assert "averaging window: 0.5 to 1.5 s" in text and "bundled snapshot" in text
+    _numbers(text)
