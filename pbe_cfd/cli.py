@@ -205,7 +205,7 @@ def _couple_inputs(scene, args) -> list:
     inputs = [("the scene", scene.source)]
     if args.run_case:
         inputs.append(("the case --run-case makes", Path("fluid-bed-case")))
-    elif not scene.domain.case.startswith(BUNDLED_PREFIX):
+    elif scene.domain.case and not scene.domain.case.startswith(BUNDLED_PREFIX):
         path = _case_path(scene)
         if path.suffix == ".vtu":
             inputs += [("the snapshot", path),

@@ -77,13 +77,14 @@ def interrupted_text() -> str:
     """One sentence: what is left of every output directory this process was writing."""
     parts = []
     for target in guard.held() + [t for t in _interrupt_notes if t not in guard.held()]:
-        if target in _interrupt_notes:
-            parts.append(_interrupt_notes[target])
-        elif read_manifest(target) is not None:
-            parts.append(f"{target} not changed (the earlier output there is kept)")
-        else:
-            parts.append(f"{target} not written")
+        parts.append(_interrupt_notes.get(target) or _kept_text(target))
     return "; ".join(parts) or "no output written"
+
+
+def _kept_text(target: Path) -> str:
+    if read_manifest(target) is not None:
+        return f"{target} not changed (the earlier output there is kept)"
+    return f"{target} not written"
 
 
 def release_claims():
@@ -350,6 +351,9 @@ def atomic_directory(target, overwrite: bool = False, flag: str = "--out",
         _commit(tmp, target, overwrite, flag, kind, add)
     except OSError as exc:
         raise _os_failure(exc, target, flag, existed) from None
+    except KeyboardInterrupt:
+        note_interrupted(target, _kept_text(target))
+        raise
     finally:
         try:
             if tmp is not None and os.path.lexists(tmp):

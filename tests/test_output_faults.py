@@ -381,30 +381,51 @@ def test_a_read_only_place_is_refused_before_the_computation(box, capsys, small_
     assert tree(mnt) == before
 
 
+@pytest.mark.skipif(os.geteuid() == 0, reason="root ignores permissions (the read-only mount "
+                    "above holds the promise there)")
+def test_a_directory_without_write_permission_is_refused_before_the_computation(box, capsys):
+    (box / "locked").mkdir()
+    (box / "locked").chmod(0o555)
+    try:
+        _one_line(capsys, 2, ["run", "tiny.toml", "--out", "locked/r"], "Permission denied")
+    finally:
+        (box / "locked").chmod(0o755)
+    assert list((box / "locked").iterdir()) == []
+
+
 # ---------------------------------------------------------------------------- U5: signals
 SLOW_RUN = textwrap.dedent("""
     import sys, time
+    import pbe_cfd.output as output
     import pbe_cfd.simulate as sim
-    real = sim.run_well_mixed
-    def slow(*a, **kw):
-        print("computing", file=sys.stderr, flush=True)
+    def slow(*a, **kw):                   # a long computation
+        print("busy", file=sys.stderr, flush=True)
         time.sleep(60)
-    sim.run_well_mixed = slow
+    def slow_json(path, data):            # a long write: half a file in the partial directory
+        open(path, "w").write("{")
+        print("busy", file=sys.stderr, flush=True)
+        time.sleep(60)
+    if sys.argv.pop(1) == "computing":
+        sim.run_well_mixed = slow
+    else:
+        output.write_json = slow_json
     from pbe_cfd.cli import run
     run()
 """)
 
 
+@pytest.mark.parametrize("phase", ["computing", "writing"])
 @pytest.mark.parametrize("sig,code,name", [(signal.SIGINT, 130, "Ctrl-C"),
                                            (signal.SIGTERM, 143, "SIGTERM")])
-def test_a_signal_mid_run_ends_quietly_and_says_what_was_kept(box, sig, code, name):
+def test_a_signal_mid_run_ends_quietly_and_says_what_was_kept(box, sig, code, name, phase):
     assert main(["run", "tiny.toml", "--out", "r"]) == 0
     before = tree(box)
     for out, kept in (("r", "not changed (the earlier output there is kept)"),
                       ("new", "not written")):
-        proc = subprocess.Popen([sys.executable, "-c", SLOW_RUN, "run", "tiny.toml", "--out",
-                                 out, "--overwrite"], cwd=box, stderr=subprocess.PIPE, text=True)
-        assert proc.stderr.readline().strip() == "computing"
+        proc = subprocess.Popen([sys.executable, "-c", SLOW_RUN, phase, "run", "tiny.toml",
+                                 "--out", out, "--overwrite"], cwd=box, stderr=subprocess.PIPE,
+                                text=True)
+        assert proc.stderr.readline().strip() == "busy"
         proc.send_signal(sig)
         err = proc.stderr.read()
         assert proc.wait(timeout=60) == code
