@@ -352,7 +352,7 @@ def atomic_directory(target, overwrite: bool = False, flag: str = "--out",
     except OSError as exc:
         raise _os_failure(exc, target, flag, existed) from None
     except KeyboardInterrupt:
-        note_interrupted(target, _kept_text(target))
+        _interrupt_notes.setdefault(target, _kept_text(target))
         raise
     finally:
         try:
@@ -403,6 +403,7 @@ def _commit(tmp: Path, target: Path, overwrite: bool, flag: str, kind: str, add:
     write_manifest(tmp, files, kind)                     # the new directory is complete
     (tmp / PARTIAL_MARKER).unlink()
     old_dir = guard.swap(tmp, target)
+    note_interrupted(target, f"{target} written (the new output is complete)")
     try:
         kept = guard.remove_leftover(old_dir, target)
     except OSError as exc:
