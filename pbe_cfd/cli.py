@@ -3,7 +3,8 @@
 Argument parsing and one ``*_command`` function per verb, nothing else: each command reads its
 arguments, calls the runs, studies and writers below, and prints what it wrote.
 
-Exit codes: 0 success, 2 bad input (scene, arguments, files), 1 a run that failed.
+Exit codes: 0 success, 2 bad input (scene, arguments, files, an output place refused), 1 a
+run that failed (or an OS error while writing its output), 130/143 interrupted by SIGINT/SIGTERM.
 """
 from __future__ import annotations
 
@@ -74,7 +75,8 @@ def run_command(args):
     scene = load_scene(args.scene or DEFAULT_WELL_MIXED)
     if scene.domain.type != "well-mixed":
         return _fail(f"{scene.source}: [domain] type is \"openfoam\"; use `pbe-cfd couple`")
-    out = output.prepare_directory(args.out, args.overwrite)   # refuse before any work
+    out = output.prepare_directory(args.out, args.overwrite, kind="run",   # before any work
+                                   inputs=[("the scene", scene.source)])
     progress = Progress(f"{scene.name} ({scene.method.name})")
     try:
         result = run_well_mixed(scene, progress=progress)
@@ -166,22 +168,54 @@ def couple_command(args):
     from . import output
     from .cfd import figure_pool
 
+    import time
     if args.resume:
         _apply_resume(args)
-    out = output.prepare_directory(args.out, args.overwrite)   # refuse before any work
+    t_read = time.perf_counter()
+    scene = _coupled_scene(args)
+    out = output.prepare_directory(args.out, args.overwrite, kind="couple",   # before any work
+                                   inputs=_couple_inputs(scene, args))
     if _cluster_wanted(args) and not args.resume:
         from .distributed import check_store
         check_store(args.out, args.overwrite)
-    phases = {"startup_s": _process_age()}
+    phases = {"startup_s": _process_age(), "read_s": time.perf_counter() - t_read}
     if not _cluster_wanted(args):
         figure_pool.start_processes()   # they load matplotlib while the run computes
     try:
-        return _couple(args, out, phases)
+        return _couple(args, scene, out, phases)
     finally:
         figure_pool.stop_processes()
 
 
-def _couple(args, out, phases):
+def _coupled_scene(args):
+    """The scene of ``couple`` (SCENE, else the bundled fluid bed); SceneError unless its
+    domain is an OpenFOAM bed."""
+    from .scene import SceneError, load_scene
+    scene = load_scene(args.scene or DEFAULT_COUPLED)
+    if scene.domain.type != "openfoam":
+        raise SceneError(scene.source, "domain.type",
+                         "`pbe-cfd couple` needs type = \"openfoam\"; use `pbe-cfd run` for "
+                         "well-mixed scenes")
+    return scene
+
+
+def _couple_inputs(scene, args) -> list:
+    """What a coupled run reads (``(what, path)`` pairs), which its --out must not be."""
+    from .domain import BUNDLED_PREFIX, _case_path
+    inputs = [("the scene", scene.source)]
+    if args.run_case:
+        inputs.append(("the case --run-case makes", Path("fluid-bed-case")))
+    elif scene.domain.case and not scene.domain.case.startswith(BUNDLED_PREFIX):
+        path = _case_path(scene)
+        if path.suffix == ".vtu":
+            inputs += [("the snapshot", path),
+                       ("the snapshot's flux", path.with_name(path.stem + "_flux.npz"))]
+        else:
+            inputs.append(("the OpenFOAM case", path))
+    return inputs
+
+
+def _couple(args, scene, out, phases):
     """The run and its outputs (``couple_command`` after the output directory was checked)."""
     import time
 
@@ -190,18 +224,12 @@ def _couple(args, out, phases):
     from .domain import load_domain
     from .executor import SerialExecutor
     from .progress import Progress
-    from .scene import SceneError, load_scene
 
     t_read = time.perf_counter()
-    scene = load_scene(args.scene or DEFAULT_COUPLED)
-    if scene.domain.type != "openfoam":
-        raise SceneError(scene.source, "domain.type",
-                         "`pbe-cfd couple` needs type = \"openfoam\"; use `pbe-cfd run` for "
-                         "well-mixed scenes")
     if args.run_case:
         scene = _fresh_case(scene, args.mesh, args.overwrite)
     domain = load_domain(scene, need_flux=scene.transport is not None)
-    phases["read_s"] = time.perf_counter() - t_read
+    phases["read_s"] += time.perf_counter() - t_read
     if args.foam_fields:
         check_foam_fields(scene, domain, args.overwrite)
     executor = SerialExecutor()
@@ -266,7 +294,8 @@ def bench_command(args):
     out = Path(args.out)
     quick = bool(args.quick)
     study = args.study
-    output.prepare_directory(out, args.overwrite, names=bench.STUDY_FILES[study])
+    output.prepare_directory(out, args.overwrite, names=bench.STUDY_FILES[study],
+                             kind="bench")
     start = time.perf_counter()
     if study == "accuracy":
         res = bench.accuracy_study(args.scene, out, quick=quick)
@@ -419,9 +448,22 @@ def build_parser():
     return parser
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C so that every command cleans up on the way out."""
+
+
+def _on_signal(signum, frame):
+    """First SIGINT/SIGTERM: raise (KeyboardInterrupt or Terminated); later ones are ignored
+    while the command removes what it had half-written."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
 def main(argv=None):
     from .batch import SimulationError
-    from .output import UsageError
+    from .output import OutputFailed, UsageError, interrupted_text, release_claims
     from .scene import SceneError
 
     parser = build_parser()
@@ -430,12 +472,19 @@ def main(argv=None):
         return args.func(args)
     except (SceneError, UsageError) as exc:
         return _fail(str(exc), 2)
-    except SimulationError as exc:
+    except (SimulationError, OutputFailed) as exc:
         return _fail(str(exc), 1)
     except FileNotFoundError as exc:
         return _fail(str(exc), 2)
-    except KeyboardInterrupt:
-        return _fail("interrupted; no output written", 130)
+    except OSError as exc:
+        where = f": {exc.filename}" if exc.filename else ""
+        return _fail(f"{exc.strerror or exc}{where}", 1)
+    except KeyboardInterrupt as exc:
+        what = "SIGTERM" if isinstance(exc, Terminated) else "Ctrl-C"
+        return _fail(f"interrupted ({what}); {interrupted_text()}",
+                     143 if isinstance(exc, Terminated) else 130)
+    finally:
+        release_claims()
 
 
 def run():
@@ -443,6 +492,9 @@ def run():
     object of the run (numba, matplotlib and VTK leave about 0.4 s of it at exit; the
     objects' memory goes back to the system with the process either way)."""
     import gc
+    import signal
+    signal.signal(signal.SIGTERM, _on_signal)
+    signal.signal(signal.SIGINT, _on_signal)
     code = main()
     gc.freeze()
     sys.exit(code)

@@ -118,7 +118,8 @@ def render_run(directory, fields=None, times=None, overwrite: bool = False,
             "--overwrite redraws them")
     if bed:
         names.append(prefix + "bed_moments.png")
-    output.prepare_directory(root, overwrite, flag="render", names=names, allow_cwd=True)
+    output.prepare_directory(root, overwrite, flag="render", names=names, allow_cwd=True,
+                            kind="render")
     with output.add_to_directory(root, kind="render", flag="render") as tmp:
         png_dir = tmp / "png" if in_run else tmp
         extra = [(render.plot_bed_moments, (d / "bed_moments.csv", png_dir / "bed_moments.png"),

@@ -168,11 +168,12 @@ def test_overwrite_removes_only_unchanged_stale_files_it_wrote(tmp_path, monkeyp
         for name in ("a.txt", "old/b.txt", "old/c.txt"):
             (d / name).parent.mkdir(exist_ok=True)
             (d / name).write_text(name)
-    (tmp_path / "o" / "old" / "c.txt").write_text("the user edited this")
     (tmp_path / "o" / "old" / "user.txt").write_text("user")
     with pytest.warns(UserWarning, match="kept .*c.txt: it changed"):
         with output.atomic_directory("o", overwrite=True) as d:
             (d / "a.txt").write_text("new a")
+            # edited while the run computes (an edit before it is refused up front)
+            (tmp_path / "o" / "old" / "c.txt").write_text("the user edited this")
     o = tmp_path / "o"
     assert (o / "a.txt").read_text() == "new a"
     assert not (o / "old" / "b.txt").exists()           # stale, unchanged, ours: removed
@@ -281,12 +282,12 @@ def test_compare_writes_a_marked_figure_and_never_replaces_a_users(box, coupled,
 # ---------------------------------------------------------------------------- bench
 def test_bench_adds_its_files_and_replaces_them_only_with_overwrite(box, capsys):
     prev = box / "b"
-    with output.atomic_directory(prev) as d:
+    with output.atomic_directory(prev, kind="bench") as d:       # an earlier bench output
         (d / "cnmc.csv").write_text("x\n")
         (d / "laguerre.md").write_text("y\n")
     user = put_user_files(prev)
     refused(["bench", "cnmc", "--quick", "--out", "b"], capsys, "cnmc.csv", "--overwrite")
-    with output.add_to_directory(prev) as d:           # another study's files are added
+    with output.add_to_directory(prev, kind="bench") as d:   # another study's files are added
         (d / "couple.csv").write_text("z\n")
     after = tree(prev)
     for rel in user:
@@ -294,7 +295,7 @@ def test_bench_adds_its_files_and_replaces_them_only_with_overwrite(box, capsys)
     assert {"cnmc.csv", "laguerre.md", "couple.csv"} <= set(output.read_manifest(prev)["files"])
     (prev / "couple.md").write_text("the user's")
     with pytest.raises(output.OutputRefused, match="couple.md"):
-        with output.add_to_directory(prev) as d:
+        with output.add_to_directory(prev, kind="bench") as d:
             (d / "couple.md").write_text("z\n")
     assert (prev / "couple.md").read_text() == "the user's"
 

@@ -23,6 +23,8 @@ from . import openfoam as of
 ALLCLEAN_PATTERNS = ("0", "[1-9]*", "0.[0-9]*", "VTK", "postProcessing", "processor*",
                      "log.*", "mesh.type", "case.foam")
 ALLCLEAN_PATHS = ("constant/polyMesh", "system/controlDict.override")
+#: The manifest kind of a case directory pbe-cfd made.
+CASE_KIND = "openfoam case"
 
 
 def _template_files(src: Path) -> list[str]:
@@ -48,7 +50,7 @@ def prepare_case_dir(target, overwrite: bool = False, flag: str = "--dir",
                      template=None) -> Path:
     """Check, before anything runs, that the case can be made in ``target`` (see the module
     docstring); returns it resolved. Raises output.OutputRefused."""
-    target = output.prepare_directory(target, overwrite=overwrite, flag=flag)
+    target = output.prepare_directory(target, overwrite=overwrite, flag=flag, kind=CASE_KIND)
     if not target.exists():
         return target
     manifest = output.read_manifest(target)
@@ -78,6 +80,7 @@ def copy_and_run(target, mesh: str = "small", overwrite: bool = False, flag: str
         output.remove_written(target)            # the earlier case: only its own files
     target.mkdir(parents=True, exist_ok=True)
     before = set(output._files_under(target))
+    interrupted = False
     try:
         for rel in _template_files(src):
             dest = target / rel
@@ -85,5 +88,13 @@ def copy_and_run(target, mesh: str = "small", overwrite: bool = False, flag: str
             shutil.copyfile(src / rel, dest)      # mode from the umask, not the install
             output.apply_umask(dest, directory=(src / rel).stat().st_mode & 0o111 != 0)
         return of.run_case(target, mesh=mesh, log=log)
+    except KeyboardInterrupt:            # Ctrl-C, SIGTERM: remove the half-run case
+        interrupted = True
+        n = len(output.record_new_files(target, before, kind=CASE_KIND))
+        gone = output.remove_written(target)
+        output.note_interrupted(target, f"{flag} {target}: removed the {n} files of the "
+                                "half-run case" + ("" if gone else "; your files there are kept"))
+        raise
     finally:
-        output.record_new_files(target, before, kind="openfoam case")
+        if not interrupted:
+            output.record_new_files(target, before, kind=CASE_KIND)

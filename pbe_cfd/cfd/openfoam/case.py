@@ -116,13 +116,33 @@ def run_case(case_dir: str | os.PathLike, mesh: str = "small",
         target = _control_value(case_dir / "system" / "controlDict", "endTime")
 
     proc = subprocess.Popen(args, cwd=case_dir, env=install.env(), stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
+                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
     watch = _AllrunWatch(proc, say)
-    watch.wait(case_dir, target, timeout)
+    try:
+        watch.wait(case_dir, target, timeout)
+    except BaseException:                 # Ctrl-C, SIGTERM: stop Allrun and its tools too
+        _stop_group(proc)
+        raise
     if proc.returncode != 0:
         raise watch.failure(case_dir, mesh)
     latest = written_times(case_dir)[-1]
     return RunResult(case_dir, mesh, latest, watch.wall)
+
+
+def _stop_group(proc):
+    """Terminate the process group of Allrun (the script and the tool it runs), then kill."""
+    import os
+    import signal
+    for sig, grace in ((signal.SIGTERM, 5.0), (signal.SIGKILL, 5.0)):
+        try:
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            return
+        try:
+            proc.wait(timeout=grace)
+            return
+        except subprocess.TimeoutExpired:
+            continue
 
 
 def _check_run_arguments(case_dir: Path, mesh, end_time, avg_start):
