@@ -35,7 +35,7 @@ def peer_markdown(result) -> str:
     for r in result["rows"]:
         lines.append(f"| {r['problem']} | {r['method']} | {r['knob']} | {_pct(r['err_M0'])} | "
                      f"{_pct(r['err_M1'])} | {_pct(r['err_M2'])} | {_s(r.get('sum_f'), '.5f')}"
-                     f" | {_s(r['wall_s'])} | {_s(r.get('cpu_s'))} | {r['steps']} | "
+                     f" | {_s(r['wall_s'])} | {_s(r.get('cpu_s'))} | {_s(r['steps'], 'd')} | "
                      f"{_s(r['per_cell_step_s'])} |")
     lines.append("")
     for problem, eq in result["equal_accuracy"].items():
@@ -75,18 +75,28 @@ def plot_peer(result, path):
                        facecolors="none" if r.get("dt_check") else None)
             ax.annotate(r["knob"].replace(" groups", "g"), (r[key], max(err, 1e-16)),
                         fontsize=6, xytext=(3, 2), textcoords="offset points")
+        c = result.get("cells_cost")
+        marginal = [r for r in result["rows"] if c and key == "per_cell_step_s"
+                    and r["method"] == "class" and r["problem"] == "aggregation"
+                    and r["groups"] == c["groups"] and not r.get("dt_check")]
+        for r in marginal:      # the class method's cost per added cell of an N-cell box
+            ax.scatter(c["marginal_per_cell_step_s"], abs(r["err_M2"]), marker="*", s=80,
+                       color=colours["aggregation"])
+            ax.annotate(f"{r['groups']}g, per added cell ({c['cells']} cells)",
+                        (c["marginal_per_cell_step_s"], abs(r["err_M2"])), fontsize=6,
+                        xytext=(3, -8), textcoords="offset points")
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel(label)
-        ax.set_ylabel("|relative error of M2|")
+        ax.set_ylabel("|relative error of M2| (round-off shown at 1e-16)")
         ax.grid(True, which="major", alpha=0.3)
     handles = [plt.Line2D([], [], color=c, marker="s", ls="", label=p)
                for p, c in colours.items() if any(r["problem"] == p for r in result["rows"])]
     handles += [plt.Line2D([], [], color="k", marker=m, ls="", mfc="none", label=name)
                 for name, m in markers.items()]
     axes[1].legend(handles=handles, fontsize=7, loc="best")
-    fig.suptitle("OpenFOAM class method (squares) against pbe-cfd (QMOM circles, cNMC "
-                 "triangles); open squares: class at 2 dt", fontsize=9)
+    fig.suptitle("OpenFOAM class method (squares; open: at 2 dt; star: per added cell of an "
+                 "N-cell box) against pbe-cfd (QMOM circles, cNMC triangles)", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
