@@ -192,8 +192,8 @@ def _errors(row, ref):
 
 def equal_accuracy(rows, problem, target=0.01) -> dict:
     """Groups the class method needs for |M2 error| = target, from a power-law fit
-    |err| ~ G^-p over its runs, the wall time there from a fit wall ~ G^q, and the ratio to
-    QMOM N = 3's wall time on the same problem."""
+    |err| ~ G^-p over its runs, its wall and CPU time there from fits ~ G^q, and their ratios
+    to QMOM N = 3's on the same problem."""
     cls = [r for r in rows if r["problem"] == problem and r["method"] == "class"
            and r.get("dt_check") is None and r.get("cells", 1) == 1]
     qm = [r for r in rows if r["problem"] == problem and r["knob"] == "N=3"]
@@ -201,14 +201,17 @@ def equal_accuracy(rows, problem, target=0.01) -> dict:
         return {}
     g = np.log([r["groups"] for r in cls])
     e = np.log([abs(r["err_M2"]) for r in cls])
-    w = np.log([r["wall_s"] for r in cls])
     pe = np.polyfit(g, e, 1)
-    pw = np.polyfit(g, w, 1)
     groups = math.exp((math.log(target) - pe[1]) / pe[0]) if pe[0] < 0 else float("nan")
-    wall = math.exp(np.polyval(pw, math.log(groups))) if math.isfinite(groups) else float("nan")
-    return {"target": target, "error_order": -pe[0], "groups": groups, "class_wall_s": wall,
-            "qmom3_wall_s": qm[0]["wall_s"], "qmom3_err_M2": qm[0]["err_M2"],
-            "ratio": wall / qm[0]["wall_s"]}
+    out = {"target": target, "error_order": -pe[0], "groups": groups,
+           "qmom3_err_M2": qm[0]["err_M2"]}
+    for kind in ("wall_s", "cpu_s"):
+        fit = np.polyfit(g, np.log([r[kind] for r in cls]), 1)
+        cost = (math.exp(np.polyval(fit, math.log(groups))) if math.isfinite(groups)
+                else float("nan"))
+        out.update({f"class_{kind}": cost, f"qmom3_{kind}": qm[0][kind],
+                    f"ratio_{kind}": cost / qm[0][kind]})
+    return out
 
 
 def peer_study(out_dir="bench-out", quick=False, repeats=None, quiet=False) -> dict:
