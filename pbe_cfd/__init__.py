@@ -23,7 +23,8 @@ UNCOMPILED = ("cli.py", "plan.py", "results.py", "plotting.py", "progress.py", "
               "bench/__init__.py", "bench/accuracy.py", "bench/accuracy_report.py",
               "bench/analytic.py", "bench/cluster.py", "bench/cnmc.py", "bench/common.py",
               "bench/couple.py", "bench/integrators.py", "bench/laguerre.py",
-              "bench/numpy_baseline.py", "bench/throughput.py")
+              "bench/numpy_baseline.py", "bench/throughput.py", "bench/peer.py",
+              "bench/peer_case.py", "bench/peer_reference.py", "bench/peer_report.py")
 
 
 def _compiled_sources(root: Path) -> list[Path]:

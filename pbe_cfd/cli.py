@@ -307,6 +307,17 @@ def bench_command(args):
                                      scene_name=args.scene or bench.DEFAULT_THROUGHPUT_SCENE)
         files = "throughput.csv, throughput.md, throughput.png, machine.json"
         print(bench.throughput_markdown(res))
+    elif study == "peer":
+        try:
+            bench.peer_study(out, quick=quick)
+        except bench.PeerUnavailable as exc:
+            print(f"pbe-cfd: error: {exc}", file=sys.stderr)
+            return 2
+        except bench.PeerRunError as exc:
+            print(f"pbe-cfd: error: {exc}", file=sys.stderr)
+            return 1
+        files = "peer.csv, peer.md, peer.png, peer.json"
+        print((out / "peer.md").read_text())
     else:
         study_of = {"cnmc": bench.cnmc_study, "laguerre": bench.laguerre_study,
                     "couple": bench.couple_study, "integrators": bench.integrator_study}
@@ -432,7 +443,7 @@ def build_parser():
 
     p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")
     p.add_argument("study", choices=("accuracy", "throughput", "cnmc", "laguerre", "couple",
-                                     "integrators"))
+                                     "integrators", "peer"))
     p.add_argument("scene", nargs="?", help="scene for the accuracy study")
     p.add_argument("--out", default="bench-out")
     p.add_argument("--quick", action="store_true", help="a tiny configuration (plumbing check)")

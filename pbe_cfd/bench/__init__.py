@@ -1,5 +1,5 @@
 """What accuracy costs in time: ``pbe-cfd bench accuracy | throughput | cnmc | laguerre | couple |
-integrators``.
+integrators | peer``.
 
 accuracy (``accuracy_study``)
     Each method over its accuracy knob -- QMOM nodes 1-4; Laguerre ROM order 2-4 on a coarse
@@ -28,6 +28,12 @@ integrators (``integrator_study``)
     whole-process time against the same scene without ``[transport]``. Writes
     integrators.csv, integrators.md, integrators.json.
 
+peer (``peer_study``)
+    OpenFOAM's own population balance (reactingTwoPhaseEulerFoam's class method) on closed
+    one-cell boxes against closed forms or a fine fixed-pivot reference, beside QMOM and the
+    cNMC on the same problems; the definition differences in ``peer``'s doc. Writes peer.csv,
+    peer.md, peer.png, peer.json.
+
 cnmc, laguerre, couple
     Seed-scenario cNMC speed per replica (trials and accepted events per second); Laguerre
     tensor build time per order and grid and its RHS rate; cell-steps per second of
@@ -53,6 +59,8 @@ from .couple import couple_study, replicated_domain
 from .integrators import integrator_markdown, integrator_study, stiff_scene
 from .laguerre import laguerre_study
 from .numpy_baseline import NumpyQMOM
+from .peer import peer_study
+from .peer_case import PeerRunError, PeerUnavailable
 from .sweeps import (laguerre_contraction_sweep, qmom_kernel_sweep, qmom_node_properties,
                      rhs_sweep)
 from .throughput import (DEFAULT_THROUGHPUT_SCENE, ThroughputCase, cell_states,

@@ -98,4 +98,5 @@ STUDY_FILES = {
                    "machine.json"],
     **{name: [f"{name}.csv", f"{name}.md", f"{name}.json"]
        for name in ("cnmc", "laguerre", "couple", "integrators")},
+    "peer": ["peer.csv", "peer.md", "peer.png", "peer.json"],
 }
