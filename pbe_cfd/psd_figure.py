@@ -66,7 +66,10 @@ def psd_figure(cols, title=""):
 def plot_psd(path, cols, title="", metadata=None):
     """Draw ``psd_figure`` of psd.csv columns (a dict, or the path of a psd.csv) to
     ``path``; ``metadata`` goes into the image file. Returns the path."""
+    from pathlib import Path
+
     import matplotlib.pyplot as plt
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     if not isinstance(cols, dict):
         from .output import read_columns_csv
         cols = read_columns_csv(cols)

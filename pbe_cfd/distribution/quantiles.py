@@ -34,18 +34,19 @@ def check_fractions(fractions) -> np.ndarray:
     return f
 
 
-def bisect_quantiles(cdf, fractions, rows: int, lo=D_SEARCH[0], hi=D_SEARCH[1]) -> np.ndarray:
+def bisect_quantiles(cdf, fractions, rows: int, lo=D_SEARCH[0], hi=D_SEARCH[1],
+                     halvings: int = BISECTIONS) -> np.ndarray:
     """Diameters [m] (shape (rows, len(fractions))) where each row's cumulative first reaches
     each mass fraction: the smallest d with Q3(d) >= x, to 2^-BISECTIONS of the bracket
     [lo, hi] [m] in ln d. ``cdf(d)`` takes diameters of shape (rows, k) (each row at its
-    own) and returns Q3 of the same shape. Rows whose Q3 never reaches x inside the bracket
-    get NaN (the caller names them)."""
+    own) and returns Q3 of the same shape; lo, hi [m] scalars or (rows, len(fractions)).
+    Rows whose Q3 never reaches x inside the bracket get NaN (the caller names them)."""
     f = check_fractions(fractions)
-    a = np.full((rows, f.size), math.log(lo))
-    b = np.full((rows, f.size), math.log(hi))
+    a = np.broadcast_to(np.log(lo), (rows, f.size)).astype(float)
+    b = np.broadcast_to(np.log(hi), (rows, f.size)).astype(float)
     target = np.broadcast_to(f, (rows, f.size))
     top = cdf(np.exp(b))
-    for _ in range(BISECTIONS):
+    for _ in range(int(halvings)):
         mid = 0.5 * (a + b)
         above = cdf(np.exp(mid)) >= target
         b = np.where(above, mid, b)

@@ -30,6 +30,10 @@ DELTA_REL_VAR = 1.0e-10
 #: Laguerre density: size classes per decade of diameter, decades below d(p_max), and
 #: Gauss-Legendre points per class (in ln p) and in the binder fraction y = b/p
 LAGUERRE_PER_DECADE, LAGUERRE_DECADES, LAGUERRE_GAUSS_P, LAGUERRE_GAUSS_Y = 150, 2, 2, 12
+#: bisections of a bed mixture's percentile inside the rows' own range: 2^-20 of it
+MIXTURE_BISECTIONS = 20
+#: gamma fit: Q3 closer than this to 0 or 1 is taken as 0 or 1 (no gamma function evaluated)
+TAIL = 1.0e-14
 #: Laguerre density: negative mass share (of the positive mass) above which a row is named
 NEGATIVE_SHARE_NOTE = 1.0e-3
 
@@ -58,8 +62,9 @@ class GammaFit:
     so Q3(d) = P(k + 1, p(d)/theta) and the percentiles are closed-form. A row with var <=
     DELTA_REL_VAR mean^2 is a delta at its mean; an unrealizable row (var < 0 beyond
     round-off, or a non-finite moment) falls back to a delta at its mean and is named in
-    ``notes``. ``binder``: (nodes p [kg], binder fraction y [-]) per row, interpolated in
-    ln p between the nodes (constant beyond them), or None."""
+    ``notes``. ``binder``: (nodes p [kg], binder fraction y [-]) arrays (rows, n) from
+    ``node_binder``, interpolated in ln p between the nodes (constant beyond them), or
+    None."""
 
     def __init__(self, m0, m1, m2, rho, binder=None, labels=str):
         m0, m1, m2 = (np.asarray(v, dtype=float) for v in (m0, m1, m2))
@@ -77,6 +82,7 @@ class GammaFit:
         self.theta = np.where(self.delta, 1.0, self.mean * rel)
         self.mass = np.where(ok, m1, 0.0)
         self.binder = binder
+        self._tails = None
         self.notes = []
         if np.any(bad):
             rows = np.flatnonzero(bad)
@@ -86,14 +92,27 @@ class GammaFit:
             self.mass = np.where(bad & np.isfinite(m1) & (m1 > 0), m1, self.mass)
             self.empty = self.empty | ~(self.mass > 0)
 
+    def _support(self):
+        """Per row the masses [kg] below and above which Q3 is within TAIL of 0 and 1 (the
+        gamma function is evaluated only between them)."""
+        if self._tails is None:
+            from scipy.special import gammaincinv
+            a = self.shape + 1.0
+            self._tails = (gammaincinv(a, TAIL) * self.theta,
+                           gammaincinv(a, 1.0 - TAIL) * self.theta)
+        return self._tails
+
     def cdf(self, d):
         """Q3 [-] at diameters d [m] ((k,) or (rows, k)) per row (0 in an empty row)."""
         from scipy.special import gammainc
         p = mass_of_diameter(np.broadcast_to(d, (self.rows,) + np.shape(d)[-1:]), self.rho)
-        a = (self.shape + 1.0)[:, None]
-        smooth = gammainc(a, p / self.theta[:, None])
-        step = (p >= self.mean[:, None]).astype(float)
-        out = np.where(self.delta[:, None], step, smooth)
+        lo, hi = self._support()
+        smooth = ~(self.delta | self.empty)[:, None]
+        out = np.where(smooth, (p >= hi[:, None]) * 1.0, (p >= self.mean[:, None]) * 1.0)
+        inside = smooth & (p > lo[:, None]) & (p < hi[:, None])
+        a = np.broadcast_to((self.shape + 1.0)[:, None], p.shape)
+        x = p / self.theta[:, None]
+        out[inside] = gammainc(a[inside], x[inside])
         return np.where(self.empty[:, None], 0.0, out)
 
     def quantiles(self, fractions):
@@ -109,40 +128,63 @@ class GammaFit:
         if self.binder is None:
             return None
         centre = np.sqrt(np.asarray(d_lo, float) * np.asarray(d_hi, float))
-        lnp = np.log(mass_of_diameter(centre, self.rho))
-        out = np.zeros((self.rows, lnp.size))
-        for r, (x, y) in enumerate(self.binder):
-            keep = x > 0
-            if np.any(keep):
-                order = np.argsort(x[keep])
-                out[r] = np.interp(lnp, np.log(x[keep][order]), y[keep][order])
-        return out
+        x, y = self.binder
+        return interpolate_rows(np.log(mass_of_diameter(centre, self.rho)), x, y)
+
+
+def interpolate_rows(q, x, y):
+    """Per row, y interpolated linearly in ln x at q = ln p (k,), constant beyond the row's
+    outer valid nodes: x (rows, n) node masses [kg] sorted per row, invalid nodes +inf at
+    the end; y (rows, n). A row without a valid node gives 0."""
+    valid = np.isfinite(x)
+    nv = valid.sum(axis=1)
+    lx = np.where(valid, np.log(np.where(valid, x, 1.0)), np.inf)
+    j = (lx[:, :, None] <= q[None, None, :]).sum(axis=1)            # (rows, k)
+    last = np.maximum(nv - 1, 0)[:, None]
+    j0 = np.clip(j - 1, 0, last)
+    j1 = np.clip(j, 0, last)
+    x0, x1 = np.take_along_axis(lx, j0, 1), np.take_along_axis(lx, j1, 1)
+    y0, y1 = np.take_along_axis(y, j0, 1), np.take_along_axis(y, j1, 1)
+    gap = np.where(j1 > j0, x1 - x0, 1.0)
+    t = np.where(j1 > j0, (q[None, :] - x0) / gap, 0.0)
+    return np.where((nv > 0)[:, None], y0 + t * (y1 - y0), 0.0)
+
+
+def padded_rows(populations, k):
+    """Entry k (0: w, 1: p, 2: b) of every row's population as one (rows, n_max) array,
+    rows with fewer nodes (a degenerate quadrature) padded with zeros (w = 0: no node)."""
+    parts = [np.asarray(r[k], dtype=float).ravel() for r in populations]
+    out = np.zeros((len(parts), max((x.size for x in parts), default=0)))
+    for r, x in enumerate(parts):
+        out[r, :x.size] = x
+    return out
 
 
 def node_binder(populations):
-    """Per row (size nodes p [kg], mass-mean binder fraction y [-] of each size node) of
-    quadrature populations (w [1/m3], p [kg], b [kg]); nodes sharing one mass (CQMOM's binder
-    nodes of one size node) are merged."""
-    out = []
-    for w, p, b in populations:
-        w, p, b = (np.asarray(v, dtype=float) for v in (w, p, b))
-        keep = (w > 0) & (p > 0)
-        x, inv = np.unique(p[keep], return_inverse=True)
-        mass = np.bincount(inv, weights=w[keep] * p[keep], minlength=x.size)
-        binder = np.bincount(inv, weights=w[keep] * b[keep], minlength=x.size)
-        out.append((x, np.where(mass > 0, binder / np.where(mass > 0, mass, 1.0), 0.0)))
-    return out
+    """(node masses x [kg], mass-mean binder fraction y [-]) of quadrature populations (w
+    [1/m3], p [kg], b [kg]) of equal length per row, each (rows, n) sorted by x per row
+    (nodes with w <= 0 or p <= 0: x = +inf at the end). Nodes sharing one mass (CQMOM's
+    binder nodes of one size node) share the mass-mean binder fraction of their group."""
+    w, p, b = (padded_rows(populations, k) for k in range(3))
+    valid = (w > 0) & (p > 0)
+    wv = np.where(valid, w, 0.0)
+    same = p[:, :, None] == p[:, None, :]
+    mass = np.einsum("rij,rj->ri", same, wv * p)
+    binder = np.einsum("rij,rj->ri", same, wv * b)
+    y = np.where(mass > 0, binder / np.where(mass > 0, mass, 1.0), 0.0)
+    x = np.where(valid, p, np.inf)
+    order = np.argsort(x, axis=1)
+    return np.take_along_axis(x, order, 1), np.take_along_axis(y, order, 1)
 
 
 def gamma_of_populations(populations, rho, bivariate, labels=str) -> GammaFit:
     """The GammaFit of quadrature populations (w [1/m3], p [kg], b [kg]) per row: the nodes
     return the carried M00, M10, M20 (QMOM and CQMOM with two or more size nodes carry them
     exactly; one node carries M00, M10 only and gives a delta)."""
-    m = np.array([[np.sum(w), np.sum(w * p), np.sum(w * p * p)]
-                  for w, p, _ in ((np.asarray(a, float), np.asarray(c, float), None)
-                                  for a, c, _b in populations)]).reshape(-1, 3)
+    w, p = (padded_rows(populations, k) for k in range(2))
     binder = node_binder(populations) if bivariate else None
-    return GammaFit(m[:, 0], m[:, 1], m[:, 2], rho, binder=binder, labels=labels)
+    return GammaFit(w.sum(axis=1), (w * p).sum(axis=1), (w * p * p).sum(axis=1), rho,
+                    binder=binder, labels=labels)
 
 
 class ClassTable:
@@ -281,7 +323,16 @@ class Mixture:
         f = check_fractions(fractions)
         if self.empty[0]:
             return np.zeros((1, f.size))
-        return bisect_quantiles(self.cdf, f, 1)
+        lo, hi = self.bounds(f)
+        return bisect_quantiles(self.cdf, f, 1, lo=lo, hi=hi, halvings=MIXTURE_BISECTIONS)
+
+    def bounds(self, fractions):
+        """(lowest, highest) of the weighted rows' own percentiles [m] at the fractions, each
+        (1, len(fractions)): the mixture's percentile lies between them (Q3 of the mixture is
+        a mean of the rows' Q3)."""
+        q = np.asarray(self.parts.quantiles(fractions), dtype=float)[self.weights > 0]
+        # a relative 1e-9 outside them: a step at the top is reached despite round-off in d(p)
+        return q.min(axis=0)[None, :] * (1 - 1e-9), q.max(axis=0)[None, :] * (1 + 1e-9)
 
     def class_binder(self, d_lo, d_hi):
         """Mass-weighted binder fraction [-] of the rows in each class (1, k)."""
@@ -318,6 +369,11 @@ class Stack:
     def quantiles(self, fractions):
         """Diameters [m] at the mass fractions per row."""
         return np.vstack([it.quantiles(fractions) for it in self.items])
+
+    def bounds(self, fractions):
+        """Per row the (lowest, highest) percentiles of the mixtures' rows (``Mixture``)."""
+        parts = [it.bounds(fractions) for it in self.items if not it.empty[0]]
+        return np.vstack([p[0] for p in parts]), np.vstack([p[1] for p in parts])
 
     def class_binder(self, d_lo, d_hi):
         """Binder fraction [-] per class per row, or None."""

@@ -19,7 +19,7 @@ from .quantiles import FRACTIONS, DistributionError, check_grid_covers, log_grid
 #: the size columns added to moments.csv, bed_moments.csv and the VTK cell fields
 SIZE_COLUMNS = ("d10_m", "d50_m", "d90_m", "span")
 #: points of a reconstruction's psd.csv grid, and the mass fractions that bound it
-PSD_POINTS = 80
+PSD_POINTS = 40
 GRID_FRACTIONS = (1.0e-4, 1.0 - 1.0e-4)
 GRID_MARGIN = 1.25
 
@@ -74,7 +74,11 @@ def auto_grid(recon, points: int = PSD_POINTS) -> np.ndarray:
     if not np.any(full):
         raise DistributionError("size distribution: no granules at any output time, no "
                                 "diameter grid to draw it on")
-    q = np.asarray(recon.quantiles(GRID_FRACTIONS), dtype=float)[full]
+    if hasattr(recon, "bounds"):           # a bed mixture: its rows' own range bounds it
+        lo, hi = recon.bounds(GRID_FRACTIONS)
+        q = np.column_stack([lo[:, 0], hi[:, 1]])
+    else:
+        q = np.asarray(recon.quantiles(GRID_FRACTIONS), dtype=float)[full]
     q = q[np.all(np.isfinite(q) & (q > 0), axis=1)]
     if q.size == 0:
         raise DistributionError("size distribution: no row has percentiles to bound a grid")
@@ -89,8 +93,10 @@ def psd_columns(times, recon, grid=None, band=None) -> tuple[dict, list]:
     grid = auto_grid(recon) if grid is None else np.asarray(grid, dtype=float)
     h = math.log(grid[1] / grid[0])
     lo, hi = grid * math.exp(-0.5 * h), grid * math.exp(0.5 * h)
-    big_q = recon.cdf(grid)
-    q3 = (recon.cdf(hi) - recon.cdf(lo)) / h
+    n = grid.size
+    at = recon.cdf(np.concatenate([grid, lo[:1], hi]))    # the class edges: lo[1:] = hi[:-1]
+    big_q, edges = at[:, :n], at[:, n:]
+    q3 = (edges[:, 1:] - edges[:, :-1]) / h
     cols = {"time_s": np.repeat(np.asarray(times, float), grid.size),
             "d_m": np.tile(grid, len(times)), "Q3": big_q.ravel(), "q3_per_ln_d": q3.ravel()}
     binder = recon.class_binder(lo, hi)
@@ -101,8 +107,7 @@ def psd_columns(times, recon, grid=None, band=None) -> tuple[dict, list]:
     notes = []
     full = ~np.asarray(recon.empty)
     if np.any(full):
-        note = check_grid_covers(recon.cdf(lo[:1])[full, 0], recon.cdf(hi[-1:])[full, 0],
-                                 grid, "psd.csv")
+        note = check_grid_covers(edges[full, 0], edges[full, -1], grid, "psd.csv")
         if note:
             notes.append(note)
     return cols, notes
