@@ -65,6 +65,15 @@ def _fail(message, code=2):
     return code
 
 
+def write_size_distribution(directory, psd, labels, title, what):
+    """psd.csv, psd.png and columns.json of a run into ``directory`` (a new output)."""
+    from . import output, psd_figure
+    output.write_columns_csv(directory / "psd.csv", psd)
+    output.write_json(directory / "columns.json", labels)
+    psd_figure.plot_psd(directory / "psd.png", psd, title=title,
+                        metadata=output.figure_metadata("png", what))
+
+
 def run_command(args):
     """``pbe-cfd run [SCENE] --out DIR``: a well-mixed run."""
     from . import output, plotting
@@ -94,9 +103,11 @@ def run_command(args):
         plotting.plot_trajectories(tmp / "moments.png", [(scene.method.name, result.columns)],
                                    title=f"{scene.name}: {scene.method.name}",
                                    metadata=output.figure_metadata("png", "run"))
+        write_size_distribution(tmp, result.psd, result.labels,
+                                f"{scene.name}: {scene.method.name}", "run")
     print(f"{scene.name}: {scene.method.name} to t = {scene.end_time:g} s in "
           f"{result.wall_time_s:.2f} s{_compile_text(result)}; wrote "
-          f"{args.out}/moments.csv, summary.json, moments.png")
+          f"{args.out}/moments.csv, summary.json, moments.png, psd.csv, psd.png, columns.json")
     return 0
 
 

@@ -42,6 +42,8 @@ class CoupledResult:
     compile_time_s: float = 0.0     # compiling (or loading) the kernels, not in wall_time_s
     kernels_compiled: bool = False  # True: numba compiled them (a first run), else loaded
     phases: dict = field(default_factory=dict)  # wall seconds of setup, compile, solve, assemble
+    psd: dict | None = None         # psd.csv columns of the bed (distribution.tables)
+    labels: dict = field(default_factory=dict)   # columns.json: file -> column -> meaning
 
 
 def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None,
@@ -90,7 +92,8 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     history = executor.run(batch, times, transport, progress=progress)
     solve_end = _time.perf_counter()
     wall = solve_end - start
-    cell_fields, bed = _outputs(scene, arrays, aux, cells, active, spray, idx, times, history)
+    cell_fields, bed, mixtures = _outputs(scene, arrays, aux, cells, active, spray, idx, times,
+                                          history, warnings)
     st = batch.stats()
     run_stats = {"cells": int(cells.n_cells), "active_cells": int(idx.size),
                  "spray_cells": int(np.count_nonzero(spray)), **st,
@@ -107,9 +110,42 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     warnings.extend(_domain_warnings(scene, spray, notes))
     phases = {"setup_s": setup_s, "compile_s": compile_s, "solve_s": solve_end - solve_start,
               "assemble_s": _time.perf_counter() - solve_end}
+    psd, labels = _bed_distribution(scene, arrays, times, bed, mixtures, cell_fields, warnings)
+    phases["assemble_s"] = _time.perf_counter() - solve_end
     return CoupledResult(times=times, cell_fields=cell_fields, bed_columns=bed, stats=run_stats,
                          wall_time_s=wall, warnings=warnings, compile_time_s=compile_s,
-                         kernels_compiled=batch.compiled_now, phases=phases)
+                         kernels_compiled=batch.compiled_now, phases=phases, psd=psd,
+                         labels=labels)
+
+
+def _cell_distribution(scene, arrays, aux, states, populations, idx, n, t, fields, notes):
+    """d10/d50/d90/span cell fields (inactive cells 0) of one output time; returns the
+    bed's distribution there (the cells' mixture weighted by their granule mass)."""
+    from .distribution import tables
+    label = lambda r: f"cell {int(idx[r])} at t = {t:.6g} s"     # noqa: E731 (a row's name)
+    recon = tables.reconstruction_of(scene, arrays, states, aux, populations, label)
+    size, found = tables.size_columns(recon, label)
+    notes.extend(x for x in found if x not in notes)
+    for name, values in size.items():
+        full = np.zeros(n)
+        full[idx] = values
+        fields[name] = full
+    return recon
+
+
+def _bed_distribution(scene, arrays, times, bed, mixtures, cell_fields, warnings):
+    """Bed d10/d50/d90/span columns (added after the others), the bed's psd.csv columns
+    and the columns.json labels."""
+    from .distribution import reconstruct, tables
+    stack = reconstruct.Stack(mixtures)
+    size, notes = tables.size_columns(stack, lambda r: f"the bed at t = {times[r]:.6g} s")
+    bed.update(size)
+    psd, grid_notes = tables.psd_columns(times, stack)
+    warnings.extend(x for x in notes + grid_notes if x not in warnings)
+    names = arrays.state_names
+    return psd, {"bed_moments.csv": tables.column_labels(scene, names, bed, bed=True),
+                 "vtk cell fields": tables.column_labels(scene, names, cell_fields[0]),
+                 "psd.csv": tables.psd_labels(scene, psd)}
 
 
 def _domain_warnings(scene, spray, notes) -> list:
@@ -125,10 +161,13 @@ def _domain_warnings(scene, spray, notes) -> list:
     return out
 
 
-def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history):
+def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history, warnings):
     """Per output time: the cell fields (every mesh cell; inactive cells 0) and the bed
     columns (volume averages of the moments [per m3 of bed], d32, d43 [m] of the whole bed's
-    population, binder fraction, bed mass [kg])."""
+    population, binder fraction, bed mass [kg]), the cells' d10/d50/d90/span, and per output
+    time the bed's size distribution (``distribution.reconstruct.Mixture``)."""
+    from .distribution.reconstruct import Mixture
+    mixtures = []
     n = cells.n_cells
     volumes = np.asarray(cells.cell_volume, dtype=float)
     v_active = volumes[idx]
@@ -147,6 +186,9 @@ def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history):
             full = np.zeros(n)
             full[idx] = values
             fields[name] = full
+        recon = _cell_distribution(scene, arrays, aux, states, populations, idx, n, times[k],
+                                   fields, warnings)
+        mixtures.append(Mixture(recon, recon.mass * v_active))
         cell_fields.append(fields)
         for name, values in cols.items():
             if name.startswith("M") or name == "droplet_number_density":
@@ -168,7 +210,7 @@ def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history):
         if scene.bivariate:
             bed.setdefault("bed_binder_mass_kg", np.zeros(len(times)))[k] = (
                 bed["M01"][k] * bed_volume)
-    return cell_fields, bed
+    return cell_fields, bed, mixtures
 
 
 # ---------------------------------------------------------------------------- writing
@@ -189,6 +231,9 @@ def write_coupled(out_dir: Path, scene, domain: Domain, result: CoupledResult,
         for t, fields in zip(result.times, result.cell_fields):
             series.write(t, fields)
     output.write_columns_csv(out_dir / "bed_moments.csv", result.bed_columns)
+    if result.psd is not None:
+        output.write_columns_csv(out_dir / "psd.csv", result.psd)
+        output.write_json(out_dir / "columns.json", result.labels)
     phases["write_s"] = _time.perf_counter() - t0
     if render:
         from .cfd.render import BED_MOMENTS_COST, plot_bed_moments, render_series
@@ -196,9 +241,14 @@ def write_coupled(out_dir: Path, scene, domain: Domain, result: CoupledResult,
         png = out_dir / "png"
         bed = (plot_bed_moments, (out_dir / "bed_moments.csv", png / "bed_moments.png"),
                {"title": scene.name}, BED_MOMENTS_COST)
+        extra = [bed]
+        if result.psd is not None:
+            from .psd_figure import PSD_COST, plot_psd
+            extra.append((plot_psd, (png / "psd.png", out_dir / "psd.csv"),
+                          {"title": f"{scene.name}: the bed's granules"}, PSD_COST))
         render_series(out_dir / "vtk", times=[result.times[0], result.times[-1]], png_dir=png,
                       info={"name": scene.name, "alpha_min": scene.domain.alpha_min},
-                      extra_tasks=[bed])
+                      extra_tasks=extra)
         phases["render_s"] = _time.perf_counter() - t1
     t2 = _time.perf_counter()
     summary = {"scene": describe(scene), "method": scene.method.name,

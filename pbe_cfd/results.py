@@ -46,7 +46,8 @@ def load_run(arg) -> tuple[str, dict, Path]:
 def compare_runs(results, out, overwrite: bool = False, say=print) -> int:
     """``pbe-cfd compare A B ... --out F.png``: the columns all runs share, one panel each,
     with a cNMC's 95% band filled and its mean on top, and below each panel every run's
-    deviation from the cNMC mean in %."""
+    deviation from the cNMC mean in %. When every run has a psd.csv, ``F_psd.png`` overlays
+    their size distributions at each run's last output time (a cNMC's band filled)."""
     from . import plotting
 
     out = Path(out)
@@ -54,24 +55,45 @@ def compare_runs(results, out, overwrite: bool = False, say=print) -> int:
     if out.suffix.lower() not in FIGURE_FORMATS:
         raise UsageError(f"--out {out}: expected a figure file ending in "
                          f"{', '.join(FIGURE_FORMATS)}")
-    runs, seen = [], {}
+    runs, seen, psds = [], {}, []
     for arg in results:
-        label, cols, _ = load_run(arg)
+        label, cols, csv_path = load_run(arg)
         seen[label] = seen.get(label, 0) + 1
         if seen[label] > 1:
             label = f"{label} #{seen[label]}"
         runs.append((label, cols))
+        psds.append((label, _read_psd(csv_path.parent / "psd.csv")))
     common = set.intersection(*(set(plotting.plotted_columns(c)) for _, c in runs))
     if not common:
         raise UsageError("the runs share no moment column to compare: "
                          + "; ".join(f"{lb}: {', '.join(plotting.plotted_columns(c))}"
                                      for lb, c in runs))
+    psd_out = out.with_name(f"{out.stem}_psd{out.suffix}")
+    with_psd = all(cols is not None for _, cols in psds)
+    psd_target = output.prepare_file(psd_out, overwrite) if with_psd else None
     with output.atomic_file(target, overwrite) as tmp:
         plotting.plot_trajectories(tmp, runs, title=" vs ".join(lb for lb, _ in runs),
                                    common_only=True,
                                    metadata=output.figure_metadata(out.suffix, "compare"))
     say(f"wrote {out}")
+    if with_psd:
+        from . import psd_figure
+        with output.atomic_file(psd_target, overwrite) as tmp:
+            psd_figure.psd_overlay(tmp, psds, title="granule size distributions (mass-based)",
+                                   metadata=output.figure_metadata(out.suffix, "compare"))
+        say(f"wrote {psd_out}")
     return 0
+
+
+def _read_psd(path):
+    """The columns of a run's psd.csv, or None when the run has none (or it is not one)."""
+    if not path.is_file():
+        return None
+    try:
+        cols = output.read_columns_csv(path)
+    except (ValueError, OSError):
+        return None
+    return cols if {"d_m", "q3_per_ln_d"} <= set(cols) else None
 
 
 def render_run(directory, fields=None, times=None, overwrite: bool = False,

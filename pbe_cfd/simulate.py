@@ -24,6 +24,8 @@ class RunResult:
     warnings: list = field(default_factory=list)
     compile_time_s: float = 0.0     # compiling (or loading) the kernels, not in wall_time_s
     kernels_compiled: bool = False  # True: numba compiled them (a first run), else loaded
+    psd: dict | None = None         # psd.csv columns (distribution.tables), None if none
+    labels: dict = field(default_factory=dict)   # columns.json: file -> column -> meaning
 
 
 def run_well_mixed(scene, progress=None) -> RunResult:
@@ -55,14 +57,30 @@ def run_well_mixed(scene, progress=None) -> RunResult:
             progress(times[k] / scene.end_time, f"t = {times[k]:.4g} s")
     wall = _time.perf_counter() - start
     columns = {"time_s": times}
-    columns.update(model.moment_outputs(scene, arrays, states, aux))
+    populations = []
+    columns.update(model.moment_outputs(scene, arrays, states, aux, populations=populations))
     run_stats = batch.stats()
     extra, notes = method.diagnostics(states, aux, arrays)
     run_stats.update(extra)
     warnings.extend(notes)
+    psd, labels = _size_distribution(scene, arrays, states, aux, populations, columns, warnings)
     return RunResult(scene=scene, columns=columns, stats=run_stats, wall_time_s=wall,
                      warnings=warnings, compile_time_s=compile_s,
-                     kernels_compiled=batch.compiled_now)
+                     kernels_compiled=batch.compiled_now, psd=psd, labels=labels)
+
+
+def _size_distribution(scene, arrays, states, aux, populations, columns, warnings):
+    """Add d10/d50/d90/span to ``columns`` and return (psd.csv columns, columns.json)."""
+    from .distribution import tables
+    times = columns["time_s"]
+    label = lambda r: f"t = {times[r]:.6g} s"         # noqa: E731 (a row's name)
+    recon = tables.reconstruction_of(scene, arrays, states, aux, populations, label)
+    size, notes = tables.size_columns(recon, label)
+    columns.update(size)
+    psd, grid_notes = tables.psd_columns(times, recon)
+    warnings.extend(notes + grid_notes)
+    return psd, {"moments.csv": tables.column_labels(scene, arrays.state_names, columns),
+                 "psd.csv": tables.psd_labels(scene, psd)}
 
 
 def _run_ensemble(scene, progress) -> RunResult:
@@ -77,8 +95,9 @@ def _run_ensemble(scene, progress) -> RunResult:
     wall = _time.perf_counter() - start
     columns = {"time_s": times}
     stats = {}
+    psd, psd_notes = _cnmc_distribution(scene, times, res)
     for key, value in res.items():
-        if key == "time_s":
+        if key == "time_s" or key.startswith("psd_"):
             continue
         if np.ndim(value) == 0:
             stats[key] = value.item() if hasattr(value, "item") else value
@@ -93,4 +112,14 @@ def _run_ensemble(scene, progress) -> RunResult:
         for key in list(columns):
             if key.startswith("droplet_number_density"):
                 columns.pop(key)
-    return RunResult(scene=scene, columns=columns, stats=stats, wall_time_s=wall)
+    from .distribution import tables
+    labels = {"moments.csv": tables.column_labels(scene, [], columns),
+              "psd.csv": tables.psd_labels(scene, psd)}
+    return RunResult(scene=scene, columns=columns, stats=stats, wall_time_s=wall,
+                     warnings=psd_notes, psd=psd, labels=labels)
+
+
+def _cnmc_distribution(scene, times, res):
+    """(psd.csv columns, notes) of a cNMC ensemble's histograms."""
+    from .distribution import tables
+    return tables.cnmc_psd_columns(times, res, scene.bivariate)

@@ -43,7 +43,14 @@ def test_default_run_writes_the_contract(tmp_path):
     for required in ("M00", "M10", "M01", "M20", "M11", "M02", "droplet_number_density",
                      "d32_m", "d43_m", "binder_fraction"):
         assert required in names
-    assert names[-3:] == ["d32_m", "d43_m", "binder_fraction"]
+    # the size-distribution columns come after the earlier ones (an additive contract)
+    assert names[-7:] == ["d32_m", "d43_m", "binder_fraction", "d10_m", "d50_m", "d90_m", "span"]
+    assert (out / "psd.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    psd = read_columns_csv(out / "psd.csv")
+    assert list(psd) == ["time_s", "d_m", "Q3", "q3_per_ln_d", "binder_fraction"]
+    labels = json.loads((out / "columns.json").read_text())
+    assert labels["moments.csv"]["M02"].startswith("reconstructed")
+    assert labels["moments.csv"]["M20"].startswith("carried")
     assert cols["time_s"][-1] == pytest.approx(600.0)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["method"] == "qmom"

@@ -125,9 +125,9 @@ import math
 import numpy as np
 
 from ..physics import parameters as P
-from .cnmc_box import (MAX_TRIALS, MOMENT_NAMES, N_QUANTITIES, QUANTITY_NAMES,
+from .cnmc_box import (MAX_TRIALS, MOMENT_NAMES, N_QUANTITIES, PSD_BINS, QUANTITY_NAMES,
                        STATUS_MAX_TRIALS, STATUS_NONFINITE, STATUS_OK, STATUS_STALLED,
-                       interval_pair_bound, pair_rate_bounds, run_box)
+                       interval_pair_bound, pair_rate_bounds, run_box, run_box_with_sizes)
 
 __all__ = ["simulate_ensemble", "initial_box", "run_box", "pair_rate_bounds",
            "interval_pair_bound", "MOMENT_NAMES", "QUANTITY_NAMES", "N_QUANTITIES",
@@ -212,6 +212,39 @@ def _validate(params, config, cell, initial, output_times, particles, replicas):
         raise ValueError("params DENSITY: expected > 0 kg/m3")
 
 
+class _ClassSums:
+    """Running sums over the replicas of the granule mass fraction per size class (mean and
+    band without keeping every replica) and of the binder and granule mass per class."""
+
+    def __init__(self, n_out):
+        self.classes = np.zeros((n_out, PSD_BINS, 2))    # run_box fills it per replica
+        self.sum = np.zeros((n_out, PSD_BINS))
+        self.sum_sq = np.zeros((n_out, PSD_BINS))
+        self.mass = np.zeros((n_out, PSD_BINS))
+        self.binder = np.zeros((n_out, PSD_BINS))
+
+    def add(self):
+        mass = self.classes[:, :, 0]
+        total = mass.sum(axis=1, keepdims=True)
+        frac = mass / np.where(total > 0, total, 1.0)
+        self.sum += frac
+        self.sum_sq += frac * frac
+        self.mass += mass
+        self.binder += self.classes[:, :, 1]
+
+    def result(self, replicas, t_factor):
+        mean = self.sum / replicas
+        if replicas > 1:
+            var = np.maximum(self.sum_sq - replicas * mean * mean, 0.0) / (replicas - 1)
+            half = t_factor * np.sqrt(var)
+        else:
+            half = np.zeros_like(mean)
+        binder = np.where(self.mass > 0, self.binder / np.where(self.mass > 0, self.mass, 1.0),
+                          0.0)
+        return {"psd_mass_fraction": mean, "psd_mass_fraction_lo": mean - half,
+                "psd_mass_fraction_hi": mean + half, "psd_binder_fraction": binder}
+
+
 def simulate_ensemble(params, config, cell, initial, output_times, particles, replicas, seed,
                       progress=None):
     """cNMC ensemble: mean and 95% confidence band of the moments at ``output_times``.
@@ -229,7 +262,12 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
     incl. free droplets, droplet_number_density [1/m3], d32_m [m], d43_m [m],
     binder_fraction [-] = M01/M10 of each replica) the ensemble mean under the name and the
     95% band mean -+ t_{0.975, R-1} std / sqrt(R) under name + "_lo" / "_hi" (zero width when
-    R = 1); "trials", "accepted", "events_injection": totals over the ensemble (int64), and with
+    R = 1); the same for the granules' mass-based "d10_m", "d50_m", "d90_m" [m] (exact
+    percentiles of each replica's particle list, free droplets excluded) and "span" [-];
+    "psd_mass_fraction" (+ "_lo", "_hi"): shape (times, PSD_BINS), each replica's granule mass
+    fraction per class of the size lattice (``cnmc_box.PSD_LOG10_LO``, ``PSD_PER_DECADE``),
+    its ensemble mean and band; "psd_binder_fraction": the pooled binder mass / granule mass
+    per class (0 in an empty class); "trials", "accepted", "events_injection": totals over the ensemble (int64), and with
     breakage "trials_breakage" (proposals) and "events_breakage" (splits).
     Raises RuntimeError if a replica exhausts MAX_TRIALS trials (e.g. a product kernel past
     gelation), FloatingPointError for an infinite event rate (alpha >= alpha_max).
@@ -244,15 +282,18 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
 
     n_out = output_times.size
     data = np.empty((replicas, n_out, N_QUANTITIES))
+    sizes = np.zeros((replicas, n_out, 4))           # d10, d50, d90 [m], span
+    psd = _ClassSums(n_out)
     totals = np.zeros(5, np.int64)
     children = np.random.SeedSequence(int(seed)).spawn(replicas)
     for r, child in enumerate(children):
         rng = np.random.default_rng(child)
+        pct = np.zeros((n_out, 3))
         p, b, isdrop, volume0 = initial_box(params, config, initial, particles, rng)
         box_seed = int(rng.integers(0, 2 ** 31 - 1))
         (trials, accepted, injections, violations, status, t_reached, break_trials,
-         splits) = run_box(p, b, isdrop, volume0, output_times, cell, params, config, box_seed,
-                           0, MAX_TRIALS, data[r])
+         splits) = run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config,
+                                      box_seed, 0, MAX_TRIALS, data[r], psd.classes, pct)
         if violations:
             raise RuntimeError(f"cNMC replica {r}: {violations} pair rates exceeded the "
                                "majorant (bound bug)")
@@ -268,21 +309,32 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
             raise RuntimeError(f"cNMC replica {r}: time step below the resolution of t at "
                                f"t = {t_reached:.6g} s (event rate too high)")
         totals += (trials, accepted, injections, break_trials, splits)
+        psd.add()
+        sizes[r, :, :3] = pct
+        d50 = sizes[r, :, 1]
+        sizes[r, :, 3] = np.where(d50 > 0, (sizes[r, :, 2] - sizes[r, :, 0])
+                                  / np.where(d50 > 0, d50, 1.0), 0.0)
         if progress is not None:
             progress((r + 1) / replicas)
 
-    mean = data.mean(axis=0)
+    t_factor = 0.0
     if replicas > 1:
         from scipy import stats    # here: scipy loads only for the confidence band
-        half = (stats.t.ppf(0.975, replicas - 1) * data.std(axis=0, ddof=1)
-                / math.sqrt(replicas))
-    else:
-        half = np.zeros_like(mean)
+        t_factor = float(stats.t.ppf(0.975, replicas - 1)) / math.sqrt(replicas)
+    mean = data.mean(axis=0)
+    half = t_factor * data.std(axis=0, ddof=1) if replicas > 1 else np.zeros_like(mean)
     result = {"time_s": output_times.copy()}
     for q, name in enumerate(QUANTITY_NAMES):
         result[name] = mean[:, q]
         result[name + "_lo"] = mean[:, q] - half[:, q]
         result[name + "_hi"] = mean[:, q] + half[:, q]
+    s_mean = sizes.mean(axis=0)
+    s_half = t_factor * sizes.std(axis=0, ddof=1) if replicas > 1 else np.zeros_like(s_mean)
+    for q, name in enumerate(("d10_m", "d50_m", "d90_m", "span")):
+        result[name] = s_mean[:, q]
+        result[name + "_lo"] = s_mean[:, q] - s_half[:, q]
+        result[name + "_hi"] = s_mean[:, q] + s_half[:, q]
+    result.update(psd.result(replicas, t_factor))
     result["trials"] = np.int64(totals[0])
     result["accepted"] = np.int64(totals[1])
     result["events_injection"] = np.int64(totals[2])

@@ -21,6 +21,14 @@ MOMENT_NAMES = ("M00", "M10", "M01", "M20", "M11", "M02")
 QUANTITY_NAMES = MOMENT_NAMES + ("droplet_number_density", "d32_m", "d43_m", "binder_fraction")
 N_QUANTITIES = len(QUANTITY_NAMES)
 
+#: the size-class lattice of the box's mass histogram: edges d_k = 10^(LO + k / PER_DECADE) m,
+#: k = 0 .. PSD_BINS (0.1 um to 1 m); a granule outside it is counted in the end class
+PSD_LOG10_LO = -7.0
+PSD_PER_DECADE = 50
+PSD_BINS = 7 * PSD_PER_DECADE
+#: the mass fractions of the box's exact percentiles (d10, d50, d90)
+PSD_FRACTIONS = (0.1, 0.5, 0.9)
+
 # run_box status codes
 STATUS_OK = 0
 STATUS_MAX_TRIALS = 1      # trial budget exhausted before the last output time
@@ -104,6 +112,43 @@ def _bound_row(c, lo, hi, table, tabd, alpha, theta, d43, params, config):
 
 
 @nb.njit(cache=True)
+def box_size_classes(p, b, isdrop, rho, classes, percentiles):
+    """The granules' (isdrop 0) mass and binder mass [kg] per class of the size lattice
+    (PSD_LOG10_LO, PSD_PER_DECADE; ``classes`` (PSD_BINS, 2), overwritten) and their exact
+    mass-based percentiles [m] at PSD_FRACTIONS (``percentiles``, 3): the diameter of the
+    first granule, in order of mass, at which the cumulative mass reaches the fraction.
+    p, b [kg]; rho the particle density [kg/m3]. No granule: percentiles 0."""
+    classes[:, :] = 0.0
+    n_bins = classes.shape[0]
+    total = 0.0
+    for k in range(p.size):
+        if isdrop[k] != 0:
+            continue
+        d = (_C_D * p[k] / rho) ** (1.0 / 3.0)
+        j = int(math.floor((math.log10(d) - PSD_LOG10_LO) * PSD_PER_DECADE))
+        j = min(max(j, 0), n_bins - 1)
+        classes[j, 0] += p[k]
+        classes[j, 1] += b[k]
+        total += p[k]
+    percentiles[:] = 0.0
+    if total <= 0.0:
+        return
+    order = np.argsort(p)
+    acc = 0.0
+    q = 0
+    for i in range(order.size):
+        k = order[i]
+        if isdrop[k] != 0:
+            continue
+        acc += p[k]
+        while q < 3 and acc >= PSD_FRACTIONS[q] * total:
+            percentiles[q] = (_C_D * p[k] / rho) ** (1.0 / 3.0)
+            q += 1
+        if q == 3:
+            break
+
+
+@nb.njit(cache=True)
 def box_quantities(p, b, isdrop, conc, rho, row):
     """Fill ``row`` (length N_QUANTITIES, order QUANTITY_NAMES) from the box.
 
@@ -152,6 +197,17 @@ def box_quantities(p, b, isdrop, conc, rho, row):
 @nb.njit(cache=True)
 def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
             exponential_dt, max_trials, out):
+    """``run_box_with_sizes`` without the size classes and percentiles (arguments and
+    returns as there)."""
+    n_out = output_times.size
+    return run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config,
+                              rng_seed, exponential_dt, max_trials, out,
+                              np.zeros((n_out, PSD_BINS, 2)), np.zeros((n_out, 3)))
+
+
+@nb.njit(cache=True)
+def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
+                       exponential_dt, max_trials, out, classes, percentiles):
     """One cNMC replica. Mutates p, b, isdrop (the final box) and fills ``out``.
 
     p, b: float64 [kg], length N (N >= 2 for aggregation); isdrop: int64 flags, 1 = free
@@ -160,7 +216,8 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
     COLLISION_VELOCITY [m/s], INJECTION [droplets/(m3 s)]; params, config: physics.parameters;
     rng_seed: seed of numba's generator; exponential_dt: 0 = mean waiting time 1/R per trial
     (seed 000), 1 = exponential; max_trials: budget of proposals; out: (len(output_times),
-    N_QUANTITIES), columns QUANTITY_NAMES (rows not reached: NaN). Returns (trials, accepted,
+    N_QUANTITIES), columns QUANTITY_NAMES (rows not reached: NaN); classes (n_out, PSD_BINS,
+    2), percentiles (n_out, 3): ``box_size_classes`` per output time. Returns (trials, accepted,
     injections, violations, status, t_reached [s], break_trials, splits): aggregation
     proposals and aggregations, injections, proposals above their majorant (must be 0), a
     STATUS_* code, breakage proposals and breakages (``methods.cnmc_breakage``).
@@ -203,7 +260,7 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
             break
         t_next = _next_event_time(t, r, exponential_dt)
         k_out = _store_outputs(k_out, t_next, output_times, p, b, isdrop, conc0, mass_rate,
-                               rho, out)
+                               rho, out, classes, percentiles)
         if k_out >= n_out:
             break
         if t_next <= t:
@@ -302,11 +359,13 @@ def _initial_bounds(rho, n_free_droplets, pd, ptot, s4, lo, hi, dirty, table, ta
 
 
 @nb.njit(cache=True, inline="always")
-def _store_outputs(k_out, t_next, output_times, p, b, isdrop, conc0, mass_rate, rho, out):
+def _store_outputs(k_out, t_next, output_times, p, b, isdrop, conc0, mass_rate, rho, out,
+                   classes, percentiles):
     """Store the box at every output time before t_next [s]; returns the next output row."""
     n_out = output_times.size
     while k_out < n_out and output_times[k_out] < t_next:
         box_quantities(p, b, isdrop, conc0 + mass_rate * output_times[k_out], rho, out[k_out])
+        box_size_classes(p, b, isdrop, rho, classes[k_out], percentiles[k_out])
         k_out += 1
     return k_out
 

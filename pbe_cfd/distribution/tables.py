@@ -1,0 +1,179 @@
+"""Size-distribution outputs: the d10/d50/d90/span columns, ``psd.csv`` and ``columns.json``.
+
+``psd.csv`` (long format, one row per output time and diameter): ``time_s`` [s], ``d_m`` [m]
+(log-spaced), ``Q3`` the mass (volume) fraction of the granules below d [-], ``q3_per_ln_d``
+[-] the mean of dQ3/d(ln d) over the class [d e^(-h/2), d e^(h/2)] (h the grid's spacing in
+ln d; the density per unit ln d, which integrates to 1 over ln d), and for bivariate scenes
+``binder_fraction`` the granules' binder mass over granule mass in that class [-]. The cNMC
+adds ``q3_lo``/``q3_hi``, the replicas' 95% band of q3, on its own lattice classes.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import reconstruct as R
+from .quantiles import FRACTIONS, DistributionError, check_grid_covers, log_grid
+
+#: the size columns added to moments.csv, bed_moments.csv and the VTK cell fields
+SIZE_COLUMNS = ("d10_m", "d50_m", "d90_m", "span")
+#: points of a reconstruction's psd.csv grid, and the mass fractions that bound it
+PSD_POINTS = 40
+GRID_FRACTIONS = (1.0e-4, 1.0 - 1.0e-4)
+GRID_MARGIN = 1.25
+
+#: how each moment method's distribution is reconstructed (docs/physics.md section 11.1)
+RECONSTRUCTION_TEXT = {
+    "qmom": "gamma density in granule mass fitted to the carried M00, M10, M20 (one-kernel "
+            "gamma EQMOM); binder fraction per size class interpolated in ln p between the "
+            "nodes' binder values",
+    "cqmom": "gamma density in granule mass fitted to the carried M00, M10, M20 (one-kernel "
+             "gamma EQMOM); binder fraction per size class interpolated in ln p between the "
+             "size nodes' mass-mean binder fractions",
+    "laguerre": "the Laguerre ROM's own density (wet and dry classes) integrated per size class",
+    "cnmc": "mass histogram of each replica's particle list (50 classes per decade of d), the "
+            "replicas' mean and 95% band; d10/d50/d90 exact per replica",
+}
+
+
+def reconstruction_of(scene, arrays, states, aux, populations, labels=str):
+    """The reconstruction of a moment method's scaled states (rows: times or cells);
+    ``populations``: the rows' weighted particles from ``model.moment_outputs``."""
+    name = scene.method.name
+    if name == "laguerre":
+        return R.laguerre_table(states, aux, arrays, scene.bivariate, labels)
+    if name in ("qmom", "cqmom"):
+        return R.gamma_of_populations(populations, scene.material.density, scene.bivariate,
+                                      labels)
+    raise DistributionError(f"method {name!r}: no size-distribution reconstruction")
+
+
+def size_columns(recon, labels=str) -> tuple[dict, list]:
+    """({d10_m, d50_m, d90_m [m], span [-]} per row, notes): mass-based percentiles; 0 in a
+    row without granules. A row whose percentile cannot be found is named in the notes and
+    gets 0 (never a silent NaN)."""
+    q = np.asarray(recon.quantiles(FRACTIONS), dtype=float)
+    notes = list(recon.notes)
+    bad = ~np.all(np.isfinite(q), axis=1)
+    if np.any(bad):
+        rows = np.flatnonzero(bad)
+        notes.append(f"size distribution: no percentile found at {R._rows_text(rows, labels)} "
+                     "(the cumulative does not reach the fraction); d10, d50, d90 set to 0 "
+                     "there")
+        q[bad] = 0.0
+    d10, d50, d90 = q[:, 0], q[:, 1], q[:, 2]
+    span = np.where(d50 > 0, (d90 - d10) / np.where(d50 > 0, d50, 1.0), 0.0)
+    return {"d10_m": d10, "d50_m": d50, "d90_m": d90, "span": span}, notes
+
+
+def auto_grid(recon, points: int = PSD_POINTS) -> np.ndarray:
+    """Log-spaced diameters [m] from GRID_MARGIN below the smallest row's Q3 = 1e-4 to
+    GRID_MARGIN above the largest row's Q3 = 1 - 1e-4; DistributionError without granules."""
+    full = ~np.asarray(recon.empty)
+    if not np.any(full):
+        raise DistributionError("size distribution: no granules at any output time, no "
+                                "diameter grid to draw it on")
+    if hasattr(recon, "bounds"):           # a bed mixture: its rows' own range bounds it
+        lo, hi = recon.bounds(GRID_FRACTIONS)
+        q = np.column_stack([lo[:, 0], hi[:, 1]])
+    else:
+        q = np.asarray(recon.quantiles(GRID_FRACTIONS), dtype=float)[full]
+    q = q[np.all(np.isfinite(q) & (q > 0), axis=1)]
+    if q.size == 0:
+        raise DistributionError("size distribution: no row has percentiles to bound a grid")
+    return log_grid(float(q[:, 0].min()) / GRID_MARGIN, float(q[:, 1].max()) * GRID_MARGIN,
+                    points)
+
+
+def psd_columns(times, recon, grid=None, band=None) -> tuple[dict, list]:
+    """(psd.csv columns, notes) of a reconstruction with one row per output time ``times``
+    [s] on ``grid`` [m] (default ``auto_grid``). ``band``: (q3_lo, q3_hi) per row and grid
+    point (the cNMC's) or None."""
+    grid = auto_grid(recon) if grid is None else np.asarray(grid, dtype=float)
+    h = math.log(grid[1] / grid[0])
+    lo, hi = grid * math.exp(-0.5 * h), grid * math.exp(0.5 * h)
+    n = grid.size
+    at = recon.cdf(np.concatenate([grid, lo[:1], hi]))    # the class edges: lo[1:] = hi[:-1]
+    big_q, edges = at[:, :n], at[:, n:]
+    q3 = (edges[:, 1:] - edges[:, :-1]) / h
+    cols = {"time_s": np.repeat(np.asarray(times, float), grid.size),
+            "d_m": np.tile(grid, len(times)), "Q3": big_q.ravel(), "q3_per_ln_d": q3.ravel()}
+    binder = recon.class_binder(lo, hi)
+    if binder is not None:
+        cols["binder_fraction"] = binder.ravel()
+    if band is not None:
+        cols["q3_lo"], cols["q3_hi"] = (np.asarray(b, float).ravel() for b in band)
+    notes = []
+    full = ~np.asarray(recon.empty)
+    if np.any(full):
+        note = check_grid_covers(edges[full, 0], edges[full, -1], grid, "psd.csv")
+        if note:
+            notes.append(note)
+    return cols, notes
+
+
+def cnmc_psd_columns(times, result, bivariate) -> tuple[dict, list]:
+    """psd.csv columns of a cNMC ensemble on its own lattice classes (those holding mass at
+    some time, one class of margin each side), with the replicas' band of q3."""
+    table = R.cnmc_table(result, bivariate)
+    mean = np.asarray(result["psd_mass_fraction"], float)
+    used = np.flatnonzero(mean.max(axis=0) > 0)
+    if used.size == 0:
+        raise DistributionError("size distribution: the cNMC holds no granules")
+    a, b = max(used[0] - 1, 0), min(used[-1] + 2, mean.shape[1])
+    edges = table.log_edges
+    grid = np.exp(0.5 * (edges[a:b] + edges[a + 1:b + 1]))
+    h = edges[1] - edges[0]
+    band = (np.asarray(result["psd_mass_fraction_lo"])[:, a:b] / h,
+            np.asarray(result["psd_mass_fraction_hi"])[:, a:b] / h)
+    return psd_columns(times, table, grid, band)
+
+
+def column_labels(scene, state_names, columns, bed: bool = False) -> dict:
+    """name -> what the column is: carried (a moment of the method's state), derived or
+    reconstructed (how), for the columns.json sidecar."""
+    method = scene.method.name
+    how = RECONSTRUCTION_TEXT.get(method, "")
+    out = {}
+    for name in columns:
+        base = name[:-3] if name.endswith(("_lo", "_hi")) else name
+        if name == "time_s":
+            text = "time [s]"
+        elif method == "cnmc":
+            text = ("estimated from the particle lists: mean of the replicas"
+                    + ("; _lo/_hi the 95% band of that mean" if base != name else ""))
+        elif base in state_names:
+            text = "carried: an entry of the method's state"
+        elif base.startswith("M"):
+            text = ("reconstructed, not carried: " + (
+                "from the quadrature nodes (one binder value per size node)"
+                if method in ("qmom", "cqmom") else "integral of the Laguerre density over "
+                "its support"))
+        elif base in ("d32_m", "d43_m"):
+            text = "derived from the method's population (nodes or reconstruction) [m]"
+        elif base == "binder_fraction":
+            text = "derived: M01 / M10 [-]"
+        else:
+            text = ""
+        if base in SIZE_COLUMNS:
+            text = (f"reconstructed size distribution, mass-based "
+                    f"{'span (d90 - d10)/d50 [-]' if base == 'span' else 'percentile [m]'}: "
+                    + how)
+        if bed and name != "time_s":
+            text = "bed (volume-weighted over the cells): " + text
+        out[name] = text or "derived"
+    return out
+
+
+def psd_labels(scene, columns) -> dict:
+    """name -> meaning of the psd.csv columns."""
+    how = RECONSTRUCTION_TEXT.get(scene.method.name, "")
+    texts = {"time_s": "time [s]", "d_m": "diameter [m], log-spaced",
+             "Q3": "reconstructed: mass fraction of the granules below d [-]; " + how,
+             "q3_per_ln_d": "reconstructed: mean of dQ3/d(ln d) over the class [d e^(-h/2), "
+                            "d e^(h/2)], h the grid spacing in ln d [-]",
+             "binder_fraction": "reconstructed: binder mass / granule mass in the class [-]",
+             "q3_lo": "lower end of the replicas' 95% band of q3 [-]",
+             "q3_hi": "upper end of the replicas' 95% band of q3 [-]"}
+    return {c: texts[c] for c in columns}

@@ -1,0 +1,198 @@
+"""Size distributions (pbe_cfd.distribution) against references of their own: closed-form
+percentiles, and constant-kernel aggregation from an exponential start, whose number density
+stays exponential, n(p, t) = N(t)^2 / M1 exp(-p N(t) / M1) with N = 2 N0 / (2 + k0 N0 t)
+(docs/physics.md sections 10 and 11.1). Its mass density p n(p) is a gamma density of shape
+2, so the mass-based cumulative is Q3 = 1 - (1 + z) e^(-z), z = p N / M1, solved here by
+Newton's method (no code shared with the package)."""
+import math
+from statistics import NormalDist
+
+import numpy as np
+import pytest
+
+from pbe_cfd import model
+from pbe_cfd.distribution import reconstruct as R
+from pbe_cfd.distribution import tables
+from pbe_cfd.distribution.quantiles import DistributionError, bisect_quantiles, log_grid
+from pbe_cfd.methods.registry import method_of
+from pbe_cfd.simulate import run_well_mixed
+
+from conftest import make_scene
+
+N0, P0, RHO, K0 = 1.0e10, 1.0e-9, 1000.0, 1.0e-10   # 1/m3, kg, kg/m3, m3/s
+FRACTIONS = (0.1, 0.5, 0.9)
+
+
+def _z_of_fraction(x):
+    """z with 1 - (1 + z) e^-z = x (Newton from z = 1; the derivative is z e^-z)."""
+    z = 1.0
+    for _ in range(100):
+        z -= (1.0 - (1.0 + z) * math.exp(-z) - x) / (z * math.exp(-z))
+    return z
+
+
+def _q3_exponential(d, mean_mass):
+    z = math.pi / 6.0 * RHO * np.asarray(d) ** 3 / mean_mass
+    return 1.0 - (1.0 + z) * np.exp(-z)
+
+
+def _d_of_mass(p):
+    return (6.0 * p / (math.pi * RHO)) ** (1.0 / 3.0)
+
+
+def _exact_percentiles(t):
+    mean_mass = P0 * (2.0 + K0 * N0 * t) / 2.0         # M1 / N(t), M1 = N0 P0 constant
+    return np.array([_d_of_mass(_z_of_fraction(x) * mean_mass) for x in FRACTIONS]), mean_mass
+
+
+def _scene(method, end=10.0, **method_keys):
+    return make_scene(scene={"end_time": end, "output_interval": end / 4},
+                      material={"density": RHO},
+                      initial={"distribution": "exponential", "number_density": N0,
+                               "mean_mass": P0},
+                      aggregation={"kernel": "constant", "rate": K0},
+                      method={"_replace": True, "name": method, **method_keys})
+
+
+# ---------------------------------------------------------------------------- percentiles
+def test_percentiles_of_a_log_uniform_class_table_are_exact():
+    """q3 constant per ln d on [d1, d2]: d_x = d1 (d2/d1)^x; the table's Q3 is linear in ln
+    d inside a class, so the only error is the bisection's (2^-60 of the bracket)."""
+    d1, d2, n = 50e-6, 500e-6, 37
+    edges = np.linspace(math.log(d1), math.log(d2), n + 1)
+    table = R.ClassTable(edges, np.ones((1, n)))
+    got = table.quantiles(FRACTIONS)[0]
+    want = d1 * (d2 / d1) ** np.array(FRACTIONS)
+    assert got == pytest.approx(want, rel=1e-12, abs=0)
+
+
+def test_bisection_finds_lognormal_percentiles_and_a_step():
+    """Q3 lognormal (d_g = 120 um, sigma = 0.4) and a step at 80 um (a monodisperse row):
+    d_x = d_g exp(sigma Phi^-1(x)) and 80 um, to the bisection's 2^-60 of ln(1e10)."""
+    dg, s, d_step = 120e-6, 0.4, 80e-6
+    phi = np.vectorize(NormalDist().cdf)
+
+    def cdf(d):
+        d = np.asarray(d, float)
+        return np.vstack([phi((np.log(d[0]) - math.log(dg)) / s), (d[1] >= d_step) * 1.0])
+
+    got = bisect_quantiles(cdf, FRACTIONS, rows=2)
+    want = [dg * math.exp(s * NormalDist().inv_cdf(x)) for x in FRACTIONS]
+    assert got[0] == pytest.approx(want, rel=1e-12, abs=0)
+    assert got[1] == pytest.approx([d_step] * 3, rel=1e-12, abs=0)
+
+
+@pytest.mark.parametrize("fractions", [(0.0,), (1.0,), (0.5, 1.5), (-0.1,)])
+def test_a_percentile_outside_0_1_says_so(fractions):
+    table = R.ClassTable(np.log([1e-6, 2e-6]), np.ones((1, 1)))
+    with pytest.raises(DistributionError, match="strictly between 0 and 1"):
+        table.quantiles(fractions)
+
+
+def test_a_grid_the_data_cannot_support_says_so():
+    with pytest.raises(DistributionError, match="0 < d_min < d_max"):
+        log_grid(2e-4, 1e-4, 10)
+    with pytest.raises(DistributionError, match="at least 2"):
+        log_grid(1e-4, 2e-4, 1)
+    empty = R.GammaFit(np.zeros(3), np.zeros(3), np.zeros(3), RHO)
+    with pytest.raises(DistributionError, match="no granules"):
+        tables.auto_grid(empty)
+
+
+def test_an_unrealizable_row_is_named_and_falls_back_to_a_delta():
+    """M20 < M10^2 / M00 (no distribution has these moments): named, delta at the mean."""
+    m0, m1 = np.array([N0, N0]), np.array([N0 * P0, N0 * P0])
+    m2 = np.array([2 * N0 * P0 ** 2, 0.5 * N0 * P0 ** 2])
+    fit = R.GammaFit(m0, m1, m2, RHO, labels=lambda r: f"cell {r + 40}")
+    cols, notes = tables.size_columns(fit)
+    assert any("cell 41" in n and "delta at the mean" in n for n in notes)
+    assert cols["d50_m"][1] == pytest.approx(_d_of_mass(P0), rel=1e-12, abs=0)
+    assert cols["span"][1] == 0.0
+    assert np.all(np.isfinite(cols["d10_m"]))
+
+
+# ---------------------------------------------------------------------------- the methods
+def test_qmom_reconstruction_is_exact_on_the_exponential_solution():
+    """QMOM N = 3 carries M00, M10, M20 to the integrator's 1e-6 (test_qmom_analytic); the
+    exponential is a gamma density of shape 1, so the one-kernel gamma fit is the exact
+    solution and d_x = d(z_x M1/N) holds to 1e-6 / 3 in d (d ~ p^(1/3)); 1e-5 leaves the
+    variance's cancellation (var/mean^2 = 1 here) a factor 10."""
+    res = run_well_mixed(_scene("qmom", nodes=3))
+    cols, t = res.columns, res.columns["time_s"]
+    for k in range(len(t)):
+        want, mean_mass = _exact_percentiles(t[k])
+        got = [cols["d10_m"][k], cols["d50_m"][k], cols["d90_m"][k]]
+        assert got == pytest.approx(want, rel=1e-5, abs=0)
+        sel = res.psd["time_s"] == t[k]
+        q3 = _q3_exponential(res.psd["d_m"][sel], mean_mass)
+        assert res.psd["Q3"][sel] == pytest.approx(q3, rel=0, abs=1e-5)
+    assert cols["span"] == pytest.approx((want[2] - want[0]) / want[1] * np.ones(len(t)),
+                                         rel=1e-5, abs=0)
+
+
+def _mass_quantile_sigma(x, mean_mass, n):
+    """Standard deviation [m] of the mass-weighted sample quantile d_x of n exponential
+    masses (delta method: Var F_hat = E[(p/mu)^2 (1{p < p_x} - x)^2] / n, divided by the
+    density dQ3/dd at d_x), by quadrature of the closed form."""
+    px = _z_of_fraction(x) * mean_mass
+    p = np.linspace(0.0, 60 * mean_mass, 200001)
+    f = np.exp(-p / mean_mass) / mean_mass
+    g = (p / mean_mass) ** 2 * ((p < px) - x) ** 2 * f
+    var = np.sum(0.5 * (g[1:] + g[:-1]) * np.diff(p)) / n
+    z = px / mean_mass
+    dq_dp = z * math.exp(-z) / mean_mass                  # d/dp of 1 - (1 + z) e^-z
+    dd_dp = _d_of_mass(px) / (3.0 * px)
+    return math.sqrt(var) / dq_dp * dd_dp
+
+
+def test_cnmc_histogram_and_percentiles_follow_the_exponential_solution():
+    """The cNMC's exact particle-list percentiles (mean of R replicas of N particles) within
+    4 sigma of the delta-method sampling error plus the method's O(1/N) bias (|bias| <= 6.3/N
+    relative on M20, test_cnmc; a third of it in d); its histogram's Q3 at the class
+    centres within the DKW bound sqrt(ln(2/1e-6) / (2 n_eff)) at n_eff = N R / 2 (Kish's
+    effective size of mass weights for exponential masses, E p^2 = 2 E[p]^2), plus the
+    table's linear interpolation in a class (h^2/8 max Q3'', h = ln 10 / 50: < 1e-3)."""
+    n, reps = 2000, 8
+    res = run_well_mixed(_scene("cnmc", end=5.0, particles=n, replicas=reps, seed=11))
+    cols, t = res.columns, res.columns["time_s"]
+    eps = math.sqrt(math.log(2.0 / 1e-6) / (2.0 * n * reps / 2.0)) + 1e-3
+    for k in range(len(t)):
+        want, mean_mass = _exact_percentiles(t[k])
+        for q, name in enumerate(("d10_m", "d50_m", "d90_m")):
+            sigma = _mass_quantile_sigma(FRACTIONS[q], mean_mass, n * reps)
+            band = 4.0 * sigma + 6.3 / n / 3.0 * want[q]
+            assert abs(cols[name][k] - want[q]) <= band, (name, t[k])
+        sel = res.psd["time_s"] == t[k]
+        q3 = _q3_exponential(res.psd["d_m"][sel], mean_mass)
+        assert np.max(np.abs(res.psd["Q3"][sel] - q3)) <= eps
+        assert np.all(res.psd["q3_lo"][sel] <= res.psd["q3_per_ln_d"][sel] + 1e-15)
+
+
+def test_laguerre_density_gives_the_exponential_it_represents_exactly():
+    """A dry class whose weight is the exponential of the initial mean (shape 1): the
+    expansion of an exponential start is its leading term alone, so the ROM's own density is
+    the exponential and d_x = d(z_x P0). The class table (150 classes per decade of d, 2
+    Gauss points in ln p) interpolates Q3 linearly in ln d: error <= h^2/8 max|Q3''| with h =
+    ln 10 / 150 and |Q3''| < 4 (in ln d), 1.2e-4 in Q3, i.e. < 1e-3 in d_x with q3 > 0.3;
+    the support p_max = 20 P0 drops a mass share 21 e^-20 = 4e-8."""
+    scene = _scene("laguerre", dry_class=True, dry_weight_mean_mass=P0,
+                   dry_weight_shape_mass=1.0, support_mass=20 * P0)
+    arrays = model.pack(scene)
+    aux = method_of(scene).aux(scene, arrays, None)
+    state = model.initial_moments(scene, arrays, arrays.state_names)
+    table = R.laguerre_table(state[None, :], aux, arrays, scene.bivariate)
+    want, _ = _exact_percentiles(0.0)
+    assert table.quantiles(FRACTIONS)[0] == pytest.approx(want, rel=1e-3, abs=0)
+    assert table.notes == []
+
+
+def test_the_bed_mixture_weights_rows_by_granule_mass():
+    """Two monodisperse cells, 30% and 70% of the mass at 100 um and 200 um: the mixture's
+    d10 is 100 um, its d50 and d90 200 um (the smallest d with Q3 >= x), to the bisection's
+    2^-20 of ln 2 (the cells' range; 6.6e-7) plus the bracket's 1e-9 margin."""
+    pa, pb = (math.pi / 6 * RHO * d ** 3 for d in (100e-6, 200e-6))
+    fit = R.GammaFit(np.array([1.0, 1.0]), np.array([pa, pb]), np.array([pa ** 2, pb ** 2]),
+                     RHO)
+    mix = R.Mixture(fit, np.array([0.3, 0.7]))        # the rows' granule masses
+    assert mix.quantiles(FRACTIONS)[0] == pytest.approx([100e-6, 200e-6, 200e-6], rel=1e-6,
+                                                        abs=0)
