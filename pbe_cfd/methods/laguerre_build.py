@@ -39,8 +39,8 @@ from .laguerre_layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_COND_DRY, AUX_COND
                               AUX_OFF_CAPMAP, AUX_OFF_CD, AUX_OFF_CD0, AUX_OFF_CDD,
                               AUX_OFF_CONDW, AUX_OFF_DRY_BASIS, AUX_OFF_F43, AUX_OFF_F43D,
                               AUX_OFF_LOGU, AUX_OFF_LOGW, AUX_OFF_Q, AUX_OFF_QDD,
-                              AUX_OFF_SUPPORT, AUX_OFF_WET_SUPPORT, AUX_OFF_X, AUX_OFF_XL, AUX_ORDER,
-                              AUX_P_MAX, AUX_SEPARATE, AUX_SPACING,
+                              AUX_OFF_SUPPORT, AUX_OFF_WET_SUPPORT, AUX_OFF_X, AUX_OFF_XL,
+                              AUX_ORDER, AUX_P_MAX, AUX_SEPARATE, AUX_SPACING,
                               AUX_U0_FIXED, AUX_VERSION, TABLE_III)
 from .laguerre_wet import wet_basis, wet_kernels, wet_tensors
 
