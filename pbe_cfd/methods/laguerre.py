@@ -168,6 +168,12 @@ def laguerre_d43(state, aux, params, config):
     m2 = state[2 * m] + state[K + 2] if m > 2 else 0.0
     if not (m1 > 0.0):
         return 0.0
+    if aux[AUX_FOLLOWING] == 1.0 and m > 2 and m0 > 0.0 and m2 > 0.0:
+        # the signed reconstruction of a broad population can put M_(4/3) anywhere: keep it
+        # within the bounds of any positive measure with these M0, M1, M2 (ln M_s convex in s)
+        lo = m1 * (m1 / m0) ** (1.0 / 3.0)
+        hi = m1 ** (2.0 / 3.0) * m2 ** (1.0 / 3.0)
+        m43 = min(max(m43, lo), hi)
     if not (m43 > 0.0):
         if m > 2 and m2 > 0.0:
             m43 = m1 ** (2.0 / 3.0) * m2 ** (1.0 / 3.0)
