@@ -160,6 +160,8 @@ class Method:
     dry_grid_mass: int = 200
     adaptive_weights: bool = True
     adaptive_points: int = 9
+    following_support: bool = False               # Laguerre: the support follows the wet class
+    following_growth: float = 1000.0              # its range: up to this x the initial mean mass
 
 
 @dataclass(frozen=True)

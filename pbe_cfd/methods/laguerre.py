@@ -39,12 +39,14 @@ import numpy as np
 from ..physics import parameters as P
 from ..physics.kernels import KTGF, kernel_cell_factor
 from . import laguerre_tensor as LT
-from .laguerre_layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_MASS_SCALE, AUX_NPAIR,
+from .laguerre_layout import (AUX_CHECK_LEVEL, AUX_FOLLOWING, AUX_MASS_SCALE,
+                              AUX_NPAIR,
                               AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_OFF_CAPMAP, AUX_OFF_CD,
                               AUX_OFF_CD0, AUX_OFF_CDD, AUX_OFF_F43, AUX_OFF_F43D,
                               AUX_OFF_LOGU, AUX_OFF_LOGW, AUX_OFF_Q, AUX_OFF_QDD,
                               AUX_OFF_SUPPORT, AUX_OFF_X, AUX_OFF_XL, AUX_ORDER, AUX_P_MAX,
-                              AUX_SEPARATE, state_names, state_size, weight_corners)
+                              AUX_SEPARATE, state_names, state_size, weight_corners,
+                              wet_support)
 from .laguerre_breakage import add_laguerre_breakage
 from .laguerre_tensor import build_aux, escaped_mass_share, initial_state, theta_to_u0
 
@@ -97,17 +99,27 @@ def _slice_position(cell, aux):
 @nb.njit(cache=True)
 def _weight_position(state, aux, m):
     """Adaptive weights: ((index, upper weight) in c, (index, upper weight) in d) of the wet
-    class's mean mass W10/W00 and mean binder W01/W00 [kg] on the weight grid."""
+    class's mean mass W10/W00 and mean binder W01/W00 [kg] on the weight grid (following
+    support: the mass-weighted mean mass W20 / W10 [kg] and the binder fraction W01 / W10
+    [-])."""
     nwc = int(aux[AUX_NWC])
     nwd = int(aux[AUX_NWD])
     if nwc * nwd <= 1 or not (state[0] > 0.0) or not (state[m] > 0.0):
         return 0, 0.0, 0, 0.0
     o = int(aux[AUX_OFF_LOGW])
     pref = aux[AUX_MASS_SCALE]
-    ic, tc = _log_position(math.log(state[m] / state[0] * pref), aux, o, nwc)
+    if aux[AUX_FOLLOWING] == 1.0:          # mass-weighted mean mass W20 / W10
+        if not (state[2 * m] > 0.0):
+            return 0, 0.0, 0, 0.0
+        ic, tc = _log_position(math.log(state[2 * m] / state[m] * pref), aux, o, nwc)
+    else:
+        ic, tc = _log_position(math.log(state[m] / state[0] * pref), aux, o, nwc)
     if not (state[1] > 0.0):
         return ic, tc, 0, 0.0
-    jd, td = _log_position(math.log(state[1] / state[0] * pref), aux, o + nwc, nwd)
+    if aux[AUX_FOLLOWING] == 1.0:          # ratio d / c = W01 / W10
+        jd, td = _log_position(math.log(state[1] / state[m]), aux, o + nwc, nwd)
+    else:
+        jd, td = _log_position(math.log(state[1] / state[0] * pref), aux, o + nwc, nwd)
     return ic, tc, jd, td
 
 
@@ -156,6 +168,12 @@ def laguerre_d43(state, aux, params, config):
     m2 = state[2 * m] + state[K + 2] if m > 2 else 0.0
     if not (m1 > 0.0):
         return 0.0
+    if aux[AUX_FOLLOWING] == 1.0 and m > 2 and m0 > 0.0 and m2 > 0.0:
+        # the signed reconstruction of a broad population can put M_(4/3) anywhere: keep it
+        # within the bounds of any positive measure with these M0, M1, M2 (ln M_s convex in s)
+        lo = m1 * (m1 / m0) ** (1.0 / 3.0)
+        hi = m1 ** (2.0 / 3.0) * m2 ** (1.0 / 3.0)
+        m43 = min(max(m43, lo), hi)
     if not (m43 > 0.0):
         if m > 2 and m2 > 0.0:
             m43 = m1 ** (2.0 / 3.0) * m2 ** (1.0 / 3.0)
@@ -529,11 +547,14 @@ def reconstruct(state, aux, params, config, p, b, clip_support=True):
         B = LT.unpack_basis(aux, w)
         K = B["m"] ** 2
         coef = B["Ginv"] @ (np.asarray(state[:K], float) * B["r"])
-        phi = LT.basis_values(pp / B["c"], bb / B["d"], B["Cp"], B["Cb"], B["lam"], B["gam"])
-        n += frac * (phi @ coef) * params[P.NUMBER_SCALE] / (B["c"] * B["d"])
-    if clip_support:
-        inside = (bb <= pp) & (pp <= aux[AUX_P_MAX]) & (bb <= aux[AUX_B_MAX])
-        n = np.where(inside, n, 0.0)
+        values = (LT.fraction_basis_values if aux[AUX_FOLLOWING] == 1.0
+                  else LT.basis_values)
+        phi = values(pp / B["c"], bb / B["d"], B["Cp"], B["Cb"], B["lam"], B["gam"])
+        part = frac * (phi @ coef) * params[P.NUMBER_SCALE] / (B["c"] * B["d"])
+        if clip_support:
+            p_max, b_max = wet_support(aux, w)
+            part = np.where((bb <= pp) & (pp <= p_max) & (bb <= b_max), part, 0.0)
+        n += part
     return n.reshape(shape)
 
 

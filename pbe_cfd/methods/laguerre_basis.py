@@ -101,6 +101,19 @@ def basis_values(u, v, Cp, Cb, lam, gam):
     return (psi[:, :, None] * chi[:, None, :]).reshape(len(psi), m * m)
 
 
+def fraction_basis_values(u, v, Cp, Cb, lam, gam):
+    """Raw basis in the binder fraction, phi_k(u, v) = psi_i(u) chi_j(v / u) / u, k = (i, j)
+    in state order (internal units; per unit u and v): the binder part is a gamma weight in
+    t = v / u = (b / p) / (d / c), the binder fraction over its mean, and 1 / u = dt / dv. A
+    population whose binder fraction does not depend on the size then has a separable
+    expansion, and its closure moments follow from the mass part alone
+    (docs/physics.md section 9.2). Shape (len(u), K)."""
+    m = Cp.shape[0]
+    psi = univariate_values(u, Cp, lam) / np.asarray(u, float)[:, None]
+    chi = univariate_values(np.asarray(v, float) / np.asarray(u, float), Cb, gam)
+    return (psi[:, :, None] * chi[:, None, :]).reshape(len(psi), m * m)
+
+
 def consistent_inverse(G):
     """(G^-1, cond) of a moment-basis matrix G[a, k] = int A_a phi_k, inverted after
     equilibrating rows (moments) and columns (basis functions): G spans many decades (u^3 v^3

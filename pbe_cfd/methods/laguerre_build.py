@@ -12,6 +12,11 @@ coefficients vanish and the basis follows the class as it grows (a fixed weight 
 first wet granules, one primary particle and a droplet, and the aggregates of 600 s at once).
 The tensors are tabulated on a log grid of (c, d) and the RHS blends the four neighbours
 bilinearly in (ln c, ln d).
+
+Following support (``adaptive=dict(following=True, ...)``, docs/physics.md section 9.2): the grid
+is in (ln c, ln y), y = d / c, and every weight slice integrates over its own support
+p <= span c, b <= p, so the support follows the wet class's mean mass over the grid's range of c.
+The slices then have their own nodes, and the wet kernel matrices are evaluated per slice.
 """
 import hashlib
 import json
@@ -26,14 +31,16 @@ from .laguerre_basis import SPACINGS
 from .laguerre_breakage import breakage_blocks
 from .laguerre_dry import cross_tensors, dry_class, dry_kernels, dry_tensors
 from .laguerre_layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_COND_DRY, AUX_COND_G,
-                              AUX_CONSISTENT, AUX_DROPLET_MASS, AUX_HEADER, AUX_LAYOUT_VERSION,
+                              AUX_CONSISTENT, AUX_DROPLET_MASS, AUX_FOLLOWING, AUX_HEADER,
+                              AUX_LAYOUT_VERSION,
                               AUX_MASS_SCALE, AUX_N_B, AUX_N_DRY, AUX_N_NODES, AUX_N_P,
                               AUX_NMOM, AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_OFF_BASIS,
                               AUX_OFF_BREAK,
                               AUX_OFF_CAPMAP, AUX_OFF_CD, AUX_OFF_CD0, AUX_OFF_CDD,
                               AUX_OFF_CONDW, AUX_OFF_DRY_BASIS, AUX_OFF_F43, AUX_OFF_F43D,
                               AUX_OFF_LOGU, AUX_OFF_LOGW, AUX_OFF_Q, AUX_OFF_QDD,
-                              AUX_OFF_SUPPORT, AUX_OFF_X, AUX_OFF_XL, AUX_ORDER, AUX_P_MAX, AUX_SEPARATE, AUX_SPACING,
+                              AUX_OFF_SUPPORT, AUX_OFF_WET_SUPPORT, AUX_OFF_X, AUX_OFF_XL,
+                              AUX_ORDER, AUX_P_MAX, AUX_SEPARATE, AUX_SPACING,
                               AUX_U0_FIXED, AUX_VERSION, TABLE_III)
 from .laguerre_wet import wet_basis, wet_kernels, wet_tensors
 
@@ -43,6 +50,15 @@ _SOURCES = ("laguerre_build.py", "laguerre_layout.py", "laguerre_basis.py", "lag
 #: default adaptive grid of the wet weight means: c in [p_max/32, p_max/2.5], d in
 #: [b_max/64, b_max/2] (the weight must fit in the support)
 ADAPTIVE_RANGES = dict(c=(1.0 / 32.0, 1.0 / 2.5), d=(1.0 / 64.0, 0.5))
+#: following support: p_max = FOLLOWING_SPAN c_m of each slice, c_m = W20/W10 the mass-weighted
+#: mean mass. The mass of a gamma population of shape k is distributed as a gamma of shape
+#: k + 1 and mean c_m: beyond 8 c_m lie Q(2, 16) = 2e-6 of it for k = 1 (exponential) and
+#: Q(1.5, 12) = 3e-5 for k = 0.5. Grid points per decade of c_m; the range of the
+#: mass-weighted binder fraction y = d / c = W01 / W10 and its points
+FOLLOWING_SPAN = 8.0
+FOLLOWING_POINTS_PER_DECADE = 3.0
+FOLLOWING_RATIO = (0.01, 1.0)
+FOLLOWING_RATIO_POINTS = 5
 
 
 def unit_params(params):
@@ -126,10 +142,31 @@ def _u0_grid(config, theta_grid, collision_velocity):
     raise ValueError("physical efficiency on: give theta_grid or collision_velocity")
 
 
+def _following_spec(spec):
+    """dict(following, c=[lo, hi] [kg], y=[lo, hi] [-], points_c, points_y, span [-])."""
+    c = [float(x) for x in spec["c"]]
+    if not (0.0 < c[0] < c[1]):
+        raise ValueError(f"following support: need 0 < c_lo < c_hi [kg], got {c}")
+    y = [float(x) for x in spec.get("y") or FOLLOWING_RATIO]
+    if not (0.0 < y[0] < y[1] <= 1.0):
+        raise ValueError(f"following support: need 0 < y_lo < y_hi <= 1, got {y}")
+    decades = math.log10(c[1] / c[0])
+    n_c = int(spec.get("points_c")
+              or max(2, math.ceil(decades * FOLLOWING_POINTS_PER_DECADE) + 1))
+    n_y = int(spec.get("points_y") or FOLLOWING_RATIO_POINTS)
+    span = float(spec.get("span") or FOLLOWING_SPAN)
+    if n_c < 2 or n_y < 2 or not span > 1.0:
+        raise ValueError("following support: need >= 2 grid points a side and span > 1")
+    return dict(following=True, c=c, y=y, points_c=n_c, points_y=n_y, span=span)
+
+
 def _adaptive_spec(adaptive, support):
-    """None (fixed weights) or dict(c=[lo, hi] [kg], d=[lo, hi] [kg], points)."""
+    """None (fixed weights), dict(c=[lo, hi] [kg], d=[lo, hi] [kg], points), or the following
+    support's dict (``_following_spec``)."""
     if not adaptive:
         return None
+    if adaptive is not True and adaptive.get("following"):
+        return _following_spec(adaptive)
     spec = dict(points=9) if adaptive is True else dict(adaptive)
     n = int(spec.get("points", 9))
     if n < 2:
@@ -182,6 +219,8 @@ def build_aux(params, config, order, weights=None, support=None, consistent=True
         raise ValueError("params[MASS_SCALE] must be set (> 0) before build_aux")
     u0_grid = _u0_grid(config, theta_grid, collision_velocity)
     spec = _adaptive_spec(adaptive, support)
+    if spec is not None and spec.get("following") and m < 3:
+        raise ValueError("the following support needs order >= 3 (it follows W20 / W10)")
     key = _cache_key(params, config, m, weights, support, consistent, u0_grid, spec)
     path = os.path.join(cache_dir or default_cache_dir(), f"aux_{key}.npy")
     if use_cache and os.path.exists(path):
@@ -209,7 +248,16 @@ def build_aux(params, config, order, weights=None, support=None, consistent=True
 
 
 def _weight_grid(weights, spec):
-    """(ln c grid, ln d grid, [(c, d) per weight slice]) of the wet weight means [kg]."""
+    """(ln c grid, ln d grid, [(c, d) per weight slice]) of the wet weight means [kg]; with the
+    following support the second grid is ln(d / c)."""
+    if spec is not None and spec.get("following"):
+        # grid in the mass-weighted mean c_m = W20/W10; the gamma weight of shape lam with
+        # that mass-weighted mean has the number mean c = c_m lam / (lam + 1)
+        cg = np.geomspace(spec["c"][0], spec["c"][1], spec["points_c"])
+        yg = np.geomspace(spec["y"][0], spec["y"][1], spec["points_y"])
+        shrink = weights["lam"] / (weights["lam"] + 1.0)
+        return np.log(cg), np.log(yg), [(cm * shrink, y * cm * shrink) for cm in cg
+                                        for y in yg]
     if spec is None:
         cg, dg = np.array([weights["c"]]), np.array([weights["d"]])
     else:
@@ -229,11 +277,41 @@ def _same(a, b):
     return all(np.array_equal(x, y) for x, y in zip(a, b))
 
 
+def _slice_grids(grid, pairs, spec, weights):
+    """The quadrature grid of each weight slice: the one support, or with the following
+    support p_max = b_max = span c_m (c_m the weight's mass-weighted mean; b <= p bounds the
+    binder), the nodes uniform in the binder
+    fraction and the basis in it (``laguerre_basis.fraction_basis_values``)."""
+    if spec is None or not spec.get("following"):
+        return [grid] * len(pairs)
+    grow = 1.0 + 1.0 / weights["lam"]             # c_m / c of the weight
+    return [dict(grid, p_max=spec["span"] * grow * c, b_max=spec["span"] * grow * c,
+                 spacing=1, fraction_basis=True) for c, _ in pairs]
+
+
+def _slice_tensors(t, s, bases, dry, k, shared, u0, kargs, m, pd, p_ref):
+    """Fill the blocks of collision-velocity slice s: k the kernel data on the first basis's
+    nodes; with per-slice nodes (not shared) the wet and cross kernels are evaluated per
+    weight slice."""
+    B, kd, Bdd, Bdw, kdd = k
+    separate = kargs[-1]
+    t["Qdd"][s], t["Cdd"][s] = dry_tensors(dry, Bdd, kdd, m)
+    for w, basis in enumerate(bases):
+        if not shared and w > 0:
+            B, kd = wet_kernels(basis["p"], basis["b"], u0, *kargs)
+            _, Bdw, _ = dry_kernels(dry, basis["p"], basis["b"], u0, *kargs)
+        t["Q"][w, s], t["Cd"][w, s], t["Cd0"][w, s] = wet_tensors(basis, B, kd, m, pd,
+                                                                 separate)
+        t["X"][w, s], t["XL"][w, s] = cross_tensors(dry, basis, Bdw, m, p_ref)
+
+
 def _tables(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
     """Every block of the aux as arrays (see ``laguerre_layout``)."""
     lnc, lnd, pairs = _weight_grid(weights, spec)
-    bases = [wet_basis(m, (c, d, weights["lam"], weights["gam"]), grid, consistent, p_ref)
-             for c, d in pairs]
+    grids = _slice_grids(grid, pairs, spec, weights)
+    bases = [wet_basis(m, (c, d, weights["lam"], weights["gam"]), g, consistent, p_ref)
+             for (c, d), g in zip(pairs, grids)]
+    shared = grids[0] is grids[-1]
     pd = float(params[P.DROPLET_MASS])
     separate = int(config[P.SEPARATE_DROPLETS]) == 1 and params[P.DROPLET_FACTOR] > 0
     dry = dry_class(m, weights["c_dry"], weights["lam_dry"], grid["p_max"], grid["n_dry"],
@@ -241,9 +319,11 @@ def _tables(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
     uparams, ucfg = unit_params(params), np.asarray(config, dtype=np.int64)
     slices = [float("nan")] if u0_grid is None else list(u0_grid)
 
+    def u0_of(x):
+        return 0.0 if not np.isfinite(x) else x
+
     def kernels(u0):
-        return _kernel_data(bases, dry, 0.0 if not np.isfinite(u0) else u0, uparams, ucfg,
-                            separate)
+        return _kernel_data(bases, dry, u0_of(u0), uparams, ucfg, separate)
 
     first = kernels(slices[0])
     last = kernels(slices[-1]) if len(slices) > 1 else first
@@ -257,12 +337,8 @@ def _tables(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
              Cdd=np.zeros((nS, m, m)))
     for s, u0 in enumerate(slices):
         k = first if s == 0 else (last if s == nS - 1 else kernels(u0))
-        B, kd, Bdd, Bdw, kdd = k
-        t["Qdd"][s], t["Cdd"][s] = dry_tensors(dry, Bdd, kdd, m)
-        for w, basis in enumerate(bases):
-            t["Q"][w, s], t["Cd"][w, s], t["Cd0"][w, s] = wet_tensors(basis, B, kd, m, pd,
-                                                                     separate)
-            t["X"][w, s], t["XL"][w, s] = cross_tensors(dry, basis, Bdw, m, p_ref)
+        _slice_tensors(t, s, bases, dry, k, shared, u0_of(u0), (uparams, ucfg, separate), m,
+                       pd, p_ref)
     logu = np.log(np.array([x if np.isfinite(x) else 1.0 for x in slices]))
     t.update(logu=logu, logw=np.concatenate([lnc, lnd]), nwc=len(lnc), nwd=len(lnd),
              f43=np.concatenate([b["f43"] for b in bases]),
@@ -270,7 +346,8 @@ def _tables(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
              sup=np.concatenate([b["sup"] for b in bases]), dry=dry, separate=separate,
              condw=np.array([b["cond"] for b in bases]),
              cond=max(b["cond"] for b in bases), n_nodes=len(bases[0]["u"]), slices=slices,
-             collapsed=collapsed, pd=pd,
+             collapsed=collapsed, pd=pd, following=not shared,
+             wet_support=np.array([[g["p_max"], g["b_max"]] for g in grids]),
              breakage=breakage_blocks(params, config, m, bases, dry))
     return t
 
@@ -283,7 +360,8 @@ def _build(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
              (AUX_OFF_SUPPORT, t["sup"]), (AUX_OFF_QDD, t["Qdd"]), (AUX_OFF_X, t["X"]),
              (AUX_OFF_XL, t["XL"]), (AUX_OFF_CDD, t["Cdd"]), (AUX_OFF_CAPMAP, dry["capmap"]),
              (AUX_OFF_F43D, dry["f43"]), (AUX_OFF_DRY_BASIS, dry["basis"]),
-             (AUX_OFF_LOGW, t["logw"]), (AUX_OFF_CONDW, t["condw"])]
+             (AUX_OFF_LOGW, t["logw"]), (AUX_OFF_CONDW, t["condw"]),
+             (AUX_OFF_WET_SUPPORT, t["wet_support"])]
     if t["breakage"].size:                 # absent: AUX_OFF_BREAK stays 0
         named.append((AUX_OFF_BREAK, t["breakage"]))
     pos = AUX_HEADER
@@ -305,6 +383,7 @@ def _build(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
               AUX_DROPLET_MASS: t["pd"], AUX_SEPARATE: 1.0 if t["separate"] else 0.0,
               AUX_COND_G: t["cond"], AUX_COND_DRY: dry["cond"], AUX_N_DRY: grid["n_dry"],
               AUX_NWC: t["nwc"], AUX_NWD: t["nwd"],
+              AUX_FOLLOWING: 1.0 if t["following"] else 0.0,
               AUX_U0_FIXED: (slices[0] if (len(slices) == 1 and np.isfinite(slices[0])
                                            and not t["collapsed"]) else 0.0)}
     for slot, value in header.items():

@@ -7,7 +7,10 @@ granules' mixed moments, the dry granules' moments in p, free droplets.
 The aux array is a float64 header (slots below) followed by blocks at the offsets the header
 holds. Tensors depend on the collision velocity u0 (``slice`` s, NSLICE values of ln u0) and,
 with adaptive weights, on the wet weight means (``weight`` w = ic * NWD + id on a log grid of
-NWC means c and NWD means d); the dry-only blocks depend on the slice alone. Block shapes:
+NWC means c and NWD means d; with the following support, NWC mass-weighted means c_m and NWD
+binder fractions y, and each weight slice integrates over its own support p <= span c_m,
+b <= p: docs/physics.md section 9.2);
+the dry-only blocks depend on the slice alone. Block shapes:
 
     Q[w, s, pair(k <= l < K), a < K]     wet + wet -> wet
     Cd[w, s, k, a], Cd0[w, s, k]         droplets captured by wet granules
@@ -16,6 +19,7 @@ NWC means c and NWD means d); the dry-only blocks depend on the slice alone. Blo
     Qdd[s, pair(k <= l < m), a < m]      dry + dry -> dry
     Cdd[s, k < m, e < m]                 droplets captured by dry granules
     F43[w, k], SUPPORT[w, 2K], BASIS[w, BASIS_SIZE]   wet functionals and reconstruction
+    WET_SUPPORT[w, 2]                    p_max, b_max [kg] of each weight slice's support
     CAPMAP[e < m, a < K], F43D[k], DRY_BASIS           dry-class data
     BREAK: Lwet[w, k < K, a < K], then Ldry[k < m, e < m]   breakage (if any)
 """
@@ -64,8 +68,10 @@ AUX_NWD = 35             # weight means d on the adaptive grid (1: fixed weights
 AUX_OFF_LOGW = 36        # offset of ln c [kg] (NWC values), then ln d [kg] (NWD values)
 AUX_OFF_CONDW = 37       # offset of cond(G) of each weight slice (NWC * NWD values)
 AUX_OFF_BREAK = 38       # offset of the breakage block (laguerre_breakage; 0: no breakage)
-AUX_HEADER = 40
-AUX_LAYOUT_VERSION = 4.0
+AUX_FOLLOWING = 39       # 1: following support (weight grid in (ln c, ln d/c), a support per slice)
+AUX_OFF_WET_SUPPORT = 40  # offset of (p_max, b_max) [kg] of each weight slice (NWC * NWD pairs)
+AUX_HEADER = 42
+AUX_LAYOUT_VERSION = 5.0
 
 TABLE_III = dict(weights=dict(c=1e-9, d=1e-9, lam=1.0, gam=0.2),
                  support=dict(p_max=1e-8, b_max=4e-9, n_p=20, n_b=20))
@@ -155,7 +161,8 @@ def _log_position(x, grid):
 def weight_corners(state, aux):
     """[(weight slice w, blend weight)] of a scaled state: the wet weight means follow the wet
     class's mean mass W10/W00 and mean binder W01/W00 on the adaptive grid (bilinear in
-    ln c, ln d, as the RHS blends); [(0, 1.0)] for fixed weights."""
+    ln c, ln d, as the RHS blends; with the following support in the mass-weighted mean mass
+    W20/W10 and the binder fraction W01/W10, both in logs); [(0, 1.0)] for fixed weights."""
     nwc, nwd = int(aux[AUX_NWC]), int(aux[AUX_NWD])
     if nwc * nwd <= 1:
         return [(0, 1.0)]
@@ -165,6 +172,10 @@ def weight_corners(state, aux):
     w00 = float(state[0])
     c = state[m] / w00 * pref if w00 > 0 else 0.0
     d = state[1] / w00 * pref if w00 > 0 else 0.0
+    if aux[AUX_FOLLOWING] == 1.0:
+        ok = w00 > 0 and state[m] > 0
+        c = state[2 * m] / state[m] * pref if ok else 0.0
+        d = state[1] / state[m] if ok else 0.0
     ic, tc = _log_position(c, aux[o:o + nwc])
     jd, td = _log_position(d, aux[o + nwc:o + nwc + nwd])
     out = []
@@ -178,3 +189,12 @@ def weight_corners(state, aux):
 def separate_droplets(config):
     """True if free droplets are a state entry of their own."""
     return int(config[P.SEPARATE_DROPLETS]) == 1
+
+
+def wet_support(aux, w=0):
+    """(p_max, b_max) [kg] of weight slice w's support: its own with the following support,
+    the one fixed support otherwise."""
+    if aux[AUX_FOLLOWING] == 1.0:
+        o = int(aux[AUX_OFF_WET_SUPPORT]) + 2 * w
+        return float(aux[o]), float(aux[o + 1])
+    return float(aux[AUX_P_MAX]), float(aux[AUX_B_MAX])

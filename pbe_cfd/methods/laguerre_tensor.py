@@ -16,14 +16,16 @@ import numpy as np
 
 from ..physics import parameters as P
 from .laguerre_basis import (SPACINGS, basis_values, gamma_weight, mass_nodes,  # noqa: F401
-                             moment_index, projection_matrix, quadrature, univariate_values)
-from .laguerre_build import (build_aux, default_cache_dir, spacing_code,  # noqa: F401
-                             theta_to_u0, unit_params)
+                             fraction_basis_values, moment_index, projection_matrix,
+                             quadrature, univariate_values)
+from .laguerre_build import (FOLLOWING_SPAN, build_aux, default_cache_dir,  # noqa: F401
+                             spacing_code, theta_to_u0, unit_params)
 from .laguerre_layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_COND_DRY,  # noqa: F401
+                              AUX_FOLLOWING,
                               AUX_COND_G, AUX_N_B, AUX_N_NODES, AUX_N_P, AUX_NSLICE,
                               AUX_OFF_SUPPORT, AUX_ORDER, AUX_P_MAX, AUX_SPACING,
                               AUX_U0_FIXED, TABLE_III, dry_support_functionals, state_names,
-                              state_size, unpack_basis, weight_corners)
+                              state_size, unpack_basis, weight_corners, wet_support)
 
 
 def initial_state(moments, params, config, n_droplets=0.0, dry=False):
@@ -65,21 +67,30 @@ def initial_state(moments, params, config, n_droplets=0.0, dry=False):
 def wet_particles(state, aux):
     """The wet reconstruction on the quadrature nodes: (w [per N_ref], p [kg], b [kg]). With
     adaptive weights the reconstructions of the neighbouring weight slices are blended as the
-    RHS blends them (all share the same nodes, and each reproduces the carried moments)."""
+    RHS blends them (each reproduces the carried moments; on shared nodes the weights are
+    summed, with the following support each slice's nodes are listed with its blend weight)."""
     w_total = None
+    parts = []
     for w, frac in weight_corners(state, aux):
         B = unpack_basis(aux, w)
         K = B["m"] ** 2
-        u, v, W = quadrature(B["c"], B["d"], B["lam"], B["gam"], aux[AUX_P_MAX],
-                             aux[AUX_B_MAX], int(aux[AUX_N_P]), int(aux[AUX_N_B]),
-                             int(aux[AUX_SPACING]))
-        phi = basis_values(u, v, B["Cp"], B["Cb"], B["lam"], B["gam"])
+        p_max, b_max = wet_support(aux, w)
+        following = aux[AUX_FOLLOWING] == 1.0
+        u, v, W = quadrature(B["c"], B["d"], B["lam"], B["gam"], p_max, b_max,
+                             int(aux[AUX_N_P]), int(aux[AUX_N_B]),
+                             1 if following else int(aux[AUX_SPACING]))
+        phi = (fraction_basis_values if following else basis_values)(
+            u, v, B["Cp"], B["Cb"], B["lam"], B["gam"])
         coef = B["Ginv"] @ (np.asarray(state[:K], float) * B["r"])
         part = frac * (phi @ coef) * W
-        if w_total is None:
+        if aux[AUX_FOLLOWING] == 1.0:       # own nodes per slice: the corners side by side
+            parts.append((part, u * B["c"], v * B["d"]))
+        elif w_total is None:
             w_total, p, b = part, u * B["c"], v * B["d"]
         else:
             w_total = w_total + part
+    if parts:
+        return tuple(np.concatenate(x) for x in zip(*parts))
     return w_total, p, b
 
 
@@ -130,22 +141,27 @@ def escaped_mass_share(state, aux, params, config):
     beyond p_max = Q(k+1, p_max/theta); in b from the mass-weighted moments (W10, W11, W12),
     share beyond b_max = Q(k, b_max/theta) (Q the regularised upper incomplete gamma
     function). m = 2: exponential in p (mean W10/W00) and the Markov bound W11 / (b_max W10)
-    in b. Dry class: the same fit in p to (D0, D1, D2) (exponential for m = 2). A
+    in b. With the following support p_max, b_max are the smallest of the blended weight
+    slices' supports. Dry class: the same fit in p to (D0, D1, D2) (exponential for m = 2),
+    beyond the fixed p_max. A
     (near-)delta marginal counts fully beyond the limit if its mean is. Returns the
     mass-weighted sum over the classes, capped at 1.
     """
     m = int(config[P.ORDER])
     s = np.asarray(state, float)
     pref = params[P.MASS_SCALE]
-    pmax = aux[AUX_P_MAX] / pref
-    bmax = aux[AUX_B_MAX] / pref
     K = m * m
+    # the wet class's support: the smallest among the blended slices (following support)
+    pmax, bmax = (min(x) / pref for x in zip(*(wet_support(aux, w)
+                                              for w, _ in weight_corners(s, aux))))
+    pmax_dry = aux[AUX_P_MAX] / pref
 
-    def p_tail(n0, n1, n2):
+    def p_tail(n0, n1, n2, limit=None):
+        limit = pmax if limit is None else limit
         if m >= 3:
             mu = n1 / n0
-            return _gamma_tail(mu, n2 / n0 - mu * mu, pmax, 1.0)
-        x = pmax / (n1 / n0)
+            return _gamma_tail(mu, n2 / n0 - mu * mu, limit, 1.0)
+        x = limit / (n1 / n0)
         return float((1.0 + x) * np.exp(-x))
 
     total = 0.0
@@ -163,7 +179,8 @@ def escaped_mass_share(state, aux, params, config):
     D = s[K:K + m]
     if D[0] > 0 and D[1] > 0:
         total += D[1]
-        escaped += D[1] * min(1.0, max(0.0, p_tail(D[0], D[1], D[2] if m >= 3 else 0.0)))
+        escaped += D[1] * min(1.0, max(0.0, p_tail(D[0], D[1], D[2] if m >= 3 else 0.0,
+                                                   pmax_dry)))
     return float(min(1.0, escaped / total)) if total > 0 else 0.0
 
 
@@ -179,9 +196,27 @@ def escaped_share_report(states, aux, arrays):
     text = ""
     if share > ESCAPE_WARN_SHARE:
         text = (f"Laguerre ROM: {share:.2%} of the granule mass lies beyond the integration "
-                f"support (p_max = {aux[AUX_P_MAX]:.3g} kg, b_max = {aux[AUX_B_MAX]:.3g} kg) "
-                f"at output row {k}; the tensor does not see it -- widen the support")
+                f"support ({support_text(states[k], aux)}) at output row {k}; the tensor does "
+                f"not see it -- {support_advice(aux)}")
     return share, text
+
+
+def support_text(state, aux):
+    """The supports a state's tensors integrate over, with the [method] keys that set them."""
+    dry = f"p_max = {aux[AUX_P_MAX]:.3g} kg ([method] support_mass)"
+    if aux[AUX_FOLLOWING] != 1.0:
+        return f"{dry}, b_max = {aux[AUX_B_MAX]:.3g} kg (support_binder)"
+    p_top = max(wet_support(aux, w)[0] for w, _ in weight_corners(state, aux))
+    return (f"wet class: following support p_max = {p_top:.3g} kg, up to the range of "
+            f"[method] following_growth; dry class: {dry}")
+
+
+def support_advice(aux):
+    """What to change in the scene when mass leaves the support."""
+    if aux[AUX_FOLLOWING] == 1.0:
+        return "raise [method] following_growth (wet) or support_mass (dry), or use qmom"
+    return ("set [method] following_support = true, or widen support_mass / support_binder, "
+            "or use qmom")
 
 
 # ---- scene-level helpers (called by the orchestration) -------------------------------------
@@ -227,10 +262,23 @@ def aux_for_scene(scene, arrays, theta_grid=None, cache_dir=None):
         u0 = None
     points = int(getattr(scene.method, "adaptive_points", 0) or 0)
     adaptive = dict(points=points) if getattr(scene.method, "adaptive_weights", False) else None
+    if getattr(scene.method, "following_support", False):
+        adaptive = following_spec(scene, arrays)
+        support["p_max"] = max(support["p_max"], FOLLOWING_SPAN * weights["c_dry"])
     return build_aux(arrays.params, arrays.config, scene.method.order, weights=weights,
                      support=support, consistent=scene.method.consistent,
                      theta_grid=theta_grid, cache_dir=cache_dir, collision_velocity=u0,
                      adaptive=adaptive)
+
+
+def following_spec(scene, arrays):
+    """The following support's grid for a scene: wet weight means c from a quarter of the
+    smaller of the initial mean mass and the droplet mass up to ``following_growth`` times
+    the initial mean mass [kg] (docs/physics.md section 9.2)."""
+    c0 = float(scene.initial.mean_mass)
+    pd = float(arrays.params[P.DROPLET_MASS])
+    low = 0.25 * (min(c0, pd) if pd > 0 else c0)
+    return dict(following=True, c=(low, c0 * float(scene.method.following_growth)))
 
 
 def scene_initial_state(scene, arrays, granule_moment):
@@ -244,7 +292,8 @@ def scene_initial_state(scene, arrays, granule_moment):
 
 
 def scene_keys(t, defaults):
-    """The dry-class and adaptive-weight keys of a scene's ``[method]`` table (read with the
+    """The dry-class, adaptive-weight and following-support keys of a scene's ``[method]``
+    table (read with the
     scene's table reader ``t``; ``defaults``: the ``scene.Method`` class)."""
     kw = {"dry_class": t.boolean("dry_class", defaults.dry_class)}
     if t.has("dry_weight_mean_mass"):
@@ -256,6 +305,9 @@ def scene_keys(t, defaults):
     kw["adaptive_weights"] = t.boolean("adaptive_weights", defaults.adaptive_weights)
     kw["adaptive_points"] = t.number("adaptive_points", defaults.adaptive_points, integer=True,
                                      low=2, high=33)
+    kw["following_support"] = t.boolean("following_support", defaults.following_support)
+    kw["following_growth"] = t.number("following_growth", defaults.following_growth,
+                                      low=2.0, high=1e9)
     return kw
 
 
@@ -315,6 +367,5 @@ def failure_hint(state, aux, arrays):
     """Context for a cell the integrator stopped: the share of the granule mass that had left
     the integration support (the usual reason the ROM's moments stop being realizable)."""
     share, _ = escaped_share_report(np.atleast_2d(state), aux, arrays)
-    return (f"; {share:.1%} of the granule mass had left the Laguerre support (p_max = "
-            f"{aux[AUX_P_MAX]:g} kg, b_max = {aux[AUX_B_MAX]:g} kg): widen the support or "
-            "use qmom")
+    return (f"; {share:.1%} of the granule mass had left the Laguerre support "
+            f"({support_text(np.ravel(state), aux)}): {support_advice(aux)}")

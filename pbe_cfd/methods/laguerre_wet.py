@@ -24,8 +24,8 @@ import numba as nb
 import numpy as np
 
 from ..physics.rates import aggregation_rate, droplet_capture_rate
-from .laguerre_basis import (basis_values, consistent_inverse, moment_index, projection_matrix,
-                             quadrature)
+from .laguerre_basis import (basis_values, consistent_inverse, fraction_basis_values,
+                             moment_index, projection_matrix, quadrature)
 
 
 # ---- kernel matrices (numba) -----------------------------------------------------------------
@@ -91,7 +91,8 @@ def _capture_matrices(kd, u, v, W, Phi, m, ud, vd):
 
 def wet_basis(m, weights, grid, consistent, p_ref):
     """The wet class's quadrature and corrected basis for one weight (c [kg], d [kg], lambda,
-    gamma); grid: dict(p_max, b_max [kg], n_p, n_b, spacing). Returns a dict with the nodes
+    gamma); grid: dict(p_max, b_max [kg], n_p, n_b, spacing[, fraction_basis]: the basis in
+    the binder fraction, ``laguerre_basis.fraction_basis_values``). Returns a dict with the nodes
     (u, v, W) in internal units, their masses p, b [kg], the corrected basis PhiC (N, K), the
     state <-> internal scaling r, the functionals f43 (K) and sup (2K) in state units, the
     reconstruction block ``basis`` (c, d, lambda, gamma, Cp, Cb, Ginv, r) and cond(G)."""
@@ -102,7 +103,8 @@ def wet_basis(m, weights, grid, consistent, p_ref):
     Cb = projection_matrix(m, gam)
     u, v, W = quadrature(c, d, lam, gam, grid["p_max"], grid["b_max"], grid["n_p"],
                          grid["n_b"], grid["spacing"])
-    Phi = basis_values(u, v, Cp, Cb, lam, gam)                      # raw basis (N, K)
+    values = fraction_basis_values if grid.get("fraction_basis") else basis_values
+    Phi = values(u, v, Cp, Cb, lam, gam)                            # raw basis (N, K)
     mon = np.stack([u ** i * v ** j for (i, j) in idx], axis=1)     # (N, K)
     G = mon.T @ (Phi * W[:, None])                                  # G[a, k]
     Ginv, cond = consistent_inverse(G) if consistent else (np.eye(K), 1.0)
