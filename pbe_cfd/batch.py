@@ -18,6 +18,7 @@ import numpy as np
 from . import integrate, model
 from .methods.registry import method_of
 from .physics import parameters as P
+from .scene import SceneError
 
 
 class SimulationError(RuntimeError):
@@ -34,13 +35,16 @@ def output_times(scene) -> np.ndarray:
 
 
 def check_physics(scene):
-    """Refuse runs whose answer would be meaningless (product-kernel gelation)."""
+    """Refuse runs whose answer would be meaningless (product-kernel gelation): a bad input
+    (``SceneError``, exit 2) known before anything runs."""
     t_gel = model.product_gel_time(scene)
     if t_gel is not None and scene.end_time >= t_gel:
-        raise SimulationError(
-            f"{scene.source}: the product kernel gels at t = {t_gel:.6g} s "
-            f"(1/(k0 M20(0))); moments diverge there. Expected scene.end_time below it, "
-            f"got {scene.end_time:g} s")
+        raise SceneError(
+            scene.source, "scene.end_time",
+            f"the product kernel gels at t_gel = 1/(k0 M20(0)) = {t_gel:.6g} s (k0 = "
+            f"{scene.aggregation.rate:g} m3/(kg2 s), M20(0) = {model.size_moment(scene, 2):.6g} "
+            f"kg2/m3) and its moments diverge there: expected end_time below t_gel, got "
+            f"{scene.end_time:g} s")
 
 
 @dataclass

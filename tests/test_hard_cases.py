@@ -22,7 +22,7 @@ from pbe_cfd.methods.qmom import qmom_project, qmom_realizable, quadrature_of
 from pbe_cfd.methods.quadrature import wheeler_nodes
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.injection import droplet_mass
-from pbe_cfd.scene import load_scene
+from pbe_cfd.scene import SceneError, load_scene
 from pbe_cfd.simulate import SimulationError, run_well_mixed
 
 from conftest import AVICEL, make_scene
@@ -135,7 +135,7 @@ def test_product_kernel_close_to_gelation_is_accurate_or_refused():
     assert np.max(np.abs(c["M20"] / exact - 1)) < 1e-5
     past = make_scene(scene={"end_time": t_gel, "output_interval": 0.1 * t_gel},
                       aggregation={"kernel": "product", "rate": k0})
-    with pytest.raises(SimulationError, match="gels at"):
+    with pytest.raises(SceneError, match="gels at t_gel"):   # bad input, exit 2
         run_well_mixed(past)
 
 
