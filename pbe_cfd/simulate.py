@@ -60,6 +60,8 @@ def run_well_mixed(scene, progress=None) -> RunResult:
     extra, notes = method.diagnostics(states, aux, arrays)
     run_stats.update(extra)
     warnings.extend(notes)
+    warnings.extend(batch.notes)
+    run_stats["smooth_stokes_cells"] = int(np.count_nonzero(batch.smoothed))
     return RunResult(scene=scene, columns=columns, stats=run_stats, wall_time_s=wall,
                      warnings=warnings, compile_time_s=compile_s,
                      kernels_compiled=batch.compiled_now)
