@@ -11,13 +11,19 @@ from __future__ import annotations
 
 import math
 import time as _time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from . import integrate, model
 from .methods.registry import method_of
 from .physics import parameters as P
+from .scene import SceneError
+
+#: relative width w of the smooth viscous Stokes switch, 0.5 (1 - tanh((St - St*)/(w St*))),
+#: a cell continues with when its step controller stalls under the sharp step (README, "Hard
+#: cases": how much the width moves the result)
+STOKES_FALLBACK_WIDTH = 0.005
 
 
 class SimulationError(RuntimeError):
@@ -34,13 +40,16 @@ def output_times(scene) -> np.ndarray:
 
 
 def check_physics(scene):
-    """Refuse runs whose answer would be meaningless (product-kernel gelation)."""
+    """Refuse runs whose answer would be meaningless (product-kernel gelation): a bad input
+    (``SceneError``, exit 2) known before anything runs."""
     t_gel = model.product_gel_time(scene)
     if t_gel is not None and scene.end_time >= t_gel:
-        raise SimulationError(
-            f"{scene.source}: the product kernel gels at t = {t_gel:.6g} s "
-            f"(1/(k0 M20(0))); moments diverge there. Expected scene.end_time below it, "
-            f"got {scene.end_time:g} s")
+        raise SceneError(
+            scene.source, "scene.end_time",
+            f"the product kernel gels at t_gel = 1/(k0 M20(0)) = {t_gel:.6g} s (k0 = "
+            f"{scene.aggregation.rate:g} m3/(kg2 s), M20(0) = {model.size_moment(scene, 2):.6g} "
+            f"kg2/m3) and its moments diverge there: expected end_time below t_gel, got "
+            f"{scene.end_time:g} s")
 
 
 @dataclass
@@ -74,6 +83,8 @@ class CellBatch:
     cell_ids: np.ndarray | None = None
     hints: bool = True
     compiled_now: bool = False     # set by compile(): the kernel was compiled, not loaded
+    smoothed: np.ndarray = None    # (n,) True: the cell runs with the smooth Stokes switch
+    notes: list = field(default_factory=list)   # what the batch did that a run reports
 
     def __post_init__(self):
         n = self.states.shape[0]
@@ -83,6 +94,8 @@ class CellBatch:
             self.status = np.zeros(n, dtype=np.int64)
         if self.reached is None:
             self.reached = np.zeros(n)
+        if self.smoothed is None:
+            self.smoothed = np.zeros(n, dtype=bool)
 
     @classmethod
     def for_scene(cls, scene, arrays, aux, rows, states, cell_ids=None) -> "CellBatch":
@@ -122,11 +135,67 @@ class CellBatch:
     def advance(self, t0: float, t1: float, states: np.ndarray | None = None):
         """Integrate every cell still running from t0 to t1 [s] in place (``states``: the
         batch's own by default, or an array of the same shape). Cells that stop keep their
-        status; see ``raise_if_failed``."""
-        integrate.integrate_cells(self.states if states is None else states, self.rows,
-                                  self.aux, self.params, self.config, t0, t1, self.steps,
-                                  self.rtol, self.atol, self.max_steps, self.stats_counts,
-                                  self.status, self.reached)
+        status; see ``raise_if_failed``.
+
+        A cell whose step controller stalls on the jump of the sharp viscous Stokes criterion
+        (a pair held on St = St*, where the rates switch on and off with every step) continues
+        from the time it reached with the smooth switch of relative width
+        ``STOKES_FALLBACK_WIDTH``, and keeps it to the end of the run (``notes`` says which
+        cell, from when)."""
+        states = self.states if states is None else states
+        smoothed = self.smoothed.copy()
+        sharp = integrate.sharp_stokes_switch(self.params, self.config)
+        self._integrate(states, ~smoothed, self.params, t0, t1)
+        if smoothed.any():
+            self._integrate(states, smoothed, self.smooth_params(), t0, t1)
+        if sharp:
+            self._continue_smoothly(states, t0, t1)
+
+    def _integrate(self, states, mask, params, t0, t1):
+        """integrate_cells on the cells of ``mask`` only (the others are skipped: their
+        status is set to a code the kernel skips and restored afterwards)."""
+        if not mask.any():
+            return
+        if mask.all():
+            integrate.integrate_cells(states, self.rows, self.aux, params, self.config, t0, t1,
+                                      self.steps, self.rtol, self.atol, self.max_steps,
+                                      self.stats_counts, self.status, self.reached)
+            return
+        saved = self.status.copy()
+        self.status[~mask & (saved == integrate.OK)] = integrate.UNREALIZABLE_START
+        integrate.integrate_cells(states, self.rows, self.aux, params, self.config, t0, t1,
+                                  self.steps, self.rtol, self.atol, self.max_steps,
+                                  self.stats_counts, self.status, self.reached)
+        self.status[~mask] = saved[~mask]
+
+    def smooth_params(self) -> np.ndarray:
+        """The batch's params with the smooth Stokes switch of ``STOKES_FALLBACK_WIDTH``."""
+        params = np.array(self.params, dtype=np.float64, copy=True)
+        params[P.STOKES_WIDTH] = STOKES_FALLBACK_WIDTH
+        return params
+
+    def _continue_smoothly(self, states, t0, t1):
+        """Cells whose step controller stalled under the sharp Stokes step in this call (step
+        floor or step budget; the step is the one discontinuity of the rates): each continues
+        alone from the time it reached to t1."""
+        params = self.smooth_params()
+        stalled = (self.status == integrate.STEP_FLOOR) | (self.status == integrate.TOO_MANY_STEPS)
+        for c in np.flatnonzero(~self.smoothed & stalled):
+            t_jump = float(self.reached[c])
+            self.smoothed[c] = True
+            self.status[c] = integrate.OK
+            self.steps[c] = 1e-6 * (t1 - t0)
+            one = slice(c, c + 1)
+            integrate.integrate_cells(states[one], self.rows[one], self.aux, params,
+                                      self.config, t_jump, t1, self.steps[one], self.rtol,
+                                      self.atol, self.max_steps, self.stats_counts[one],
+                                      self.status[one], self.reached[one])
+            cell = c if self.cell_ids is None else int(self.cell_ids[c])
+            self.notes.append(
+                f"cell {cell}: the sharp viscous Stokes criterion held a pair on the critical "
+                f"Stokes number at t = {t_jump:.6g} s (the rates switch with every step); "
+                f"continued from there with the smooth switch of relative width "
+                f"{STOKES_FALLBACK_WIDTH:g} (material.stokes_switch_width; README: hard cases)")
 
     def step(self, t0: float, t1: float, states: np.ndarray | None = None):
         """``advance`` then ``raise_if_failed``: the source step of a run."""
@@ -150,7 +219,8 @@ class CellBatch:
         c = int(bad[0])
         states = self.states if states is None else states
         source = self.scene.source if self.scene is not None else ""
-        text = integrate.failure_reason(int(self.status[c]), self.stats_counts[c], self.params,
+        params = self.smooth_params() if self.smoothed[c] else self.params
+        text = integrate.failure_reason(int(self.status[c]), self.stats_counts[c], params,
                                         self.config)
         if self.cell_ids is None:
             message = (f"{source}: cell {c} stopped at t = {self.reached[c]:.6g} s: {text} "

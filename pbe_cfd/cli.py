@@ -60,6 +60,24 @@ def _phases_text(phases) -> str:
                                       if n + "_s" in phases)
 
 
+def _thread_limit() -> int:
+    """Most numba threads a run may ask for: the cores numba starts its pool with
+    (NUMBA_NUM_THREADS, by default the machine's cores)."""
+    import numba
+    return int(numba.config.NUMBA_NUM_THREADS)
+
+
+def _threads_refusal(threads) -> str | None:
+    """The refusal of ``--threads`` values outside 1 .. the cores, or None."""
+    values = threads if isinstance(threads, tuple) else (threads,)
+    limit = _thread_limit()
+    for value in values:
+        if value is not None and not 1 <= value <= limit:
+            return (f"--threads: expected a whole number of threads from 1 to {limit} (the "
+                    f"cores numba runs on), got {value}")
+    return None
+
+
 def _fail(message, code=2):
     print(f"pbe-cfd: error: {message}", file=sys.stderr)
     return code
@@ -113,10 +131,12 @@ def run_command(args):
 
 def plan_command(args):
     """``pbe-cfd plan SCENE``: what a scene computes."""
+    from .batch import check_physics
     from .plan import describe_plan
     from .scene import load_scene
 
     scene = load_scene(args.scene)
+    check_physics(scene)           # what a run would refuse, plan refuses too
     print(describe_plan(scene))
     return 0
 
@@ -127,7 +147,7 @@ def scenes_command(args):
 
     for name, path in sorted(bundled_scenes().items()):
         scene = load_scene(path)
-        effects = [t for t in ("aggregation", "binder_injection", "transport")
+        effects = [t for t in ("aggregation", "binder_injection", "breakage", "transport")
                    if getattr(scene, t) is not None]
         print(f"{name:24s} {scene.domain.type:10s} {scene.method.name:9s} "
               f"end {scene.end_time:g} s  effects: {', '.join(effects) or 'none'}")
@@ -179,6 +199,9 @@ def couple_command(args):
     from . import output
     from .cfd import figure_pool
 
+    refusal = _threads_refusal(args.threads)
+    if refusal:
+        return _fail(refusal)
     import time
     if args.resume:
         _apply_resume(args)
@@ -305,6 +328,9 @@ def bench_command(args):
     out = Path(args.out)
     quick = bool(args.quick)
     study = args.study
+    refusal = _threads_refusal(args.threads)
+    if refusal:
+        return _fail(refusal)
     output.prepare_directory(out, args.overwrite, names=bench.STUDY_FILES[study],
                              kind="bench")
     start = time.perf_counter()

@@ -107,6 +107,8 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     extra, notes_method = method.diagnostics(history[-1], aux, arrays)
     run_stats.update(extra)
     warnings.extend(notes_method)
+    warnings.extend(batch.notes)
+    run_stats["smooth_stokes_cells"] = int(np.count_nonzero(batch.smoothed))
     warnings.extend(_domain_warnings(scene, spray, notes))
     phases = {"setup_s": setup_s, "compile_s": compile_s, "solve_s": solve_end - solve_start,
               "assemble_s": _time.perf_counter() - solve_end}

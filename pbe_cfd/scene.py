@@ -13,6 +13,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from . import limits
 from .methods.registry import METHOD_NAMES, METHODS, MOMENT_METHODS
 from .physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
 from .physics.efficiency import EFFICIENCY_BY_NAME
@@ -367,6 +368,8 @@ def scene_from_dict(data: dict, path="<scene>") -> Scene:
                   binder_injection=injection, transport=transport, breakage=breakage,
                   source=str(path), raw=data)
     _cross_checks(path, scene)
+    for key, refusal in limits.scene_refusals(scene, METHODS[scene.method.name]):
+        raise SceneError(path, key, refusal)
     return scene
 
 

@@ -63,6 +63,8 @@ def run_well_mixed(scene, progress=None) -> RunResult:
     extra, notes = method.diagnostics(states, aux, arrays)
     run_stats.update(extra)
     warnings.extend(notes)
+    warnings.extend(batch.notes)
+    run_stats["smooth_stokes_cells"] = int(np.count_nonzero(batch.smoothed))
     psd, labels = _size_distribution(scene, arrays, states, aux, populations, columns, warnings)
     return RunResult(scene=scene, columns=columns, stats=run_stats, wall_time_s=wall,
                      warnings=warnings, compile_time_s=compile_s,

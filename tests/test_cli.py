@@ -137,7 +137,7 @@ def test_failed_run_leaves_no_partial_directory(tmp_path, capsys):
     path = tmp_path / "gel.toml"
     path.write_text(text)
     out = tmp_path / "out"
-    assert main(["run", str(path), "--out", str(out)]) == 1
+    assert main(["run", str(path), "--out", str(out)]) == 2   # bad input, refused before
     assert "gels at" in capsys.readouterr().err
     assert not out.exists()
 

@@ -188,7 +188,7 @@ def test_failed_run_leaves_an_earlier_output_untouched(box):
         "rate = 1e-11", "rate = 1e9")
     (box / "gel.toml").write_text(gel)
     before = tree(box)
-    assert main(["run", "gel.toml", "--out", "r", "--overwrite"]) == 1
+    assert main(["run", "gel.toml", "--out", "r", "--overwrite"]) == 2   # refused before
     assert tree(box) == before
     assert not [p for p in box.iterdir() if p.name.startswith(".r.partial")]
 

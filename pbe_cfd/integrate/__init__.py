@@ -71,18 +71,31 @@ def failure_reason(code, stats, params, config) -> str:
     text = STATUS_TEXT[int(code)]
     if code not in (STEP_FLOOR, TOO_MANY_STEPS):
         return text
-    accepted, rejected = int(stats[ACCEPTED]), int(stats[REJECTED_ERROR])
-    if rejected >= 0.5 * max(accepted, 1):
+    if stalled_on_a_jump(code, stats):
         # a step controller that rejects as often as it accepts sits on a jump of the rates
         text += ("; the steps were rejected by the error test as often as accepted: the rates "
                  "jump (a discontinuous right-hand side) and the cell stays on the jump")
-        if int(config[P.USE_PHYSICAL]) == 1 and params[P.STOKES_WIDTH] == 0.0:
+        if sharp_stokes_switch(params, config):
             text += (", here where a pair crosses the critical Stokes number (sharp viscous "
-                     "Stokes criterion): give material.stokes_switch_width (0.002 - 0.01 "
-                     "agree with each other within 1%, README: hard cases)")
+                     "Stokes criterion): give material.stokes_switch_width (a smooth "
+                     "switch; README: hard cases says how much its width moves the result)")
     elif int(config[P.INTEGRATOR]) == EXPLICIT:
         text += "; the rates are stiff for the explicit integrator: use integrator = \"auto\""
     return text
+
+
+def stalled_on_a_jump(code, stats) -> bool:
+    """True if a cell that stopped (status ``code``) had its steps rejected by the error test
+    as often as accepted (counters ``stats``): the step controller sits on a jump of the rates
+    (a discontinuous right-hand side)."""
+    if int(code) not in (STEP_FLOOR, TOO_MANY_STEPS):
+        return False
+    return int(stats[REJECTED_ERROR]) >= 0.5 * max(int(stats[ACCEPTED]), 1)
+
+
+def sharp_stokes_switch(params, config) -> bool:
+    """True if the viscous Stokes criterion is on and sharp (a step in St - St*)."""
+    return int(config[P.USE_PHYSICAL]) == 1 and params[P.STOKES_WIDTH] == 0.0
 
 
 def stats_summary(stats) -> dict:

@@ -281,6 +281,21 @@ def following_spec(scene, arrays):
     return dict(following=True, c=(low, c0 * float(scene.method.following_growth)))
 
 
+def table_bytes(method) -> int:
+    """Peak memory [bytes] of building the ROM's tables for a scene's ``Method``
+    (``laguerre_build``): on N = grid_mass x grid_binder wet nodes and n = dry_grid_mass dry
+    nodes, the pair-rate matrices of two collision-velocity slices held at once (2 (N^2 + n N
+    + n^2) doubles), the aggregation tensor's two N x K^2 products (K = order^2) and one
+    N x (K + 8) basis per wet weight (adaptive_points^2 of them with adaptive weights)."""
+    n_wet = int(method.grid_mass) * int(method.grid_binder)
+    n_dry = int(method.dry_grid_mass)
+    k = int(method.order) ** 2
+    weights = int(method.adaptive_points) ** 2 if method.adaptive_weights else 1
+    doubles = (2 * (n_wet * n_wet + n_dry * n_wet + n_dry * n_dry) + 2 * n_wet * k * k
+               + weights * n_wet * (k + 8))
+    return 8 * doubles
+
+
 def scene_initial_state(scene, arrays, granule_moment):
     """Scaled initial state of a scene: granule_moment(i, j) [kg^(i+j)/m3] of the initial
     granules (free droplets excluded); granules without binder (initial.binder_fraction = 0)
@@ -367,5 +382,10 @@ def failure_hint(state, aux, arrays):
     """Context for a cell the integrator stopped: the share of the granule mass that had left
     the integration support (the usual reason the ROM's moments stop being realizable)."""
     share, _ = escaped_share_report(np.atleast_2d(state), aux, arrays)
-    return (f"; {share:.1%} of the granule mass had left the Laguerre support "
-            f"({support_text(np.ravel(state), aux)}): {support_advice(aux)}")
+    where = f"({support_text(np.ravel(state), aux)})"
+    if share <= ESCAPE_WARN_SHARE:
+        return (f"; the population was inside the Laguerre support {where}, {share:.1%} of "
+                "the granule mass beyond it: the support is not the cause, the stop is the "
+                "integrator's (above)")
+    return (f"; {share:.1%} of the granule mass had left the Laguerre support {where}: "
+            f"{support_advice(aux)}")

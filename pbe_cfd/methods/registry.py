@@ -62,6 +62,8 @@ class MethodEntry(NamedTuple):
                     [s], progress) -> dict of result columns and statistics (cNMC:
                     ``cnmc.simulate_ensemble``)
     config_slots    f(scene) -> {config slot: value} of further knobs (CQMOM: BINDER_NODES)
+    table_bytes     f(method) -> peak memory [bytes] its tables take to build (``aux``), from
+                    the scene's ``Method``; table_keys the ``[method]`` keys that set it
     """
     name: str
     code: int
@@ -81,6 +83,8 @@ class MethodEntry(NamedTuple):
     config_slots: Callable = lambda scene: {}
     initial_state: Callable | None = None
     columns: Callable | None = None
+    table_bytes: Callable = lambda method: 0
+    table_keys: tuple = ()
 
     def order(self, method) -> int:
         """config[P.ORDER] of the scene's ``Method`` (nodes, order; 0)."""
@@ -232,7 +236,9 @@ METHOD_REGISTRY = (
                 population=laguerre_tensor.population_for_output,
                 failure_hint=_laguerre_hint, diagnostics=_laguerre_diagnostics,
                 plan_line=_laguerre_plan, initial_state=laguerre_tensor.scene_initial_state,
-                columns=laguerre_tensor.scene_columns),
+                columns=laguerre_tensor.scene_columns,
+                table_bytes=laguerre_tensor.table_bytes,
+                table_keys=("grid_mass", "grid_binder", "dry_grid_mass")),
     MethodEntry(name="cnmc", code=NOT_INTEGRATED, scene_keys=_cnmc_keys,
                 order_key=None, order_label="cNMC particles", state_names=lambda s: [], aux=_no_aux,
                 tabulates_theta=False, population=_cnmc_population, failure_hint=_no_hint,
