@@ -1,8 +1,7 @@
 """Scene files: TOML -> validated, frozen dataclasses (the keys: README.md, "Scenes").
 
 A table present means that effect runs; an absent table is not computed at all. Every error
-names the file, the key and what was expected, and is raised as ``SceneError``.
-"""
+names the file, the key and what was expected, and is raised as ``SceneError``."""
 from __future__ import annotations
 
 import dataclasses

@@ -138,7 +138,8 @@ def test_run_replaces_an_earlier_output_only_with_overwrite(box, capsys):
     outside = tree(box, exclude=[box / "r"])
     assert main(["run", "tiny.toml", "--out", "r"]) == 0
     manifest = output.read_manifest(box / "r")
-    assert set(manifest["files"]) == {"moments.csv", "summary.json", "moments.png"}
+    assert set(manifest["files"]) == {"moments.csv", "summary.json", "moments.png", "psd.csv",
+                                      "psd.png", "columns.json"}
     user = put_user_files(box / "r")
     first = tree(box / "r")
     refused(["run", "tiny.toml", "--out", "r"], capsys, "earlier pbe-cfd output", "--overwrite")
@@ -148,8 +149,8 @@ def test_run_replaces_an_earlier_output_only_with_overwrite(box, capsys):
     for rel in ("mine.txt", "sub/keep.dat"):
         assert after[rel] == user[rel]
     assert after["moments.csv"][1] != first["moments.csv"][1]    # replaced
-    assert set(output.read_manifest(box / "r")["files"]) == {"moments.csv", "summary.json",
-                                                              "moments.png"}
+    assert set(output.read_manifest(box / "r")["files"]) == {
+        "moments.csv", "summary.json", "moments.png", "psd.csv", "psd.png", "columns.json"}
     assert tree(box, exclude=[box / "r"]) == outside    # nothing beside --out touched
     assert not [p for p in box.iterdir() if p.name.startswith(".r.")]
 
@@ -276,7 +277,8 @@ def test_compare_writes_a_marked_figure_and_never_replaces_a_users(box, coupled,
     assert output.file_is_marked(box / "cmp.png")
     refused(["compare", "r", "c", "--out", "cmp.png"], capsys, "--overwrite")
     assert main(["compare", "r", "c", "--out", "cmp.png", "--overwrite"]) == 0
-    assert tree(box, exclude=[box / "cmp.png"]) == before
+    assert output.file_is_marked(box / "cmp_psd.png")       # the PSD overlay beside it
+    assert tree(box, exclude=[box / "cmp.png", box / "cmp_psd.png"]) == before
 
 
 # ---------------------------------------------------------------------------- bench

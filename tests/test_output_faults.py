@@ -303,8 +303,8 @@ def test_two_concurrent_runs_into_one_new_out_one_wins(box):
     err = next(text for code, text in results if code == 2)
     assert "Traceback" not in err and "Errno" not in err
     assert err.strip().splitlines()[-1].startswith("pbe-cfd: error: ")
-    assert set(output.read_manifest(box / "r")["files"]) == {"moments.csv", "summary.json",
-                                                              "moments.png"}
+    assert set(output.read_manifest(box / "r")["files"]) == {
+        "moments.csv", "summary.json", "moments.png", "psd.csv", "psd.png", "columns.json"}
     assert siblings(box / "r") == []
 
 

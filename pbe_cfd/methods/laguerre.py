@@ -39,8 +39,7 @@ import numpy as np
 from ..physics import parameters as P
 from ..physics.kernels import KTGF, kernel_cell_factor
 from . import laguerre_tensor as LT
-from .laguerre_layout import (AUX_CHECK_LEVEL, AUX_FOLLOWING, AUX_MASS_SCALE,
-                              AUX_NPAIR,
+from .laguerre_layout import (AUX_CHECK_LEVEL, AUX_FOLLOWING, AUX_MASS_SCALE, AUX_NPAIR,
                               AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_OFF_CAPMAP, AUX_OFF_CD,
                               AUX_OFF_CD0, AUX_OFF_CDD, AUX_OFF_F43, AUX_OFF_F43D,
                               AUX_OFF_LOGU, AUX_OFF_LOGW, AUX_OFF_Q, AUX_OFF_QDD,
@@ -547,8 +546,7 @@ def reconstruct(state, aux, params, config, p, b, clip_support=True):
         B = LT.unpack_basis(aux, w)
         K = B["m"] ** 2
         coef = B["Ginv"] @ (np.asarray(state[:K], float) * B["r"])
-        values = (LT.fraction_basis_values if aux[AUX_FOLLOWING] == 1.0
-                  else LT.basis_values)
+        values = LT.fraction_basis_values if aux[AUX_FOLLOWING] == 1.0 else LT.basis_values
         phi = values(pp / B["c"], bb / B["d"], B["Cp"], B["Cb"], B["lam"], B["gam"])
         part = frac * (phi @ coef) * params[P.NUMBER_SCALE] / (B["c"] * B["d"])
         if clip_support:
