@@ -223,14 +223,14 @@ def check_foam_fields(scene, domain: Domain, overwrite: bool = False):
     when the domain has no case time directory to write into (a snapshot), or when that
     directory holds ``pbe.*`` fields pbe-cfd may not replace."""
     from .cfd import openfoam as of
-    from .domain import BUNDLED_PREFIX
-    case = Path(scene.domain.case)
-    if scene.domain.case.startswith(BUNDLED_PREFIX) or not case.is_dir():
+    from .domain import case_path, is_case_directory
+    if not is_case_directory(scene):
         raise SceneError(scene.source, "domain.case",
                          f"--foam-fields: {scene.domain.case!r} is a snapshot, which has no "
                          "OpenFOAM case time directory to write fields into; point [domain] "
                          "case at a case directory (`pbe-cfd case run --dir DIR`) or drop "
                          "--foam-fields")
+    case = case_path(scene)
     names = [f"pbe.{k}" for k in (*FOAM_UNITS, "binder_fraction")]
     of.check_foam_fields(case, of.time_name(case, domain.cells.time), names, overwrite)
 
@@ -241,11 +241,16 @@ def write_foam_fields(scene, domain: Domain, result: CoupledResult,
     time directory of the CFD fields they were computed from (ParaView's OpenFOAM reader lists
     numeric times only). Returns the files written ([] for a snapshot domain)."""
     from .cfd import openfoam as of
-    case = Path(scene.domain.case)
-    if not case.is_dir():
+    from .domain import case_path, is_case_directory
+    if not is_case_directory(scene):
         return []
+    case = case_path(scene)
     fields = {f"pbe.{k}": v for k, v in result.cell_fields[-1].items()
               if k in FOAM_UNITS or k == "binder_fraction"}
     dims = {f"pbe.{k}": u for k, u in FOAM_UNITS.items()}
-    return of.write_foam_fields(case, of.time_name(case, domain.cells.time), fields,
-                                dimensions=dims, overwrite=overwrite)
+    name = of.time_name(case, domain.cells.time)
+    if domain.cells.source.get("decomposed"):        # the time only the processors hold
+        from .distributed.decompose import read_decomposition, write_processor_fields
+        return write_processor_fields(case, read_decomposition(case, domain.cells.n_cells),
+                                      name, fields, dimensions=dims, overwrite=overwrite)
+    return of.write_foam_fields(case, name, fields, dimensions=dims, overwrite=overwrite)

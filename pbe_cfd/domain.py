@@ -33,21 +33,33 @@ class Domain:
     description: str
 
 
-def _case_path(scene) -> Path:
-    path = Path(scene.domain.case)
-    if not path.is_absolute() and scene.source:
-        cand = Path(scene.source).parent / path
-        path = cand if cand.exists() else path
+def case_path(scene) -> Path | None:
+    """The case or snapshot path of ``[domain] case`` (the scene loader made it absolute,
+    relative to the scene file), or None for a bundled snapshot. Reading and writing (fields
+    written back, --decompose) use this one path."""
+    case = scene.domain.case
+    if case.startswith(BUNDLED_PREFIX):
+        return None
+    path = Path(case)
+    if not path.is_absolute() and scene.source:      # a Scene built in code
+        path = Path(scene.source).resolve().parent / path
     return path
+
+
+def is_case_directory(scene) -> bool:
+    """True when ``[domain] case`` names an OpenFOAM case directory (not a snapshot)."""
+    path = case_path(scene)
+    return path is not None and path.is_dir()
 
 
 def load_domain(scene, need_flux: bool = False) -> Domain:
     """Read the CFD fields named by ``[domain] case`` (a bundled snapshot, a snapshot .vtu, or
-    an OpenFOAM case directory whose foamToVTK output exists); with ``need_flux`` also the
-    solids face flux [m3/s]."""
+    an OpenFOAM case directory: plain, binary, compressed or decomposed, read through
+    pbe-cfd's own readable copy); with ``need_flux`` also the solids face flux [m3/s]."""
     from .cfd import openfoam as of
 
     case = scene.domain.case
+    phase = scene.domain.phase
     flux = None
     try:
         if case.startswith(BUNDLED_PREFIX):
@@ -59,21 +71,22 @@ def load_domain(scene, need_flux: bool = False) -> Domain:
             loaded = of.load_snapshot(path, with_flux=need_flux)
             desc = f"bundled snapshot {path.name}"
         else:
-            path = _case_path(scene)
-            if path.suffix == ".vtu":
+            path = case_path(scene)
+            if path.suffix == ".vtu" and path.is_file():
                 loaded = of.load_snapshot(path, with_flux=need_flux)
                 desc = f"snapshot {path}"
             elif path.is_dir():
                 t = scene.domain.time
-                t = "latest" if t == "latest" else float(t)
-                cells = of.read_cell_fields(path, t)
-                flux = of.read_face_flux(path, cells.time) if need_flux else None
+                cells = of.read_cell_fields(path, t, phase=phase)
+                flux = (of.read_face_flux(path, cells.time, phase=phase) if need_flux
+                        else None)
                 loaded = (cells, flux) if need_flux else cells
                 desc = f"OpenFOAM case {path} at t = {cells.time:g} s"
             else:
                 raise SceneError(scene.source, "domain.case",
-                                 f"{case!r}: expected an OpenFOAM case directory, a snapshot "
-                                 f".vtu or bundled:fluid_bed_small")
+                                 f"{case!r}: no such OpenFOAM case directory or snapshot .vtu "
+                                 "(relative paths are read from the scene file's directory; "
+                                 "or bundled:fluid_bed_small)")
     except of.OpenFOAMError as exc:
         raise SceneError(scene.source, "domain.case", str(exc)) from None
     if need_flux:
