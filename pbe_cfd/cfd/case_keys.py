@@ -27,7 +27,8 @@ def case_time(path, time, error) -> str:
             value = None
     if not (time == "latest" or (isinstance(value, (int, float)) and not isinstance(value, bool)
                                  and math.isfinite(value) and value >= 0)):
-        raise error(path, "domain.time", f"expected \"latest\" or a non-negative time in s, got {time!r}")
+        raise error(path, "domain.time",
+                    f"expected \"latest\" or a non-negative time in s, got {time!r}")
     return "latest" if time == "latest" else str(value)
 
 

@@ -143,8 +143,9 @@ def _read_face_flux(ct, fields) -> FaceFlux:
         b_patch.append(np.full(nf, len(names), dtype=np.int64))
         names.append(pname)
     cat = (lambda xs, dt: np.concatenate(xs).astype(dt) if xs else np.zeros(0, dt))
-    t0, a0, a1 = _window_alpha(ct.case, case_dir, t, n_cells, fields[1].split('.', 1)[1]) if field.endswith("Mean") else (
-        float("nan"), None, None)
+    phase = fields[1].split(".", 1)[1]
+    t0, a0, a1 = (_window_alpha(ct.case, case_dir, t, n_cells, phase)
+                  if field.endswith("Mean") else (float("nan"), None, None))
     return FaceFlux(owner=owner[:n_int].copy(), neighbour=neighbour, flux=internal,
                     boundary_face_cell=cat(b_cell, np.int64),
                     boundary_face_flux=cat(b_flux, np.float64),

@@ -32,6 +32,11 @@ SOURCE_FILE = "pbe-cfd-source.json"
 _MESH_FILES = ("points", "faces", "owner", "neighbour", "boundary")
 
 
+def _copy_tree(src: Path, dest: Path):
+    """Copy a directory; links decomposePar left dangling (``uniform``) are skipped."""
+    shutil.copytree(src, dest, ignore_dangling_symlinks=True)
+
+
 def cache_root() -> Path:
     """The directory pbe-cfd owns for converted cases (see the module docstring)."""
     env = os.environ.get(CACHE_ENV)
@@ -142,23 +147,23 @@ def readable_copy(case_dir, names: list[str], decomposed: bool) -> Path:
     tmp = Path(tempfile.mkdtemp(prefix=f".build-{key}-", dir=root))
     what = f"t = {names[0]} s of {case_dir}"
     try:
-        shutil.copytree(case_dir / "system", tmp / "system")
-        shutil.copytree(case_dir / "constant", tmp / "constant")
+        _copy_tree(case_dir / "system", tmp / "system")
+        _copy_tree(case_dir / "constant", tmp / "constant")
         _ascii_control_dict(tmp / "system" / "controlDict")
         times = ",".join(names)
         if decomposed:
             for p in _processors(case_dir):
-                shutil.copytree(p / "constant", tmp / p.name / "constant")
+                _copy_tree(p / "constant", tmp / p.name / "constant")
                 for n in names:
                     if (p / n).is_dir():
-                        shutil.copytree(p / n, tmp / p.name / n)
+                        _copy_tree(p / n, tmp / p.name / n)
             _run("reconstructPar", ["-time", times], tmp, install, what)
             for p in _processors(case_dir):
                 shutil.rmtree(tmp / p.name)
         else:
             for n in names:
                 if (case_dir / n).is_dir():
-                    shutil.copytree(case_dir / n, tmp / n)
+                    _copy_tree(case_dir / n, tmp / n)
         _run("foamFormatConvert", ["-constant", "-time", times], tmp, install, what)
         for gz in tmp.rglob("*.gz"):     # files the converter left alone (uniform/, ...)
             gz.unlink()
