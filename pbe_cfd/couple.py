@@ -18,7 +18,7 @@ import numpy as np
 from . import model
 from .batch import CellBatch, SimulationError, check_physics, output_times
 from .domain import (PACKING_MARGIN, Domain, build_cells, coupled_scales, initial_states,
-                     theta_grid)
+                     spray_zone_cut, theta_grid)
 from .executor import SerialExecutor
 from .methods.registry import MOMENT_METHODS, method_of
 from .physics import parameters as P
@@ -104,7 +104,8 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     extra, notes_method = method.diagnostics(history[-1], aux, arrays)
     run_stats.update(extra)
     warnings.extend(notes_method)
-    warnings.extend(_domain_warnings(scene, spray, notes))
+    warnings.extend(_domain_warnings(scene, spray, notes, cells, active))
+    warnings[:0] = list(getattr(domain, "warnings", None) or [])
     phases = {"setup_s": setup_s, "compile_s": compile_s, "solve_s": solve_end - solve_start,
               "assemble_s": _time.perf_counter() - solve_end}
     return CoupledResult(times=times, cell_fields=cell_fields, bed_columns=bed, stats=run_stats,
@@ -112,12 +113,12 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
                          kernels_compiled=batch.compiled_now, phases=phases)
 
 
-def _domain_warnings(scene, spray, notes) -> list:
+def _domain_warnings(scene, spray, notes, cells, active) -> list:
     out = []
     if scene.binder_injection is not None and not np.any(spray):
-        out.append("the spray zone of [binder_injection] holds no cell with alpha >= "
-                   "alpha_min: no binder is injected (check zone's box and alpha window "
-                   "against the bed)")
+        out.append(f"the spray zone of [binder_injection] holds no cell: "
+                   f"{spray_zone_cut(scene, cells, active)}; "
+                   "no binder is injected (change [binder_injection] zone)")
     if notes["cells_capped_below_alpha_max"]:
         out.append(f"{notes['cells_capped_below_alpha_max']} cells had alpha at or above "
                    f"alpha_max = {scene.domain.alpha_max:g}; kept {PACKING_MARGIN:g} "

@@ -31,6 +31,7 @@ class Domain:
     cells: object                  # pbe_cfd.cfd.openfoam.CellData
     flux: object | None            # pbe_cfd.cfd.openfoam.FaceFlux or None
     description: str
+    warnings: list = dataclasses.field(default_factory=list)   # one line each
 
 
 def case_path(scene) -> Path | None:
@@ -60,7 +61,7 @@ def load_domain(scene, need_flux: bool = False) -> Domain:
 
     case = scene.domain.case
     phase = scene.domain.phase
-    flux = None
+    flux, case_dir = None, None
     try:
         if case.startswith(BUNDLED_PREFIX):
             name = case[len(BUNDLED_PREFIX):]
@@ -81,19 +82,77 @@ def load_domain(scene, need_flux: bool = False) -> Domain:
                 flux = (of.read_face_flux(path, cells.time, phase=phase) if need_flux
                         else None)
                 loaded = (cells, flux) if need_flux else cells
-                desc = f"OpenFOAM case {path} at t = {cells.time:g} s"
+                case_dir = path
+                desc = f"OpenFOAM case {path / cells.source['time_dir']} (t = {cells.time:g} s)"
             else:
                 raise SceneError(scene.source, "domain.case",
                                  f"{case!r}: no such OpenFOAM case directory or snapshot .vtu "
                                  "(relative paths are read from the scene file's directory; "
                                  "or bundled:fluid_bed_small)")
+        if need_flux:
+            cells, flux = loaded
+        else:
+            cells = loaded
+        _check_input(scene, cells, flux, desc)
+        warnings = list(cells.source.get("warnings", []))
+        warnings += list(getattr(flux, "notes", None) or [])
+        if case_dir is not None:
+            warnings += _check_material(scene, case_dir)
     except of.OpenFOAMError as exc:
         raise SceneError(scene.source, "domain.case", str(exc)) from None
-    if need_flux:
-        cells, flux = loaded
-    else:
-        cells = loaded
-    return Domain(cells=cells, flux=flux, description=desc)
+    return Domain(cells=cells, flux=flux, description=desc, warnings=warnings)
+
+
+def _check_input(scene, cells, flux, desc: str):
+    """Physical checks of the CFD input (``openfoam.validate``) and, for a snapshot, that
+    ``[domain] time`` is the snapshot's own time."""
+    from .cfd.openfoam import validate
+    src = cells.source
+    validate.check_cells(cells, desc, scene.domain.alpha_max,
+                         src.get("alpha_field", "alpha"), src.get("theta_field", "Theta"))
+    if flux is not None:
+        validate.check_flux(flux, cells.n_cells, desc)
+    t = scene.domain.time
+    if t != "latest" and not src.get("time_dir"):       # a snapshot holds one time
+        if not abs(float(t) - cells.time) <= 1e-6 * max(1.0, abs(cells.time)):
+            raise SceneError(scene.source, "domain.time",
+                             f"{t} s is not the time of {desc} (t = {cells.time:g} s); "
+                             "drop it or set time = \"latest\"")
+    if not np.any(np.asarray(cells.alpha) >= scene.domain.alpha_min):
+        raise SceneError(scene.source, "domain.alpha_min",
+                         f"no cell of {desc} has alpha >= alpha_min = "
+                         f"{scene.domain.alpha_min:g} (max alpha "
+                         f"{float(np.max(cells.alpha)):.3g}); lower alpha_min")
+
+
+#: relative difference between the scene's and the case's particle density or diameter
+#: beyond which the two describe different materials
+MATERIAL_TOLERANCE = 0.01
+
+
+def _check_material(scene, case: Path) -> list:
+    """Compare the scene's particle density [kg/m3] and initial diameter [m] (of a granule of
+    the initial mean mass) with the case's own (``openfoam.material``): beyond 1% an error
+    naming both values and files, or with ``[domain] accept_material_mismatch`` a warning."""
+    from .cfd.openfoam.material import case_material
+    rho_s = scene.material.density
+    d_s = (6.0 * scene.initial.mean_mass / (np.pi * rho_s)) ** (1.0 / 3.0)
+    own = case_material(case, scene.domain.phase)
+    out = []
+    for what, mine, key, unit in (("density", rho_s, "[material] density", "kg/m3"),
+                                  ("diameter", d_s, "[initial] diameter", "m")):
+        theirs, where = own[what]
+        if theirs is None or abs(mine - theirs) <= MATERIAL_TOLERANCE * abs(theirs):
+            continue
+        text = (f"the scene's particle {what} {mine:.4g} {unit} ({key} of {scene.source}) "
+                f"differs from the case's {theirs:.4g} {unit} ({where}) by more than "
+                f"{100 * MATERIAL_TOLERANCE:g}%")
+        if not scene.domain.accept_material_mismatch:
+            raise SceneError(scene.source, "domain.case",
+                             f"{text}; make them agree, or set [domain] "
+                             "accept_material_mismatch = true to run with both")
+        out.append(f"{text}; accepted ([domain] accept_material_mismatch = true)")
+    return out
 
 
 def spray_zone(scene, cells) -> np.ndarray:
@@ -111,6 +170,26 @@ def spray_zone(scene, cells) -> np.ndarray:
                     axis=1)
     window = (cells.alpha >= zone.alpha_low) & (cells.alpha <= zone.alpha_high)
     return inside & window
+
+
+def spray_zone_cut(scene, cells, active) -> str:
+    """Which criterion of ``[binder_injection] zone`` removed the cells of its box: counts of
+    the box's cells with alpha below alpha_low, above alpha_high, below alpha_min."""
+    zone = scene.binder_injection.zone
+    if zone is None:
+        return "no cell has alpha >= alpha_min"
+    centre = cells.cell_centre
+    box = np.all((centre >= np.array(zone.box_min)) & (centre <= np.array(zone.box_max)),
+                 axis=1)
+    if not box.any():
+        return "no cell centre lies inside box_min..box_max"
+    a = np.asarray(cells.alpha)[box]
+    parts = [f"{int(np.count_nonzero(c))} with alpha {w}" for c, w in (
+        (a < zone.alpha_low, f"< alpha_low = {zone.alpha_low:g}"),
+        (a > zone.alpha_high, f"> alpha_high = {zone.alpha_high:g}"),
+        (~np.asarray(active)[box], f"< alpha_min = {scene.domain.alpha_min:g}")) if c.any()]
+    return (f"its box holds {int(box.sum())} cells (alpha {a.min():.3g}..{a.max():.3g}), "
+            f"removed by the alpha window: {', '.join(parts)}")
 
 
 def build_cells(scene, cells) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:

@@ -3,6 +3,7 @@ uses them: the case relative to the scene file, the time as OpenFOAM names its d
 from __future__ import annotations
 
 import math
+import os
 import re
 from pathlib import Path
 
@@ -12,7 +13,7 @@ def case_path(scene_path, case: str) -> str:
     one rule for reading and writing); ``bundled:`` names are kept."""
     if case.startswith("bundled:") or Path(case).is_absolute():
         return case
-    return str((Path(scene_path).resolve().parent / case))
+    return os.path.normpath(Path(scene_path).resolve().parent / case)
 
 
 def case_time(path, time, error) -> str:

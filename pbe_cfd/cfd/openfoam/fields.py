@@ -7,7 +7,6 @@ import gzip
 import json
 import os
 import re
-import warnings
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -157,15 +156,16 @@ def _n_cells_polymesh(case_dir: Path) -> int | None:
 
 
 def _pick_field(cell_data: Mapping[str, np.ndarray], names: tuple[str, ...], what: str,
-                path: Path) -> tuple[str, np.ndarray]:
+                path) -> tuple[str, np.ndarray, str | None]:
     for i, name in enumerate(names):
         if name in cell_data:
+            note = None
             if i > 0:
-                warnings.warn(
-                    f"{path}: no time-averaged '{names[0]}' (fieldAverage window not reached "
-                    f"or not configured); using instantaneous '{name}' for {what}",
-                    stacklevel=3)
-            return name, np.asarray(cell_data[name], dtype=np.float64)
+                note = (f"{path}: no time-averaged '{names[0]}' (the case's fieldAverage does "
+                        f"not average it, or its window has not started); using the "
+                        f"instantaneous '{name}' for {what} (add it to the fieldAverage, or "
+                        "choose an averaged time with [domain] time)")
+            return name, np.asarray(cell_data[name], dtype=np.float64), note
     found = sorted(k for k in cell_data if k != "cellID")
     raise OpenFOAMError(f"{path}: no {what} field; expected one of {list(names)}, found "
                         f"{found}; choose a written time that holds it with [domain] time, "
@@ -253,7 +253,7 @@ def _cell_data_from_vtu(path: Path, t: float, n_expected: int | None = None,
                         phase: str = DEFAULT_PHASE, where: str | None = None) -> CellData:
     try:
         mesh = meshio.read(path)
-    except Exception as exc:  # meshio raises assorted errors on bad files
+    except (Exception, SystemExit) as exc:  # meshio raises assorted errors, or exits
         raise OpenFOAMError(f"cannot read {path} with meshio: {exc}") from None
     # foamToVTK stores points as float32; its first points are the polyMesh points in order,
     # so take those in double precision (volumes then match OpenFOAM's to round-off)
@@ -283,8 +283,8 @@ def _cell_data_from_vtu(path: Path, t: float, n_expected: int | None = None,
     first[cell_id[::-1]] = np.arange(n_vtk)[::-1]
     alpha_names, theta_names, _ = phase_fields(phase)
     where = where or str(path)
-    a_name, alpha = _pick_field(cd, alpha_names, "solids fraction", where)
-    t_name, theta = _pick_field(cd, theta_names, "granular temperature", where)
+    a_name, alpha, a_note = _pick_field(cd, alpha_names, "solids fraction", where)
+    t_name, theta, t_note = _pick_field(cd, theta_names, "granular temperature", where)
     alpha, theta = alpha[first], theta[first]
     for name, arr in ((a_name, alpha), (t_name, theta)):
         if not np.all(np.isfinite(arr)):
@@ -298,6 +298,7 @@ def _cell_data_from_vtu(path: Path, t: float, n_expected: int | None = None,
         "theta_field": t_name,
         "averaged": a_name.endswith("Mean") and t_name.endswith("Mean"),
         "time_s": t,
+        "warnings": [n for n in (a_note, t_note) if n],
     }
     return CellData(alpha=alpha, theta=theta, cell_volume=vol, cell_centre=cen, mesh=bare,
                     vtk_cell_id=cell_id, time=t, source=source)

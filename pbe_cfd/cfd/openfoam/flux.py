@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +31,7 @@ class FaceFlux:
                         (None when not written); the mean flux obeys
                         net_outflow() = -(alpha_end - alpha_start) V / (time - window_start)
                         up to the time discretisation (0.2 % on the bundled snapshot)
+    notes               one-line warnings of the reading (an instantaneous field used)
     """
 
     owner: np.ndarray
@@ -47,6 +47,7 @@ class FaceFlux:
     window_start: float = float("nan")
     alpha_start: np.ndarray | None = None
     alpha_end: np.ndarray | None = None
+    notes: list = dataclasses.field(default_factory=list)
 
     @property
     def patch_flux(self) -> dict[str, float]:
@@ -101,14 +102,14 @@ def _read_face_flux(ct, fields) -> FaceFlux:
     n_int = len(neighbour)
     n_cells = _n_cells_polymesh(case_dir) or int(max(owner.max(), neighbour.max())) + 1
 
-    field = None
+    field, notes = None, []
     for i, name in enumerate(fields):
         if (tdir / name).is_file():
             field = name
             if i > 0:
-                warnings.warn(f"{where}: no time-averaged '{fields[0]}'; using "
-                              f"instantaneous '{name}' for the transport flux (average it "
-                              "with the case's fieldAverage)", stacklevel=2)
+                notes.append(f"{where}: no time-averaged '{fields[0]}'; using the "
+                             f"instantaneous '{name}' for the transport flux (add it to the "
+                             "case's fieldAverage)")
             break
     if field is None:
         raise OpenFOAMError(f"{where}: no face flux field; expected one of {list(fields)} "
@@ -151,7 +152,7 @@ def _read_face_flux(ct, fields) -> FaceFlux:
                     boundary_face_flux=cat(b_flux, np.float64),
                     boundary_face_patch=cat(b_patch, np.int64), patch_names=names,
                     n_cells=n_cells, field=field, time=t, window_start=t0,
-                    alpha_start=a0, alpha_end=a1)
+                    alpha_start=a0, alpha_end=a1, notes=notes)
 
 
 def _window_alpha(case: Path, case_dir: Path, t: float, n_cells: int, phase: str):
