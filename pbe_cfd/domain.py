@@ -108,10 +108,11 @@ def _check_input(scene, cells, flux, desc: str):
     ``[domain] time`` is the snapshot's own time."""
     from .cfd.openfoam import validate
     src = cells.source
-    validate.check_cells(cells, desc, scene.domain.alpha_max,
+    where = desc if src.get("time_dir") else f"{desc} (t = {cells.time:g} s)"
+    validate.check_cells(cells, where, scene.domain.alpha_max,
                          src.get("alpha_field", "alpha"), src.get("theta_field", "Theta"))
     if flux is not None:
-        validate.check_flux(flux, cells.n_cells, desc)
+        validate.check_flux(flux, cells.n_cells, where)
     t = scene.domain.time
     if t != "latest" and not src.get("time_dir"):       # a snapshot holds one time
         if not abs(float(t) - cells.time) <= 1e-6 * max(1.0, abs(cells.time)):

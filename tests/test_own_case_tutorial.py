@@ -135,3 +135,90 @@ def test_an_edited_field_is_read_anew(tutorial, tmp_path):
     field.write_text(head + "internalField" + edited)
     second = of.read_cell_fields(case, END)
     np.testing.assert_allclose(second.alpha, 0.5 * first.alpha, rtol=1e-5, atol=1e-12)
+
+
+def _renamed(src: Path, dest: Path, phase: str) -> Path:
+    """A copy whose solids phase is called ``phase``: file names and entries renamed."""
+    shutil.copytree(src, dest)
+    for p in sorted(dest.rglob("*"), key=lambda p: -len(p.parts)):
+        if p.is_file() and "polyMesh" not in p.parts:
+            p.write_text(p.read_text().replace("particles", phase))
+        if "particles" in p.name:
+            p.rename(p.with_name(p.name.replace("particles", phase)))
+    return dest
+
+
+def _scene(path: Path, case: str, extra: str = "", transport: bool = False):
+    """The bundled fluid-bed scene over ``case``, 2 s of granulation; the tutorial's material
+    (300 um, 2500 kg/m3) differs from the scene's, accepted knowingly."""
+    from pbe_cfd.scene import resolve_scene_path
+    text = resolve_scene_path("fluid-bed").read_text()
+    text = text.replace("end_time = 60.0", "end_time = 2.0").replace(
+        "output_interval = 5.0", "output_interval = 1.0")
+    text = text.replace('case = "bundled:fluid_bed_small"',
+                        f'case = "{case}"\naccept_material_mismatch = true\n{extra}')
+    if transport:
+        text += "\n[transport]\ncourant = 0.5\n"
+    path.write_text(text)
+    return path
+
+
+def _only_pbe_fields_differ(before: dict, after: dict, time: str):
+    changed = {k for k in set(before) | set(after) if before.get(k) != after.get(k)}
+    for rel in changed:
+        parts = rel.split("/")
+        assert parts[-1].startswith("pbe.") and parts[-2] == time and rel not in before, rel
+
+
+@pytest.mark.parametrize("kind", ["plain", "compressed", "decomposed", "renamed"])
+def test_couple_writes_only_the_requested_fields_into_the_users_case(tutorial, tmp_path, kind,
+                                                                     monkeypatch, capsys):
+    """`couple` and `couple --foam-fields` with [transport], run from another directory, over
+    the user's case with a log.foamToVTK and a VTK/ of the user's own: every file of the case
+    is as it was, but the pbe.* fields of the time read (per processor when decomposed)."""
+    import json
+
+    from pbe_cfd.cli import main
+    case = tmp_path / "cases" / "bed"
+    extra = ""
+    if kind == "renamed":
+        _renamed(tutorial["plain"], case, "solids")
+        extra = 'phase = "solids"'
+    else:
+        shutil.copytree(tutorial[kind], case)
+    (case / "log.foamToVTK").write_text("the user's own log\n")
+    (case / "VTK").mkdir()
+    (case / "VTK" / "mine.vtu").write_text("the user's own VTK\n")
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    plain = _scene(scenes / "s.toml", "../cases/bed", extra)
+    moving = _scene(scenes / "t.toml", "../cases/bed", extra, transport=True)
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    before = _tree(case)
+    assert main(["couple", str(plain), "--out", "o1"]) == 0
+    assert _tree(case) == before
+    summary = json.loads((work / "o1" / "summary.json").read_text())
+    assert any("accept_material_mismatch" in w for w in summary["warnings"])
+    assert main(["couple", str(moving), "--foam-fields", "--out", "o2"]) == 0
+    after = _tree(case)
+    _only_pbe_fields_differ(before, after, END)
+    where = [case / f"processor{i}" for i in range(2)] if kind == "decomposed" else [case]
+    for d in where:
+        assert (d / END / "pbe.M00").is_file()
+    assert not (case / END).exists() or kind != "decomposed"
+    assert sorted(p.name for p in work.iterdir()) == ["o1", "o2"]
+
+
+def test_a_material_mismatch_is_refused_in_one_line(tutorial, tmp_path, capsys):
+    """Without the accepting key, the scene's 100.4 um / 1021 kg/m3 against the tutorial's
+    300 um / 2500 kg/m3 is an exit-2 error naming both values and both files."""
+    from pbe_cfd.cli import main
+    s = _scene(tmp_path / "s.toml", str(tutorial["plain"]))
+    s.write_text(s.read_text().replace("accept_material_mismatch = true", ""))
+    assert main(["couple", str(s), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "Traceback" not in err[0]
+    assert "1021" in err[0] and "2500" in err[0] and "thermophysicalProperties" in err[0]
+    assert not (tmp_path / "o").exists()
