@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 DEFAULT_WELL_MIXED = "seed-wurster"
@@ -80,6 +81,8 @@ def run_command(args):
         result = run_well_mixed(scene, progress=progress)
     finally:
         progress.close()
+    result.warnings.extend(m for m in (str(w.message).splitlines()[0] for w in caught)
+                           if m not in result.warnings)    # library warnings: one line each
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
     with output.atomic_directory(out, args.overwrite, kind="run") as tmp:
@@ -185,6 +188,17 @@ def _couple(args, out, phases):
     """The run and its outputs (``couple_command`` after the output directory was checked)."""
     import time
 
+    t_read = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        return _couple_recorded(args, out, phases, t_read, caught)
+
+
+def _couple_recorded(args, out, phases, t_read, caught):
+    """``_couple`` with Python warnings recorded in ``caught`` (written as one-line warnings
+    and into summary.json, never as raw warning lines)."""
+    import time
+
     from . import output
     from .couple import check_foam_fields, run_coupled, write_coupled, write_foam_fields
     from .domain import load_domain
@@ -192,7 +206,6 @@ def _couple(args, out, phases):
     from .progress import Progress
     from .scene import SceneError, load_scene
 
-    t_read = time.perf_counter()
     scene = load_scene(args.scene or DEFAULT_COUPLED)
     if scene.domain.type != "openfoam":
         raise SceneError(scene.source, "domain.type",
@@ -218,6 +231,8 @@ def _couple(args, out, phases):
     finally:
         progress.close()
         executor.close()
+    result.warnings.extend(m for m in (str(w.message).splitlines()[0] for w in caught)
+                           if m not in result.warnings)    # library warnings: one line each
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
     with output.atomic_directory(out, args.overwrite, kind="couple") as tmp:

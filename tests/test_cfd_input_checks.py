@@ -124,3 +124,14 @@ def test_exit_2_from_the_command_line(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "Theta" in err[0] and "negative" in err[0]
     assert not (tmp_path / "o").exists()
+
+
+def test_well_mixed_number_density_beyond_packing_is_refused(scene_factory):
+    """1e20 granules of 100 um per m3 fill about 5e7 times the volume: exit 2 naming the
+    key, not a run. Just below packing (0.6 of the volume) still runs the check silently."""
+    from pbe_cfd.batch import check_physics
+    mass = 1000.0 * np.pi / 6 * (100e-6) ** 3          # kg, a 100 um granule of 1000 kg/m3
+    with pytest.raises(SceneError, match="initial.number_density.*above alpha_max"):
+        check_physics(scene_factory(initial={"number_density": 1e20, "mean_mass": mass}))
+    check_physics(scene_factory(initial={"number_density": 0.6 / (mass / 1000.0),
+                                         "mean_mass": mass}))
