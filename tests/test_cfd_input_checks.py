@@ -135,3 +135,14 @@ def test_well_mixed_number_density_beyond_packing_is_refused(scene_factory):
         check_physics(scene_factory(initial={"number_density": 1e20, "mean_mass": mass}))
     check_physics(scene_factory(initial={"number_density": 0.6 / (mass / 1000.0),
                                          "mean_mass": mass}))
+
+
+def test_alpha_just_above_packing_is_kept_below_it(tmp_path):
+    """A solver's overshoot of alpha_max within 1% (validate.PACKING_OVERSHOOT) is read, and
+    build_cells keeps those cells just below alpha_max, counting them."""
+    from pbe_cfd.domain import build_cells
+    snap = _snapshot(tmp_path, "alpha", [7, 30], 0.62 * 1.005)
+    scene = load_scene(_scene(tmp_path, snap.name))
+    dom = load_domain(scene)
+    _, _, _, notes = build_cells(scene, dom.cells)
+    assert notes["cells_capped_below_alpha_max"] == 2
