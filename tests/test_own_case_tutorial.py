@@ -222,3 +222,22 @@ def test_a_material_mismatch_is_refused_in_one_line(tutorial, tmp_path, capsys):
     assert len(err) == 1 and "Traceback" not in err[0]
     assert "1021" in err[0] and "2500" in err[0] and "thermophysicalProperties" in err[0]
     assert not (tmp_path / "o").exists()
+
+
+def test_a_failing_openfoam_tool_is_one_line_and_leaves_no_copy(tutorial, tmp_path):
+    """A case whose mesh points file is truncated: the conversion fails in one line naming the
+    tool, nothing is written into the case, and no partial copy is left in the cache."""
+    from pbe_cfd.cfd.openfoam.readable import SOURCE_FILE, cache_root
+    case = tmp_path / "case"
+    shutil.copytree(tutorial["plain"], case)
+    points = case / "constant" / "polyMesh" / "points"
+    points.write_bytes(points.read_bytes()[:2000])
+    before = _tree(case)
+    copies = {p.name for p in cache_root().iterdir()}
+    with pytest.raises(of.OpenFOAMError) as err:
+        of.read_cell_fields(case, END)
+    text = str(err.value)
+    assert "\n" not in text and "failed on t = 0.02 s" in text
+    assert _tree(case) == before
+    new = {p.name for p in cache_root().iterdir()} - copies - {"failed"}
+    assert not any((cache_root() / n / SOURCE_FILE).exists() for n in new) and not new
