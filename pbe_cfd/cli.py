@@ -81,8 +81,6 @@ def run_command(args):
         result = run_well_mixed(scene, progress=progress)
     finally:
         progress.close()
-    result.warnings.extend(m for m in (str(w.message).splitlines()[0] for w in caught)
-                           if m not in result.warnings)    # library warnings: one line each
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
     with output.atomic_directory(out, args.overwrite, kind="run") as tmp:
