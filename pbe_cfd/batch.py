@@ -40,8 +40,19 @@ def output_times(scene) -> np.ndarray:
 
 
 def check_physics(scene):
-    """Refuse runs whose answer would be meaningless (product-kernel gelation): a bad input
-    (``SceneError``, exit 2) known before anything runs."""
+    """Refuse runs whose answer would be meaningless: product-kernel gelation, and a
+    well-mixed cell whose granules (number_density [1/m3] x mean_mass [kg] / density
+    [kg/m3]) would fill more than alpha_max of its volume (SceneError, exit 2)."""
+    if scene.domain.type == "well-mixed":
+        implied = (scene.initial.number_density * scene.initial.mean_mass
+                   / scene.material.density)
+        if not implied <= scene.domain.alpha_max:
+            raise SceneError(scene.source, "initial.number_density",
+                             f"{scene.initial.number_density:.4g} granules of "
+                             f"{scene.initial.mean_mass:.4g} kg per m3 fill a solids volume "
+                             f"fraction of {implied:.4g} (number_density x mean_mass / "
+                             f"density), above alpha_max = {scene.domain.alpha_max:g}; "
+                             "expected a lower number_density")
     t_gel = model.product_gel_time(scene)
     if t_gel is not None and scene.end_time >= t_gel:
         raise SceneError(

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 DEFAULT_WELL_MIXED = "seed-wurster"
@@ -253,13 +254,23 @@ def _couple(args, scene, out, phases):
     """The run and its outputs (``couple_command`` after the output directory was checked)."""
     import time
 
+    t_read = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        return _couple_recorded(args, scene, out, phases, t_read, caught)
+
+
+def _couple_recorded(args, scene, out, phases, t_read, caught):
+    """``_couple`` with Python warnings recorded in ``caught`` (written as one-line warnings
+    and into summary.json, never as raw warning lines)."""
+    import time
+
     from . import output
     from .couple import check_foam_fields, run_coupled, write_coupled, write_foam_fields
     from .domain import load_domain
     from .executor import SerialExecutor
     from .progress import Progress
 
-    t_read = time.perf_counter()
     if args.run_case:
         scene = _fresh_case(scene, args.mesh, args.overwrite)
     domain = load_domain(scene, need_flux=scene.transport is not None)
@@ -280,6 +291,8 @@ def _couple(args, scene, out, phases):
     finally:
         progress.close()
         executor.close()
+    result.warnings.extend(m for m in (str(w.message).splitlines()[0] for w in caught)
+                           if m not in result.warnings)    # library warnings: one line each
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
     with output.atomic_directory(out, args.overwrite, kind="couple") as tmp:

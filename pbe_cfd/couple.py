@@ -18,7 +18,7 @@ import numpy as np
 from . import model
 from .batch import CellBatch, SimulationError, check_physics, output_times
 from .domain import (PACKING_MARGIN, Domain, build_cells, coupled_scales, initial_states,
-                     theta_grid)
+                     spray_zone_cut, theta_grid)
 from .executor import SerialExecutor
 from .methods.registry import MOMENT_METHODS, method_of
 from .physics import parameters as P
@@ -109,7 +109,8 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     warnings.extend(notes_method)
     warnings.extend(batch.notes)
     run_stats["smooth_stokes_cells"] = int(np.count_nonzero(batch.smoothed))
-    warnings.extend(_domain_warnings(scene, spray, notes))
+    warnings.extend(_domain_warnings(scene, spray, notes, cells, active))
+    warnings[:0] = list(getattr(domain, "warnings", None) or [])
     phases = {"setup_s": setup_s, "compile_s": compile_s, "solve_s": solve_end - solve_start,
               "assemble_s": _time.perf_counter() - solve_end}
     psd, labels = _bed_distribution(scene, arrays, times, bed, mixtures, cell_fields, warnings)
@@ -150,12 +151,12 @@ def _bed_distribution(scene, arrays, times, bed, mixtures, cell_fields, warnings
                  "psd.csv": tables.psd_labels(scene, psd)}
 
 
-def _domain_warnings(scene, spray, notes) -> list:
+def _domain_warnings(scene, spray, notes, cells, active) -> list:
     out = []
     if scene.binder_injection is not None and not np.any(spray):
-        out.append("the spray zone of [binder_injection] holds no cell with alpha >= "
-                   "alpha_min: no binder is injected (check zone's box and alpha window "
-                   "against the bed)")
+        out.append(f"the spray zone of [binder_injection] holds no cell: "
+                   f"{spray_zone_cut(scene, cells, active)}; "
+                   "no binder is injected (change [binder_injection] zone)")
     if notes["cells_capped_below_alpha_max"]:
         out.append(f"{notes['cells_capped_below_alpha_max']} cells had alpha at or above "
                    f"alpha_max = {scene.domain.alpha_max:g}; kept {PACKING_MARGIN:g} "
@@ -276,14 +277,14 @@ def check_foam_fields(scene, domain: Domain, overwrite: bool = False):
     when the domain has no case time directory to write into (a snapshot), or when that
     directory holds ``pbe.*`` fields pbe-cfd may not replace."""
     from .cfd import openfoam as of
-    from .domain import BUNDLED_PREFIX
-    case = Path(scene.domain.case)
-    if scene.domain.case.startswith(BUNDLED_PREFIX) or not case.is_dir():
+    from .domain import case_path, is_case_directory
+    if not is_case_directory(scene):
         raise SceneError(scene.source, "domain.case",
                          f"--foam-fields: {scene.domain.case!r} is a snapshot, which has no "
                          "OpenFOAM case time directory to write fields into; point [domain] "
                          "case at a case directory (`pbe-cfd case run --dir DIR`) or drop "
                          "--foam-fields")
+    case = case_path(scene)
     names = [f"pbe.{k}" for k in (*FOAM_UNITS, "binder_fraction")]
     of.check_foam_fields(case, of.time_name(case, domain.cells.time), names, overwrite)
 
@@ -294,11 +295,16 @@ def write_foam_fields(scene, domain: Domain, result: CoupledResult,
     time directory of the CFD fields they were computed from (ParaView's OpenFOAM reader lists
     numeric times only). Returns the files written ([] for a snapshot domain)."""
     from .cfd import openfoam as of
-    case = Path(scene.domain.case)
-    if not case.is_dir():
+    from .domain import case_path, is_case_directory
+    if not is_case_directory(scene):
         return []
+    case = case_path(scene)
     fields = {f"pbe.{k}": v for k, v in result.cell_fields[-1].items()
               if k in FOAM_UNITS or k == "binder_fraction"}
     dims = {f"pbe.{k}": u for k, u in FOAM_UNITS.items()}
-    return of.write_foam_fields(case, of.time_name(case, domain.cells.time), fields,
-                                dimensions=dims, overwrite=overwrite)
+    name = of.time_name(case, domain.cells.time)
+    if domain.cells.source.get("decomposed"):        # the time only the processors hold
+        from .distributed.decompose import read_decomposition, write_processor_fields
+        return write_processor_fields(case, read_decomposition(case, domain.cells.n_cells),
+                                      name, fields, dimensions=dims, overwrite=overwrite)
+    return of.write_foam_fields(case, name, fields, dimensions=dims, overwrite=overwrite)

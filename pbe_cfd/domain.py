@@ -31,24 +31,37 @@ class Domain:
     cells: object                  # pbe_cfd.cfd.openfoam.CellData
     flux: object | None            # pbe_cfd.cfd.openfoam.FaceFlux or None
     description: str
+    warnings: list = dataclasses.field(default_factory=list)   # one line each
 
 
-def _case_path(scene) -> Path:
-    path = Path(scene.domain.case)
-    if not path.is_absolute() and scene.source:
-        cand = Path(scene.source).parent / path
-        path = cand if cand.exists() else path
+def case_path(scene) -> Path | None:
+    """The case or snapshot path of ``[domain] case`` (the scene loader made it absolute,
+    relative to the scene file), or None for a bundled snapshot. Reading and writing (fields
+    written back, --decompose) use this one path."""
+    case = scene.domain.case
+    if case.startswith(BUNDLED_PREFIX):
+        return None
+    path = Path(case)
+    if not path.is_absolute() and scene.source:      # a Scene built in code
+        path = Path(scene.source).resolve().parent / path
     return path
+
+
+def is_case_directory(scene) -> bool:
+    """True when ``[domain] case`` names an OpenFOAM case directory (not a snapshot)."""
+    path = case_path(scene)
+    return path is not None and path.is_dir()
 
 
 def load_domain(scene, need_flux: bool = False) -> Domain:
     """Read the CFD fields named by ``[domain] case`` (a bundled snapshot, a snapshot .vtu, or
-    an OpenFOAM case directory whose foamToVTK output exists); with ``need_flux`` also the
-    solids face flux [m3/s]."""
+    an OpenFOAM case directory: plain, binary, compressed or decomposed, read through
+    pbe-cfd's own readable copy); with ``need_flux`` also the solids face flux [m3/s]."""
     from .cfd import openfoam as of
 
     case = scene.domain.case
-    flux = None
+    phase = scene.domain.phase
+    flux, case_dir = None, None
     try:
         if case.startswith(BUNDLED_PREFIX):
             name = case[len(BUNDLED_PREFIX):]
@@ -59,28 +72,88 @@ def load_domain(scene, need_flux: bool = False) -> Domain:
             loaded = of.load_snapshot(path, with_flux=need_flux)
             desc = f"bundled snapshot {path.name}"
         else:
-            path = _case_path(scene)
-            if path.suffix == ".vtu":
+            path = case_path(scene)
+            if path.suffix == ".vtu" and path.is_file():
                 loaded = of.load_snapshot(path, with_flux=need_flux)
                 desc = f"snapshot {path}"
             elif path.is_dir():
                 t = scene.domain.time
-                t = "latest" if t == "latest" else float(t)
-                cells = of.read_cell_fields(path, t)
-                flux = of.read_face_flux(path, cells.time) if need_flux else None
+                cells = of.read_cell_fields(path, t, phase=phase)
+                flux = (of.read_face_flux(path, cells.time, phase=phase) if need_flux
+                        else None)
                 loaded = (cells, flux) if need_flux else cells
-                desc = f"OpenFOAM case {path} at t = {cells.time:g} s"
+                case_dir = path
+                desc = f"OpenFOAM case {path / cells.source['time_dir']} (t = {cells.time:g} s)"
             else:
                 raise SceneError(scene.source, "domain.case",
-                                 f"{case!r}: expected an OpenFOAM case directory, a snapshot "
-                                 f".vtu or bundled:fluid_bed_small")
+                                 f"{case!r}: no such OpenFOAM case directory or snapshot .vtu "
+                                 "(relative paths are read from the scene file's directory; "
+                                 "or bundled:fluid_bed_small)")
+        if need_flux:
+            cells, flux = loaded
+        else:
+            cells = loaded
+        _check_input(scene, cells, flux, desc)
+        warnings = list(cells.source.get("warnings", []))
+        warnings += list(getattr(flux, "notes", None) or [])
+        if case_dir is not None:
+            warnings += _check_material(scene, case_dir)
     except of.OpenFOAMError as exc:
         raise SceneError(scene.source, "domain.case", str(exc)) from None
-    if need_flux:
-        cells, flux = loaded
-    else:
-        cells = loaded
-    return Domain(cells=cells, flux=flux, description=desc)
+    return Domain(cells=cells, flux=flux, description=desc, warnings=warnings)
+
+
+def _check_input(scene, cells, flux, desc: str):
+    """Physical checks of the CFD input (``openfoam.validate``) and, for a snapshot, that
+    ``[domain] time`` is the snapshot's own time."""
+    from .cfd.openfoam import validate
+    src = cells.source
+    where = desc if src.get("time_dir") else f"{desc} (t = {cells.time:g} s)"
+    validate.check_cells(cells, where, scene.domain.alpha_max,
+                         src.get("alpha_field", "alpha"), src.get("theta_field", "Theta"))
+    if flux is not None:
+        validate.check_flux(flux, cells.n_cells, where)
+    t = scene.domain.time
+    if t != "latest" and not src.get("time_dir"):       # a snapshot holds one time
+        if not abs(float(t) - cells.time) <= 1e-6 * max(1.0, abs(cells.time)):
+            raise SceneError(scene.source, "domain.time",
+                             f"{t} s is not the time of {desc} (t = {cells.time:g} s); "
+                             "drop it or set time = \"latest\"")
+    if not np.any(np.asarray(cells.alpha) >= scene.domain.alpha_min):
+        raise SceneError(scene.source, "domain.alpha_min",
+                         f"no cell of {desc} has alpha >= alpha_min = "
+                         f"{scene.domain.alpha_min:g} (max alpha "
+                         f"{float(np.max(cells.alpha)):.3g}); lower alpha_min")
+
+
+#: relative difference between the scene's and the case's particle density or diameter
+#: beyond which the two describe different materials
+MATERIAL_TOLERANCE = 0.01
+
+
+def _check_material(scene, case: Path) -> list:
+    """Compare the scene's particle density [kg/m3] and initial diameter [m] (of a granule of
+    the initial mean mass) with the case's own (``openfoam.material``): beyond 1% an error
+    naming both values and files, or with ``[domain] accept_material_mismatch`` a warning."""
+    from .cfd.openfoam.material import case_material
+    rho_s = scene.material.density
+    d_s = (6.0 * scene.initial.mean_mass / (np.pi * rho_s)) ** (1.0 / 3.0)
+    own = case_material(case, scene.domain.phase)
+    out = []
+    for what, mine, key, unit in (("density", rho_s, "[material] density", "kg/m3"),
+                                  ("diameter", d_s, "[initial] diameter", "m")):
+        theirs, where = own[what]
+        if theirs is None or abs(mine - theirs) <= MATERIAL_TOLERANCE * abs(theirs):
+            continue
+        text = (f"the scene's particle {what} {mine:.4g} {unit} ({key} of {scene.source}) "
+                f"differs from the case's {theirs:.4g} {unit} ({where}) by more than "
+                f"{100 * MATERIAL_TOLERANCE:g}%")
+        if not scene.domain.accept_material_mismatch:
+            raise SceneError(scene.source, "domain.case",
+                             f"{text}; make them agree, or set [domain] "
+                             "accept_material_mismatch = true to run with both")
+        out.append(f"{text}; accepted ([domain] accept_material_mismatch = true)")
+    return out
 
 
 def spray_zone(scene, cells) -> np.ndarray:
@@ -98,6 +171,26 @@ def spray_zone(scene, cells) -> np.ndarray:
                     axis=1)
     window = (cells.alpha >= zone.alpha_low) & (cells.alpha <= zone.alpha_high)
     return inside & window
+
+
+def spray_zone_cut(scene, cells, active) -> str:
+    """Which criterion of ``[binder_injection] zone`` removed the cells of its box: counts of
+    the box's cells with alpha below alpha_low, above alpha_high, below alpha_min."""
+    zone = scene.binder_injection.zone
+    if zone is None:
+        return "no cell has alpha >= alpha_min"
+    centre = cells.cell_centre
+    box = np.all((centre >= np.array(zone.box_min)) & (centre <= np.array(zone.box_max)),
+                 axis=1)
+    if not box.any():
+        return "no cell centre lies inside box_min..box_max"
+    a = np.asarray(cells.alpha)[box]
+    parts = [f"{int(np.count_nonzero(c))} with alpha {w}" for c, w in (
+        (a < zone.alpha_low, f"< alpha_low = {zone.alpha_low:g}"),
+        (a > zone.alpha_high, f"> alpha_high = {zone.alpha_high:g}"),
+        (~np.asarray(active)[box], f"< alpha_min = {scene.domain.alpha_min:g}")) if c.any()]
+    return (f"its box holds {int(box.sum())} cells (alpha {a.min():.3g}..{a.max():.3g}), "
+            f"removed by the alpha window: {', '.join(parts)}")
 
 
 def build_cells(scene, cells) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:

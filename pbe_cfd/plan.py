@@ -126,11 +126,13 @@ def _case_dir(scene) -> Path:
 
 
 def unconverted_reason(scene) -> str | None:
-    """Why reading the scene's case would write (its fields at the chosen time are not yet
-    converted by foamToVTK, which a run does first), or None where it reads without writing
-    (a snapshot, or converted fields that exist)."""
+    """Why the scene's case cannot be opened without writing into it (a case with no mesh
+    whose fields at the chosen time foamToVTK has not converted), or None where it can (a
+    snapshot; a case with its mesh, whose fields are converted in pbe-cfd's own cache as a
+    run does, never in the case; converted fields that exist)."""
     from .cfd import openfoam as of
     from .cfd.openfoam.fields import _vtk_internal_file
+    from .cfd.openfoam.readable import has_mesh
     from .domain import BUNDLED_PREFIX
 
     case = scene.domain.case
@@ -139,6 +141,8 @@ def unconverted_reason(scene) -> str | None:
     path = _case_dir(scene)
     if not path.is_dir():
         return None                      # load_domain names what is wrong
+    if has_mesh(path):
+        return None                      # converted in pbe-cfd's cache, not in the case
     try:
         t = of.pick_time(path, "latest" if scene.domain.time == "latest"
                          else float(scene.domain.time))

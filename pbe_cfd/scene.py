@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from . import limits
+from .cfd import case_keys
 from .methods.registry import METHOD_NAMES, METHODS, MOMENT_METHODS
 from .physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
 from .physics.efficiency import EFFICIENCY_BY_NAME
@@ -52,7 +53,9 @@ class Zone:
 class Domain:
     """Where the population lives. Well-mixed: one cell with the given local fields
     (granular_temperature [m2/s2], solids_fraction [-], collision_velocity [m/s]).
-    OpenFOAM: the case directory or bundled snapshot, the written time, alpha_min [-]."""
+    OpenFOAM: the case directory (absolute; written relative to the scene file) or bundled
+    snapshot, the written time, alpha_min [-], the solids phase name, and whether a material
+    mismatch with the case is accepted."""
     type: str
     granular_temperature: float | None = None
     solids_fraction: float | None = None
@@ -62,6 +65,8 @@ class Domain:
     case: str | None = None
     time: str = "latest"
     alpha_min: float = 0.05
+    phase: str = "particles"
+    accept_material_mismatch: bool = False
 
 
 @dataclass(frozen=True)
@@ -389,15 +394,13 @@ def _domain(path, data):
                    collision_velocity=t.number("collision_velocity", None, non_negative=True,
                                                unit="m/s"))
     else:
-        time = t.raw("time", "latest")
-        if not (time == "latest" or (isinstance(time, (int, float)) and not isinstance(time, bool)
-                                     and time >= 0)):
-            raise SceneError(path, "domain.time",
-                             f"expected \"latest\" or a non-negative time in s, got {time!r}")
+        time = case_keys.case_time(path, t.raw("time", "latest"), SceneError)
         d = Domain(type=kind, alpha_max=alpha_max, alpha_min_friction=alpha_min_friction,
-                   case=t.string("case", "bundled:fluid_bed_small"),
-                   time=str(time), alpha_min=t.number("alpha_min", 0.05, non_negative=True,
-                                                      high=1.0))
+                   case=case_keys.case_path(path, t.string("case", "bundled:fluid_bed_small")),
+                   time=time, alpha_min=t.number("alpha_min", 0.05, non_negative=True,
+                                                 high=1.0),
+                   phase=case_keys.phase(path, t.string("phase", "particles"), SceneError),
+                   accept_material_mismatch=t.boolean("accept_material_mismatch", False))
     t.finish()
     return d
 

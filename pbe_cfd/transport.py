@@ -314,8 +314,10 @@ def build_transport(scene, domain, active: np.ndarray, rows: np.ndarray,
     st = af.stats
     if st["correction_l1_rel"] > 0.2:
         warnings.append(f"transport: the divergence correction changed the solids flux by "
-                        f"{100 * st['correction_l1_rel']:.0f}% (L1); the averaged flux is far "
-                        "from steady on the active set")
+                        f"{100 * st['correction_l1_rel']:.0f}% (L1): the averaged flux is far "
+                        "from steady on the active set, most often because the case's "
+                        "averaging window includes the start-up (start its fieldAverage "
+                        "later with timeStart)")
     centre = np.asarray(domain.cells.cell_centre, dtype=float)[idx]
     spray = np.asarray(rows[idx, P.INJECTION], dtype=float) > 0.0
     if spray.any():

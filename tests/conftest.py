@@ -45,3 +45,18 @@ def make_scene(**tables):
 @pytest.fixture
 def scene_factory():
     return make_scene
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _pbe_cfd_cache(tmp_path_factory):
+    """pbe-cfd's cache of readable case copies (``readable.cache_root``) in a temporary
+    directory for the session, never the user's ~/.cache."""
+    import os
+    path = tmp_path_factory.mktemp("pbe-cfd-cache")
+    old = os.environ.get("PBE_CFD_CACHE")
+    os.environ["PBE_CFD_CACHE"] = str(path)
+    yield path
+    if old is None:
+        os.environ.pop("PBE_CFD_CACHE", None)
+    else:
+        os.environ["PBE_CFD_CACHE"] = old

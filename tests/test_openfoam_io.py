@@ -164,11 +164,13 @@ def test_instantaneous_fallback_warns(tmp_path, snap):
     cells, _ = snap
     case = _fake_case(tmp_path, cells.mesh, {"alpha.particles": [cells.alpha],
                                              "Theta.particles": [cells.theta]})
-    with pytest.warns(UserWarning) as caught:
-        got = of.read_cell_fields(case, 1.5)
-    # one warning per field that falls back: alpha and Theta, and no other
-    texts = [str(w.message) for w in caught]
+    got = of.read_cell_fields(case, 1.5)
+    # one warning per field that falls back: alpha and Theta, and no other, each one line
+    # naming the time directory and the key that changes it (recorded in summary.json)
+    texts = got.source["warnings"]
     assert len(texts) == 2, texts
+    assert all("\n" not in t and str(case / "1.5") in t and "[domain] time" in t
+               for t in texts)
     for field in ("alpha", "Theta"):
         assert sum(f"no time-averaged '{field}.particlesMean'" in t for t in texts) == 1
     assert not got.averaged
@@ -178,8 +180,11 @@ def test_instantaneous_fallback_warns(tmp_path, snap):
 def test_missing_field_is_a_clear_error(tmp_path, snap):
     cells, _ = snap
     case = _fake_case(tmp_path, cells.mesh, {"alpha.particlesMean": [cells.alpha]})
-    with pytest.raises(of.OpenFOAMError, match="granular temperature.*Theta.particlesMean"):
+    with pytest.raises(of.OpenFOAMError, match="granular temperature.*Theta.particlesMean"
+                       ) as err:
         of.read_cell_fields(case)
+    # the time directory, not an internal VTK file, and the key to choose another time
+    assert str(err.value).startswith(str(case / "1.5")) and "[domain] time" in str(err.value)
 
 
 def test_times(tmp_path):

@@ -40,48 +40,54 @@ def decompose_case(case_dir, n_subdomains: int = 2, time: float | str | None = N
     """Run ``decomposePar -force`` on an OpenFOAM case (mesh, and the CFD time ``time`` [s]
     when given, so the processor directories hold alpha and Theta next to written-back
     fields). Uses ``system/decomposeParDict`` when it has ``numberOfSubdomains`` equal to
-    ``n_subdomains``, otherwise writes ``system/decomposeParDict.pbe`` and passes it.
+    ``n_subdomains``, otherwise writes its own in pbe-cfd's cache (``readable.cache_root``) and
+    passes it with -decomposeParDict (its log is kept there too).
     Returns the processor directories. Needs OpenFOAM (``decomposePar``)."""
+    import hashlib
     import re
     import subprocess
 
     from ..cfd import openfoam as of
+    from ..cfd.openfoam.readable import cache_root
 
     case = Path(case_dir).resolve()
     install = of.find_openfoam(("decomposePar",))
     args = ["decomposePar", "-force"]
     own = case / "system" / "decomposeParDict"
+    # pbe-cfd's own dictionary and log live in its cache, never in the user's case
+    work = cache_root() / "decompose" / hashlib.sha256(str(case).encode()).hexdigest()[:24]
+    work.mkdir(parents=True, exist_ok=True)
     m = None
     if own.is_file():
         m = re.search(r"^\s*numberOfSubdomains\s+(\d+)\s*;", own.read_text(), flags=re.M)
     if m is None or int(m.group(1)) != int(n_subdomains):
-        alt = case / "system" / "decomposeParDict.pbe"
-        if alt.exists() and "pbe_cfd.distributed" not in alt.read_text(errors="replace"):
-            raise of.OpenFOAMError(f"{alt} exists and was not written by pbe-cfd; move it "
-                                   "away to let --decompose write its own")
+        alt = work / "decomposeParDict"
         alt.write_text(decomposition_dict(int(n_subdomains)))
         args += ["-decomposeParDict", str(alt)]
     if time is not None:
         t = of.pick_time(case, time)
         args += ["-time", of.time_name(case, t)]
-    log = case / "log.pbe-cfd-decomposePar"     # never a log of the user's decomposePar
+    log = work / "log.decomposePar"
     with open(log, "w") as fh:
         r = subprocess.run(args, cwd=case, env=install.env(), stdout=fh,
                            stderr=subprocess.STDOUT)
     text = log.read_text(errors="replace")
     if r.returncode != 0 or "FOAM FATAL" in text:
-        raise of.OpenFOAMError(f"decomposePar failed in {case}", tool="decomposePar",
-                               log_path=log, log_tail="\n".join(text.splitlines()[-30:]))
+        lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+        raise of.OpenFOAMError(f"decomposePar failed in {case}: "
+                               f"{lines[-1] if lines else r.returncode} (log: {log})",
+                               tool="decomposePar")
     return processor_dirs(case)
 
 
 def processor_dirs(case_dir) -> list:
     """The ``processorN`` directories of a case holding cellProcAddressing, by N."""
+    from ..cfd.openfoam.readable import has_foam_file
     case = Path(case_dir)
     out = []
     for p in case.glob("processor*"):
         suffix = p.name[len("processor"):]
-        if suffix.isdigit() and (p / "constant" / "polyMesh" / "cellProcAddressing").is_file():
+        if suffix.isdigit() and has_foam_file(p / "constant" / "polyMesh" / "cellProcAddressing"):
             out.append((int(suffix), p))
     out.sort()
     if out and [n for n, _ in out] != list(range(len(out))):
@@ -96,8 +102,9 @@ def read_decomposition(case_dir, n_cells: int | None = None) -> list:
     from foamlib import FoamFile
 
     dirs = processor_dirs(case_dir)
-    out = [np.asarray(FoamFile(d / "constant" / "polyMesh" / "cellProcAddressing")[None],
-                      dtype=np.int64).ravel() for d in dirs]
+    from ..cfd.openfoam.readable import foam_path
+    out = [np.asarray(FoamFile(foam_path(d / "constant" / "polyMesh" / "cellProcAddressing"))
+                      [None], dtype=np.int64).ravel() for d in dirs]
     if out and n_cells is not None:
         allc = np.concatenate(out)
         if allc.size != n_cells or not np.array_equal(np.sort(allc), np.arange(n_cells)):

@@ -118,6 +118,9 @@ class ClusterExecutor:
         ``CASE/<time>/<name>``, as ``couple._write_foam`` returns them) into every
         ``processorN/<time>/<name>`` with the processor's local cells (cellProcAddressing),
         same dimensions. Returns the files written ([] for an undecomposed case)."""
+        written = [p for p in written or ()       # a decomposed time was written per processor
+                   if self.case_dir is not None
+                   and Path(p).parent.parent.resolve() == Path(self.case_dir).resolve()]
         if self.decomposition is None or self.case_dir is None or not written:
             return []
         from foamlib import FoamFieldFile

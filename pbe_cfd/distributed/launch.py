@@ -47,9 +47,9 @@ def make_executor(scene, domain, out_dir, scene_arg=None, scheduler=None, worker
         raise SceneError(scene.source, None, "--workers/--scheduler need dask.distributed: "
                          "pip install \"pbe_cfd[dask]\"") from None
     case_dir, decomposition = None, None
-    case = scene.domain.case
-    if not case.startswith("bundled:") and Path(case).is_dir():
-        case_dir = Path(case).resolve()
+    from ..domain import case_path, is_case_directory
+    if is_case_directory(scene):
+        case_dir = case_path(scene).resolve()
         if decompose:
             from ..cfd.openfoam import OpenFOAMError
             if any(case_dir.glob("processor*")):  # decomposePar -force would delete them

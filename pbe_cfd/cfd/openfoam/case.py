@@ -15,7 +15,7 @@ from importlib import resources
 from pathlib import Path
 
 
-from .install import ALPHA_FIELDS, OpenFOAMError, find_openfoam
+from .install import DEFAULT_PHASE, OpenFOAMError, find_openfoam, phase_fields
 
 
 def default_case_dir() -> Path:
@@ -242,11 +242,9 @@ def _control_value(path: Path, key: str) -> float | None:
 
 # --------------------------------------------------------------------------- times
 
-def _time_dirs(case_dir: Path) -> list[tuple[float, str]]:
+def _numeric_dirs(directory: Path) -> list[tuple[float, str]]:
     out = []
-    if not case_dir.is_dir():
-        raise OpenFOAMError(f"case directory {case_dir} does not exist")
-    for p in case_dir.iterdir():
+    for p in directory.iterdir():
         if not p.is_dir():
             continue
         try:
@@ -259,8 +257,22 @@ def _time_dirs(case_dir: Path) -> list[tuple[float, str]]:
     return out
 
 
+def _time_dirs(case_dir: Path) -> list[tuple[float, str]]:
+    """(time [s], name) of the case's time directories: the root's and, for a decomposed case,
+    those of ``processor0`` (times a parallel run wrote without reconstructPar)."""
+    if not case_dir.is_dir():
+        raise OpenFOAMError(f"case directory {case_dir} does not exist")
+    out = dict((name, t) for t, name in _numeric_dirs(case_dir))
+    proc = case_dir / "processor0"
+    if proc.is_dir():
+        for t, name in _numeric_dirs(proc):
+            out.setdefault(name, t)
+    return sorted((t, name) for name, t in out.items())
+
+
 def written_times(case_dir: str | os.PathLike) -> list[float]:
-    """Times (s) with a time directory in the case, ascending (0 included when present)."""
+    """Times (s) with a time directory in the case (root or processor0), ascending (0
+    included when present)."""
     return [t for t, _ in _time_dirs(Path(case_dir))]
 
 
@@ -276,24 +288,42 @@ def time_name(case_dir: str | os.PathLike, time: float) -> str:
         f"{[t for t, _ in dirs] or 'none (run the case first)'}")
 
 
-def pick_time(case_dir: str | os.PathLike, which: str | float = "latest") -> float:
-    """Resolve ``which`` ("latest", or a time in s) to a written time of the case (s).
+def _holds_alpha(directory: Path, phase: str) -> bool:
+    from .readable import has_foam_file
+    return any(has_foam_file(directory / f) for f in phase_fields(phase)[0])
 
-    "latest" is the latest directory holding alpha.particles(Mean), so fields written back
-    by write_foam_fields into a later time do not hide the CFD time (the latest directory of
-    any kind when none holds alpha). A number must match a written time (to 1e-6 relative);
-    otherwise the error lists the written times.
+
+def is_decomposed_time(case_dir: str | os.PathLike, name: str,
+                       phase: str = DEFAULT_PHASE) -> bool:
+    """True when time ``name`` holds the solids fraction only in the processor directories
+    (a parallel run not reconstructed), so it is read from them."""
+    case_dir = Path(case_dir)
+    return (not _holds_alpha(case_dir / name, phase)
+            and _holds_alpha(case_dir / "processor0" / name, phase))
+
+
+def pick_time(case_dir: str | os.PathLike, which: str | float = "latest",
+              phase: str = DEFAULT_PHASE) -> float:
+    """Resolve ``which`` ("latest", or a time in s, a number or a string) to a written time
+    of the case (s), root or processor directories.
+
+    "latest" is the latest directory holding alpha.<phase>(Mean), in the root or in
+    processor0, so fields written back by write_foam_fields into a later time do not hide the
+    CFD time (the latest directory of any kind when none holds alpha). A number must match a
+    written time (to 1e-6 relative); otherwise the error lists the written times.
     """
     case_dir = Path(case_dir)
-    times = written_times(case_dir)
+    dirs = _time_dirs(case_dir)
+    times = [t for t, _ in dirs]
     if not times:
         raise OpenFOAMError(f"no time directories in {case_dir}; run the case first "
                             "(openfoam_case/Allrun or pbe_cfd.cfd.openfoam.run_case)")
     if isinstance(which, str):
         if which.strip().lower() == "latest":
             # the latest CFD time: skip directories holding only written-back fields
-            cfd = [t for t, name in _time_dirs(case_dir)
-                   if any((case_dir / name / f).is_file() for f in ALPHA_FIELDS)]
+            cfd = [t for t, name in dirs
+                   if _holds_alpha(case_dir / name, phase)
+                   or _holds_alpha(case_dir / "processor0" / name, phase)]
             return cfd[-1] if cfd else times[-1]
         try:
             which = float(which)

@@ -3,19 +3,18 @@ foamToVTK output, in OpenFOAM's cell order."""
 from __future__ import annotations
 
 import dataclasses
+import gzip
 import json
 import os
 import re
-import subprocess
-import warnings
 from collections.abc import Mapping
 from pathlib import Path
 
 import meshio
 import numpy as np
 
-from .case import _tail, pick_time, time_name
-from .install import ALPHA_FIELDS, THETA_FIELDS, OpenFOAMError, find_openfoam
+from .case import pick_time, time_name
+from .install import DEFAULT_PHASE, OpenFOAMError, phase_fields
 
 
 
@@ -144,9 +143,11 @@ def _vtk_internal_file(case_dir: Path, time: float) -> Path | None:
 
 
 def _n_cells_polymesh(case_dir: Path) -> int | None:
-    owner = case_dir / "constant" / "polyMesh" / "owner"
+    from .readable import foam_path
+    owner = foam_path(case_dir / "constant" / "polyMesh" / "owner")
     try:
-        with open(owner, "rb") as fh:
+        opener = gzip.open if owner.suffix == ".gz" else open
+        with opener(owner, "rb") as fh:
             head = fh.read(2000).decode(errors="replace")
     except OSError:
         return None
@@ -155,49 +156,82 @@ def _n_cells_polymesh(case_dir: Path) -> int | None:
 
 
 def _pick_field(cell_data: Mapping[str, np.ndarray], names: tuple[str, ...], what: str,
-                path: Path) -> tuple[str, np.ndarray]:
+                path) -> tuple[str, np.ndarray, str | None]:
     for i, name in enumerate(names):
         if name in cell_data:
+            note = None
             if i > 0:
-                warnings.warn(
-                    f"{path}: no time-averaged '{names[0]}' (fieldAverage window not reached "
-                    f"or not configured); using instantaneous '{name}' for {what}",
-                    stacklevel=3)
-            return name, np.asarray(cell_data[name], dtype=np.float64)
-    raise OpenFOAMError(f"{path}: no {what} field; expected one of {list(names)}, "
-                        f"found {sorted(cell_data)}")
+                note = (f"{path}: no time-averaged '{names[0]}' (the case's fieldAverage does "
+                        f"not average it, or its window has not started); using the "
+                        f"instantaneous '{name}' for {what} (add it to the fieldAverage, or "
+                        "choose an averaged time with [domain] time)")
+            return name, np.asarray(cell_data[name], dtype=np.float64), note
+    found = sorted(k for k in cell_data if k != "cellID")
+    raise OpenFOAMError(f"{path}: no {what} field; expected one of {list(names)}, found "
+                        f"{found}; choose a written time that holds it with [domain] time, "
+                        "or the phase with [domain] phase")
 
 
-def read_cell_fields(case_dir: str | os.PathLike, time: str | float = "latest") -> CellData:
+@dataclasses.dataclass(frozen=True)
+class CaseTime:
+    """One written time of a user's case, resolved: ``case`` (the case, absolute), ``time``
+    [s], ``name`` (its directory name), ``decomposed`` (held only by ``processor*/``), and
+    ``read_dir``, where its files are read from: pbe-cfd's readable copy (``readable``), or
+    the case itself when it holds only foamToVTK output and no mesh to convert."""
+
+    case: Path
+    time: float
+    name: str
+    decomposed: bool
+    read_dir: Path
+
+
+def case_time(case_dir: str | os.PathLike, time: str | float = "latest",
+              phase: str = DEFAULT_PHASE) -> CaseTime:
+    """Resolve ``time`` of ``case_dir`` and make (or find) its readable copy (``readable``);
+    the user's case is only read. Raises OpenFOAMError."""
+    from .case import _control_summary, is_decomposed_time
+    from .readable import has_mesh, readable_copy
+
+    case_dir = Path(case_dir).resolve()
+    t = pick_time(case_dir, time, phase)
+    name = time_name(case_dir, t)
+    decomposed = is_decomposed_time(case_dir, name, phase)
+    if not has_mesh(case_dir):
+        if not decomposed and _vtk_internal_file(case_dir, t) is not None:
+            return CaseTime(case_dir, t, name, False, case_dir)
+        raise OpenFOAMError(f"{case_dir}: no complete mesh in constant/polyMesh (points, "
+                            "faces, owner, neighbour, boundary); run blockMesh, or for a "
+                            "decomposed case keep the mesh decomposePar read")
+    names = [name]
+    start = _control_summary(case_dir).get("avgStart")
+    if start is not None and start < t:
+        try:
+            names.append(time_name(case_dir, start))
+        except OpenFOAMError:
+            pass
+    return CaseTime(case_dir, t, name, decomposed, readable_copy(case_dir, names, decomposed))
+
+
+def read_cell_fields(case_dir: str | os.PathLike, time: str | float = "latest",
+                     phase: str = DEFAULT_PHASE) -> CellData:
     """Read alpha [-], Theta [m2/s2], cell volumes [m3] and centres [m] of a written time.
 
-    Reads foamToVTK's ``internal.vtu`` of that time with meshio (running foamToVTK for it
-    first when it is missing and OpenFOAM is installed). Prefers the time-averaged
-    ``alpha.particlesMean`` / ``Theta.particlesMean`` and falls back to the instantaneous
-    fields with a warning. Values are in OpenFOAM's cell order (through ``cellID``).
+    Reads foamToVTK's ``internal.vtu`` of that time from pbe-cfd's readable copy of the case
+    (``case_time``; plain, binary, compressed or decomposed cases alike). Prefers the
+    time-averaged ``alpha.<phase>Mean`` / ``Theta.<phase>Mean`` and falls back to the
+    instantaneous fields with a warning. Values are in OpenFOAM's cell order (``cellID``).
     """
-    case_dir = Path(case_dir)
-    t = pick_time(case_dir, time)
-    path = _vtk_internal_file(case_dir, t)
+    ct = case_time(case_dir, time, phase)
+    path = _vtk_internal_file(ct.read_dir, ct.time)
     if path is None:
-        try:
-            install = find_openfoam(("foamToVTK",))
-        except OpenFOAMError as exc:
-            raise OpenFOAMError(
-                f"no foamToVTK output for t = {t} s in {case_dir / 'VTK'} and OpenFOAM is "
-                f"not available to write it ({exc})") from None
-        name = time_name(case_dir, t)
-        lp = case_dir / "log.foamToVTK"
-        with open(lp, "w") as fh:
-            r = subprocess.run(["foamToVTK", "-time", name, "-no-boundary", "-no-point-data",
-                                "-with-ids"], cwd=case_dir, env=install.env(), stdout=fh,
-                               stderr=subprocess.STDOUT)
-        path = _vtk_internal_file(case_dir, t)
-        if r.returncode != 0 or path is None:
-            raise OpenFOAMError(f"foamToVTK failed for t = {t} s in {case_dir}",
-                                tool="foamToVTK", log_path=lp, log_tail=_tail(lp))
-    return _cell_data_from_vtu(path, t, n_expected=_n_cells_polymesh(case_dir),
-                               polymesh_points=_polymesh_points(case_dir))
+        raise OpenFOAMError(f"no foamToVTK output for t = {ct.time} s in {ct.read_dir / 'VTK'}")
+    cells = _cell_data_from_vtu(path, ct.time, n_expected=_n_cells_polymesh(ct.read_dir),
+                                polymesh_points=_polymesh_points(ct.read_dir), phase=phase,
+                                where=f"{ct.case / ct.name}")
+    cells.source.update(case=str(ct.case), time_dir=ct.name, decomposed=ct.decomposed,
+                        read_from=str(ct.read_dir))
+    return cells
 
 
 def _polymesh_points(case_dir: Path) -> np.ndarray | None:
@@ -215,10 +249,11 @@ def _polymesh_points(case_dir: Path) -> np.ndarray | None:
 
 
 def _cell_data_from_vtu(path: Path, t: float, n_expected: int | None = None,
-                        polymesh_points: np.ndarray | None = None) -> CellData:
+                        polymesh_points: np.ndarray | None = None,
+                        phase: str = DEFAULT_PHASE, where: str | None = None) -> CellData:
     try:
         mesh = meshio.read(path)
-    except Exception as exc:  # meshio raises assorted errors on bad files
+    except (Exception, SystemExit) as exc:  # meshio raises assorted errors, or exits
         raise OpenFOAMError(f"cannot read {path} with meshio: {exc}") from None
     # foamToVTK stores points as float32; its first points are the polyMesh points in order,
     # so take those in double precision (volumes then match OpenFOAM's to round-off)
@@ -246,8 +281,10 @@ def _cell_data_from_vtu(path: Path, t: float, n_expected: int | None = None,
     # first VTK cell of each OpenFOAM cell carries the cell's value
     first = np.full(n, -1, dtype=np.int64)
     first[cell_id[::-1]] = np.arange(n_vtk)[::-1]
-    a_name, alpha = _pick_field(cd, ALPHA_FIELDS, "solids fraction", path)
-    t_name, theta = _pick_field(cd, THETA_FIELDS, "granular temperature", path)
+    alpha_names, theta_names, _ = phase_fields(phase)
+    where = where or str(path)
+    a_name, alpha, a_note = _pick_field(cd, alpha_names, "solids fraction", where)
+    t_name, theta, t_note = _pick_field(cd, theta_names, "granular temperature", where)
     alpha, theta = alpha[first], theta[first]
     for name, arr in ((a_name, alpha), (t_name, theta)):
         if not np.all(np.isfinite(arr)):
@@ -261,6 +298,7 @@ def _cell_data_from_vtu(path: Path, t: float, n_expected: int | None = None,
         "theta_field": t_name,
         "averaged": a_name.endswith("Mean") and t_name.endswith("Mean"),
         "time_s": t,
+        "warnings": [n for n in (a_note, t_note) if n],
     }
     return CellData(alpha=alpha, theta=theta, cell_volume=vol, cell_centre=cen, mesh=bare,
                     vtk_cell_id=cell_id, time=t, source=source)

@@ -17,6 +17,15 @@ ALPHA_FIELDS = ("alpha.particlesMean", "alpha.particles")
 THETA_FIELDS = ("Theta.particlesMean", "Theta.particles")
 #: Face flux of the solids volume (m3/s), averaged and instantaneous.
 FLUX_FIELDS = ("alphaPhi.particlesMean", "alphaPhi.particles")
+#: The solids phase's name when a scene gives none (``[domain] phase``).
+DEFAULT_PHASE = "particles"
+
+
+def phase_fields(phase: str = DEFAULT_PHASE) -> tuple[tuple[str, ...], ...]:
+    """The (alpha, Theta, face flux) field names tried, averaged first, for the solids phase
+    named ``phase`` (e.g. ``alpha.solidsMean``, ``alpha.solids``)."""
+    return tuple((f"{base}.{phase}Mean", f"{base}.{phase}")
+                 for base in ("alpha", "Theta", "alphaPhi"))
 
 _DEFAULT_PROJECT_DIRS = (
     "/usr/share/openfoam",

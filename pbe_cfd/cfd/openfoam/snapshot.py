@@ -2,6 +2,8 @@
 and the bundled snapshot of the small case."""
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import math
 import os
@@ -102,11 +104,25 @@ def load_snapshot(path: str | os.PathLike | None = None,
     """Load a snapshot written by write_snapshot (default: the bundled small case).
 
     Returns CellData (alpha [-], theta [m2/s2], cell_volume [m3], cell_centre [m]); with
-    ``with_flux`` also the FaceFlux [m3/s] from the companion ``<stem>_flux.npz``.
+    ``with_flux`` also the FaceFlux [m3/s] from the companion ``<stem>_flux.npz``. An
+    unreadable or truncated file is one OpenFOAMError (meshio's own exit included).
     """
     path = Path(path) if path is not None else default_snapshot_path()
     if not path.is_file():
         raise OpenFOAMError(f"snapshot {path} not found")
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            return _load_snapshot(path, with_flux)
+    except OpenFOAMError:
+        raise
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - meshio calls sys.exit on bad files
+        text = (str(exc).strip().splitlines() or [""])[0][:160]
+        raise OpenFOAMError(f"cannot read snapshot {path} or its flux file "
+                            f"{_flux_path_for(path).name}: {type(exc).__name__} {text}".rstrip()
+                            ) from None
+
+
+def _load_snapshot(path: Path, with_flux: bool):
     mesh = meshio.read(path)
     cd = {k: np.concatenate([np.asarray(a) for a in v]) for k, v in mesh.cell_data.items()}
     for key in ("alpha", "Theta", "cell_volume", "cell_centre"):

@@ -11,6 +11,7 @@ import numpy as np
 
 from .fields import _n_cells_polymesh
 from .install import OpenFOAMError
+from .readable import foam_path
 
 
 # --------------------------------------------------------------------------- write back
@@ -73,12 +74,12 @@ def write_foam_fields(case_dir: str | os.PathLike, time_name: str,
                       "(e.g. '600' or the CFD time '1.5')", stacklevel=2)
     mesh_dir = case_dir / "constant" / "polyMesh"
     try:
-        boundary = FoamFile(mesh_dir / "boundary")[None]
-    except FileNotFoundError:
-        raise OpenFOAMError(f"{mesh_dir / 'boundary'} not found; run blockMesh first") from None
-    n_cells = _n_cells_polymesh(case_dir)
-    if n_cells is None:
-        n_cells = int(np.asarray(FoamFile(mesh_dir / "owner")[None]).max()) + 1
+        boundary = FoamFile(foam_path(mesh_dir / "boundary"))[None]
+        n_cells = _n_cells_polymesh(case_dir)
+        if n_cells is None:
+            n_cells = int(np.asarray(FoamFile(foam_path(mesh_dir / "owner"))[None]).max()) + 1
+    except FileNotFoundError as exc:
+        raise OpenFOAMError(f"{exc.filename} not found; run blockMesh first") from None
     out_dir = case_dir / time_name
     for name in fields:
         p = out_dir / name
