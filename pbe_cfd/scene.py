@@ -51,11 +51,10 @@ class Zone:
 
 @dataclass(frozen=True)
 class Domain:
-    """Where the population lives. Well-mixed: one cell with the given local fields
-    (granular_temperature [m2/s2], solids_fraction [-], collision_velocity [m/s]).
-    OpenFOAM: the case directory (absolute; written relative to the scene file) or bundled
-    snapshot, the written time, alpha_min [-], the solids phase name, and whether a material
-    mismatch with the case is accepted."""
+    """Where the population lives. Well-mixed: one cell (granular_temperature [m2/s2],
+    solids_fraction [-], collision_velocity [m/s]). OpenFOAM: the case directory (absolute;
+    relative to the scene file in TOML) or bundled snapshot, the written time, alpha_min [-],
+    the solids phase name, whether a material mismatch with the case is accepted."""
     type: str
     granular_temperature: float | None = None
     solids_fraction: float | None = None
@@ -397,8 +396,7 @@ def _domain(path, data):
         time = case_keys.case_time(path, t.raw("time", "latest"), SceneError)
         d = Domain(type=kind, alpha_max=alpha_max, alpha_min_friction=alpha_min_friction,
                    case=case_keys.case_path(path, t.string("case", "bundled:fluid_bed_small")),
-                   time=time, alpha_min=t.number("alpha_min", 0.05, non_negative=True,
-                                                 high=1.0),
+                   time=time, alpha_min=t.number("alpha_min", 0.05, non_negative=True, high=1.0),
                    phase=case_keys.phase(path, t.string("phase", "particles"), SceneError),
                    accept_material_mismatch=t.boolean("accept_material_mismatch", False))
     t.finish()
@@ -467,10 +465,8 @@ def _injection(path, data, domain):
         z = _Table(path, "binder_injection.zone", t.raw("zone"))
         zone = Zone(alpha_low=z.number("alpha_low", 0.0, non_negative=True, high=1.0),
                     alpha_high=z.number("alpha_high", 1.0, non_negative=True, high=1.0),
-                    box_min=_vector3(path, "binder_injection.zone.box_min",
-                                     z.raw("box_min", [-1e30] * 3)),
-                    box_max=_vector3(path, "binder_injection.zone.box_max",
-                                     z.raw("box_max", [1e30] * 3)))
+                    box_min=_vector3(path, f"{z.name}.box_min", z.raw("box_min", [-1e30] * 3)),
+                    box_max=_vector3(path, f"{z.name}.box_max", z.raw("box_max", [1e30] * 3)))
         z.finish()
     t.finish()
     return BinderInjection(rate=rate, droplet_diameter=diameter, zone=zone)
@@ -528,8 +524,8 @@ def _initial(path, data, material, domain):
         mass = material.density * math.pi / 6.0 * d ** 3
     init = Initial(distribution=dist, number_density=n0, mean_mass=mass,
                    binder_fraction=t.number("binder_fraction", 0.0, non_negative=True, high=1.0),
-                   droplet_number_density=t.number("droplet_number_density", 0.0,
-                                                   non_negative=True, unit="1/m3"))
+                   droplet_number_density=t.number("droplet_number_density", 0.0, unit="1/m3",
+                                                   non_negative=True))
     t.finish()
     return init
 
