@@ -236,12 +236,11 @@ def _coupled_scene(args):
 
 def _couple_inputs(scene, args) -> list:
     """What a coupled run reads (``(what, path)`` pairs), which its --out must not be."""
-    from .domain import BUNDLED_PREFIX, _case_path
+    from .domain import case_path
     inputs = [("the scene", scene.source)]
     if args.run_case:
         inputs.append(("the case --run-case makes", Path("fluid-bed-case")))
-    elif scene.domain.case and not scene.domain.case.startswith(BUNDLED_PREFIX):
-        path = _case_path(scene)
+    elif (path := case_path(scene)) is not None:
         if path.suffix == ".vtu":
             inputs += [("the snapshot", path),
                        ("the snapshot's flux", path.with_name(path.stem + "_flux.npz"))]

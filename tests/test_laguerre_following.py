@@ -110,7 +110,10 @@ def test_support_messages_name_the_keys():
         aux = LT.aux_for_scene(sc, arrays)
         state = LT.scene_initial_state(sc, arrays, mom)
         hint = LT.failure_hint(state, aux, arrays)
-        assert "left the Laguerre support" in hint
+        # the fixed support lost the grown population; the following support holds it, and
+        # its stop message says the support was not the cause (naming the keys all the same)
+        assert ("inside the Laguerre support" if following
+                else "left the Laguerre support") in hint, hint
         assert all(k in hint for k in keys), hint
     fixed = LT.aux_for_scene(scene(False), arrays)
     share, text = LT.escaped_share_report(LT.scene_initial_state(scene(False), arrays, mom),
