@@ -84,7 +84,7 @@ def test_all_zero_moments_stay_zero_and_an_empty_cell_fills_by_injection():
     assert np.max(np.abs(c["M10"][1:] - SEED_RATE * pd * t[1:]) / (SEED_RATE * pd * t[1:])) < 1e-10
     assert np.all(np.isfinite(c["d43_m"]))
     # every particle is a droplet (binder fraction 1) as long as nothing else exists
-    assert c["binder_fraction"][-1] == pytest.approx(1.0, rel=1e-12)
+    assert c["binder_fraction"][-1] == pytest.approx(1.0, rel=1e-12, abs=0)
     # an all-zero state is realizable and survives projection unchanged
     config = qmom_config(3, bivariate=True)
     state = np.zeros(9)
@@ -209,8 +209,8 @@ def test_extreme_cells_next_to_ordinary_ones(inject):
     for c in range(1, 6):
         rate = 2.0e10 * pd if inject else 0.0
         t = res.times[-1]
-        assert last["M10"][c] == pytest.approx(first["M10"][c] + rate * t, rel=1e-10)
-        assert last["M01"][c] == pytest.approx(first["M01"][c] + rate * t, rel=1e-10)
+        assert last["M10"][c] == pytest.approx(first["M10"][c] + rate * t, rel=1e-10, abs=0)
+        assert last["M01"][c] == pytest.approx(first["M01"][c] + rate * t, rel=1e-10, abs=0)
         if not inject:
             series = np.array([f["M00"][c] for f in res.cell_fields])
             assert np.all(np.diff(series) <= 0)
@@ -222,7 +222,7 @@ def test_extreme_cells_next_to_ordinary_ones(inject):
     nd_first = first.get("droplet_number_density", np.zeros(6))
     nd_last = last.get("droplet_number_density", np.zeros(6))
     assert last["M00"][2] - nd_last[2] == pytest.approx(first["M00"][2] - nd_first[2],
-                                                        rel=1e-12)
+                                                        rel=1e-12, abs=0)
     if not inject:
         assert last["M00"][1] / first["M00"][1] < last["M00"][4] / first["M00"][4]
         return
@@ -349,8 +349,9 @@ def test_random_realizable_sets_invert_and_reproject(nodes, data):
     assert np.all(np.isfinite(out_w[:n])) and np.all(out_w[:n] > 0)
     back = moments_of(out_x[:n], out_w[:n], 2 * nodes)
     # the quadrature keeps M0 and M1 exactly and the rest within the projection tolerance
-    assert back[0] == pytest.approx(mom[0], rel=1e-12)
-    assert back[1] == pytest.approx(mom[1], rel=1e-10)
+    # (abs=0: at the scale 1e-30 a default abs of 1e-12 would accept any value)
+    assert back[0] == pytest.approx(mom[0], rel=1e-12, abs=0)
+    assert back[1] == pytest.approx(mom[1], rel=1e-10, abs=0)
     assert np.all(np.abs(back - mom) <= 1e-6 * np.abs(mom))
 
 
