@@ -9,8 +9,10 @@ Sets whose conditional moments are not realizable are replaced by the nearest re
 
 Right-hand side: for such a population the quadrature is the population itself, so the CQMOM
 sources must equal the exact moment sources of the discrete population, summed pair by pair
-with the single-pair rate functions of physics.rates (which the RHS does not call), for every
-kernel and efficiency, separate droplets and injection.
+with pair rates written out in this file from the formulas of docs/physics.md (sections 4-6:
+kernels, efficiency factors, droplet capture) with the scene's own numbers, in plain Python
+floats (no function of pbe_cfd.physics is called), for every kernel and efficiency, separate
+droplets and injection.
 """
 import math
 
@@ -23,7 +25,6 @@ from pbe_cfd import model
 from pbe_cfd.methods import cqmom, cqmom_sources
 from pbe_cfd.methods.conditional import gauss2_unit_interval, gauss_unit_interval
 from pbe_cfd.physics import parameters as P
-from pbe_cfd.physics.rates import aggregation_rate, droplet_capture_rate
 
 from conftest import AVICEL, make_scene
 
@@ -270,16 +271,89 @@ def _cqmom_arrays(scene, n1, n2):
     return arrays
 
 
-def _direct_sources(p, b, w, nd, arrays, cell, names):
+def _diameter(p, scene):
+    """Particle diameter [m] from its total mass at the particle density (docs/physics.md,
+    "sizes": a free droplet too)."""
+    return (6.0 * p / (math.pi * scene.material.density)) ** (1.0 / 3.0)
+
+
+def _kernel(scene, p1, p2, alpha, theta, d43):
+    """beta [m3/s] of docs/physics.md section 4, written out from the scene's numbers."""
+    agg = scene.aggregation
+    k0 = agg.rate
+    if agg.kernel == "constant":
+        return k0
+    if agg.kernel == "sum":
+        return k0 * (p1 + p2)
+    if agg.kernel == "product":
+        return k0 * p1 * p2
+    d1, d2 = _diameter(p1, scene), _diameter(p2, scene)
+    if agg.kernel == "eke":          # Hounslow 1998: x = d / d_ref, d_ref of the mean mass
+        d_ref = (agg.reference_diameter if agg.reference_diameter is not None
+                 else _diameter(scene.initial.mean_mass, scene))
+        x1, x2 = d1 / d_ref, d2 / d_ref
+        return k0 * (x1 + x2) ** 2 * math.sqrt(1.0 / x1 ** 3 + 1.0 / x2 ** 3)
+    assert agg.kernel == "ktgf"      # Goldschmidt; g0 of Sinclair & Jackson at min(alpha, cap)
+    cap = scene.domain.alpha_min_friction
+    a = min(alpha, cap) if cap is not None else alpha
+    g0 = 1.0 / (1.0 - (a / scene.domain.alpha_max) ** (1.0 / 3.0))
+    return (k0 * g0 * math.sqrt(theta) * d43 ** 1.5 * (d1 + d2) ** 2
+            * math.sqrt(1.0 / d1 ** 3 + 1.0 / d2 ** 3))
+
+
+def _success(scene, p1, b1, p2, b2, u0):
+    """psi [-] of docs/physics.md section 6: the product of the switched-on factors."""
+    m = scene.material
+    psi = 1.0
+    y1, y2 = b1 / p1, b2 / p2
+    if "geometric" in scene.aggregation.efficiency:
+        eta = [1.0 / (1.0 + math.exp(-m.accessible_binder_slope
+                                     * (y - m.accessible_binder_centre))) for y in (y1, y2)]
+        psi *= 1.0 - (1.0 - eta[0]) * (1.0 - eta[1])
+    if "physical" in scene.aggregation.efficiency:
+        d1, d2 = _diameter(p1, scene), _diameter(p2, scene)
+        st = (4.0 * m.density * u0 * d1 * d2 * (d1 + d2) ** 2
+              / (9.0 * m.binder_viscosity * (d1 ** 3 + d2 ** 3)))
+        lam = m.gyration_radius * sum(math.exp(m.binder_layer_slope
+                                               * (y - m.binder_layer_centre)) ** (1.0 / 3.0)
+                                      for y in (y1, y2))
+        st_crit = max(0.0, 2.0 * math.log(lam / m.asperity))
+        w = m.stokes_switch_width
+        if w > 0.0 and st_crit > 0.0:
+            psi *= 0.5 * (1.0 - math.tanh((st - st_crit) / (w * st_crit)))
+        else:
+            psi *= 1.0 if st <= st_crit else 0.0
+    if "saturation" in scene.aggregation.efficiency:
+        solid = p1 + p2 - b1 - b2
+        if solid > 0.0:
+            sat = ((b1 + b2) / solid * m.density * (1.0 - m.porosity)
+                   / (m.binder_density * m.porosity))
+            psi *= min(1.0, sat / m.saturation_max)
+    return psi
+
+
+def _direct_sources(p, b, w, nd, scene, cell, names):
     """Exact moment sources [SI] of the discrete population (and free droplets nd [1/m3]),
-    and the sum of the magnitudes of their terms (the scale of round-off)."""
-    params, config = arrays.params, arrays.config
-    alpha, theta, u0, inj = cell
-    pd = arrays.droplet_mass
+    and the sum of the magnitudes of their terms (the scale of round-off). Pair rates from the
+    formulas above; droplets pure binder (b = p_d) of the injection's diameter at the binder
+    density, captured at droplet_factor x beta psi (docs/physics.md, "droplets")."""
+    alpha, theta, u0, inj = cell[P.ALPHA], cell[P.THETA], cell[P.COLLISION_VELOCITY], \
+        cell[P.INJECTION]
+    pd = 0.0
+    if scene.binder_injection is not None:
+        pd = (scene.material.binder_density * math.pi / 6.0
+              * scene.binder_injection.droplet_diameter ** 3)
     d43 = 0.0
-    if config[P.KERNEL] == 4:
-        d = (6 * p / (math.pi * params[P.DENSITY])) ** (1 / 3)
-        d43 = np.sum(w * p * d) / np.sum(w * p)
+    if scene.aggregation.kernel == "ktgf":
+        d = np.array([_diameter(pi, scene) for pi in p])
+        d43 = np.sum(w * d ** 4) / np.sum(w * d ** 3)
+
+    def rate(p1, b1, p2, b2):
+        return _kernel(scene, p1, p2, alpha, theta, d43) * _success(scene, p1, b1, p2, b2, u0)
+
+    def capture(pi, bi):
+        return scene.aggregation.droplet_factor * rate(pi, bi, pd, pd)
+
     src = np.zeros(len(names))
     mag = np.zeros(len(names))
     for s, name in enumerate(names):
@@ -287,23 +361,20 @@ def _direct_sources(p, b, w, nd, arrays, cell, names):
             src[s] += inj
             mag[s] += inj
             for i in range(len(p)):
-                flux = nd * w[i] * droplet_capture_rate(p[i], b[i], alpha, theta, u0, d43,
-                                                        params, config)
+                flux = nd * w[i] * capture(p[i], b[i])
                 src[s] -= flux
                 mag[s] += flux
             continue
         k, l = int(name[1]), int(name[2])
         for i in range(len(p)):
             for j in range(len(p)):
-                rate = aggregation_rate(p[i], b[i], p[j], b[j], alpha, theta, u0, d43, params,
-                                        config)
+                r = rate(p[i], b[i], p[j], b[j])
                 birth = (p[i] + p[j]) ** k * (b[i] + b[j]) ** l
                 death = p[i] ** k * b[i] ** l + p[j] ** k * b[j] ** l
-                src[s] += 0.5 * w[i] * w[j] * rate * (birth - death)
-                mag[s] += 0.5 * w[i] * w[j] * rate * (birth + death)
+                src[s] += 0.5 * w[i] * w[j] * r * (birth - death)
+                mag[s] += 0.5 * w[i] * w[j] * r * (birth + death)
             if nd is not None:
-                flux = nd * w[i] * droplet_capture_rate(p[i], b[i], alpha, theta, u0, d43,
-                                                        params, config)
+                flux = nd * w[i] * capture(p[i], b[i])
                 birth = (p[i] + pd) ** k * (b[i] + pd) ** l
                 src[s] += flux * (birth - p[i] ** k * b[i] ** l)
                 mag[s] += flux * (birth + p[i] ** k * b[i] ** l)
@@ -356,7 +427,7 @@ def test_rhs_equals_the_exact_sources_of_a_represented_population(case, n1, n2):
     out = np.zeros_like(state)
     work = fresh_work(n1, n2)
     cqmom_sources.cqmom_rhs(state, out, cell, np.zeros(1), arrays.params, arrays.config, work)
-    expected, magnitude = _direct_sources(p, b, w, nd, arrays, cell, names)
+    expected, magnitude = _direct_sources(p, b, w, nd, scene, cell, names)
     unit = np.array([n_ref * p_ref ** (int(s[1]) + int(s[2])) if s.startswith("M") else n_ref
                      for s in names])
     got = out * unit

@@ -19,6 +19,11 @@ README states for it:
   figure e then moves by at most (1 + e) delta.
 
 Wall times are machine-dependent and not compared.
+
+The cNMC references judge the closures only: the cNMC evaluates the same kernel and efficiency
+functions (pbe_cfd.physics) as the moment methods, so a kernel error would move reference and
+method together. The kernels themselves are checked against hand values computed in plain
+Python from the formulas (tests/test_physics_hand_values.py).
 """
 import math
 import re
