@@ -30,7 +30,14 @@ MUTATIONS = [
       "            _rate_after_step(",
       "            _rate_after_step(",
       ["tests/test_hard_cases.py::test_monodisperse_start_with_every_node_count",
-       "tests/test_hard_cases.py::test_all_zero_moments_stay_zero_and_an_empty_cell_fills_by_injection"]),
+       "tests/test_hard_cases.py::test_all_zero_moments_stay_zero_and_an_empty_cell_fills_by_injection",
+       "tests/test_hard_cases.py::test_injection_a_thousand_times_the_seed_rate",
+       "tests/test_qmom_analytic.py::test_injection_adds_mass_at_the_injected_rate"],
+      note="survived the monodisperse start and the empty cell filled by injection (closed "
+           "form, Hankel test on every stored set: the states stay realizable without it); "
+           "caught, as in the issue, only by test_qmom_analytic's injection test. A test that "
+           "fails on the projection's own job (a lost node re-placing the higher moments) "
+           "is still wanted"),
     M("manifest-size-only", "issue", "output", "pbe_cfd/output.py",
       '        return _stat_entry(path) == {"size": entry.get("size"),\n'
       '                                     "mtime_ns": entry.get("mtime_ns")}',
@@ -120,15 +127,26 @@ MUTATIONS = [
       "        out[n_state - 1] += inj\n",
       "        out[n_state - 1] += 0.5 * inj\n",
       ["tests/test_cqmom_analytic.py::test_dry_granules_and_pure_binder_droplets_as_ordinary_particles",
-       "tests/test_cqmom_analytic.py::test_two_component_constant_kernel"]),
+       "tests/test_cqmom_analytic.py::test_two_component_constant_kernel",
+       "tests/test_cqmom_inversion.py::test_rhs_equals_the_exact_sources_of_a_represented_population"],
+      note="survived the two analytic tests alone (their droplets are ordinary particles, so "
+           "the separate-droplet branch never runs); the RHS reference case 'eke droplets "
+           "injected' checks the free droplets' source"),
     M("qmom-breakage-mass-moment", "own", "methods", "pbe_cfd/methods/breakage_sources.py",
       "            if k != 1:                    # F(1) = 1: the mass moment gets exactly nothing",
       "            if True:                    # F(1) = 1: the mass moment gets exactly nothing",
-      ["tests/test_breakage.py::test_qmom_constant_selection"]),
+      ["tests/test_breakage.py::test_qmom_constant_selection"],
+      note="equivalent mutant: F(1) - 1 is exactly 0.0 for both daughter rules (2 / (1 + 1) "
+           "and 2^0), so the mass source gains exactly nothing either way; the branch only "
+           "saves the multiplication"),
     M("cnmc-acceptance", "own", "methods", "pbe_cfd/methods/cnmc_box.py",
       "            if np.random.random() * bound < rate:",
       "            if np.random.random() * bound < 1.05 * rate:",
-      ["tests/test_cnmc.py::test_constant_kernel_matches_analytic_moments"]),
+      ["tests/test_cnmc.py::test_constant_kernel_matches_analytic_moments",
+       "tests/test_cnmc.py::test_sum_kernel_matches_analytic_moments"],
+      note="equivalent for the constant kernel alone (the majorant equals the rate, every "
+           "trial is accepted with or without the 5%); the sum kernel's majorant exceeds the "
+           "rate, where the mutant accepts 5% too many"),
     # ---- integrator ----------------------------------------------------------------------------
     M("rodas3-stage-coefficient", "own", "integrator", "pbe_cfd/integrate/rosenbrock.py",
       "        k4[i] = ft[i] + inv_h * (k1[i] - k2[i] - 8.0 / 3.0 * k3[i])",
@@ -137,20 +155,35 @@ MUTATIONS = [
     M("rodas3-error-norm-loose", "own", "integrator", "pbe_cfd/integrate/rosenbrock.py",
       "        r = abs(k4[i]) / (atol + rtol * max(abs(y[i]), abs(y_new[i])))",
       "        r = 0.01 * abs(k4[i]) / (atol + rtol * max(abs(y[i]), abs(y_new[i])))",
-      [INTEG + "::test_droplet_capture_closed_form_in_every_scheme"]),
+      [INTEG + "::test_droplet_capture_closed_form_in_every_scheme"],
+      note="SURVIVOR, no test yet: RODAS3 with its error test 100 times looser stays inside "
+           "the closed-form bound of the capture case (10 rtol per e-fold); what would catch "
+           "it is a tolerance-proportionality test (the implicit run's error at rtol and at "
+           "rtol / 100 must shrink by about 100) -- not written in this round"),
     M("step-growth-unbounded", "own", "integrator", "pbe_cfd/integrate/cell.py",
       "            factor = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** (-1.0 / 3.0)))",
       "            factor = 5.0 if err == 0.0 else min(50.0, max(0.2, 9.0 * err ** (-1.0 / 3.0)))",
-      [INTEG + "::test_droplet_capture_closed_form_in_every_scheme"]),
+      [INTEG + "::test_droplet_capture_closed_form_in_every_scheme"],
+      note="SURVIVOR, close to equivalent for accuracy: a step that grows too far fails the "
+           "error test and is rejected, so the accepted steps keep their local error below "
+           "rtol; what changes is the cost (rejections). A test on the rejected-step share "
+           "would catch it -- not written in this round"),
     # ---- transport -----------------------------------------------------------------------------
     M("upwind-wrong-volume", "own", "transport", "pbe_cfd/solids_flux.py",
       "    off = sp.csr_matrix((mag / (volume[down] * alpha[up]), (down, up)), shape=(n, n))",
       "    off = sp.csr_matrix((mag / (volume[up] * alpha[up]), (down, up)), shape=(n, n))",
-      [TRANS + "::test_conserved_and_uniform_stays_uniform"]),
+      [TRANS + "::test_conserved_and_uniform_stays_uniform"],
+      note="SURVIVOR, equivalent on the tested mesh: its cells have equal volumes, so "
+           "V_down = V_up; a mesh with unequal cell volumes would catch it (conservation of "
+           "the bed totals) -- not written in this round"),
     M("cfl-substeps-halved", "own", "transport", "pbe_cfd/transport.py",
       "        k = max(1, int(math.ceil(duration / self.dt_max * (1.0 - 1e-12))))",
       "        k = max(1, int(math.ceil(0.5 * duration / self.dt_max * (1.0 - 1e-12))))",
-      [TRANS + "::test_binder_tracer_spreads_conserved_and_realizable_every_substep"]),
+      [TRANS + "::test_binder_tracer_spreads_conserved_and_realizable_every_substep",
+       TRANS + "::test_advance_splits_sources_and_reaches_t1"],
+      note="survived the tracer test alone: it calls transport() with exactly dt_max, one "
+           "substep either way; test_advance_splits_sources_and_reaches_t1 checks the "
+           "Courant number used over longer spans"),
     M("strang-as-lie", "own", "transport", "pbe_cfd/transport.py",
       "                self.transport(states, 0.5 * (tb - ta))\n"
       "                self._source(source_step, states, ta, tb)\n"
@@ -170,7 +203,11 @@ MUTATIONS = [
     M("remove-changed-files", "own", "output", "pbe_cfd/output.py",
       "        if not (path.is_file() and _unchanged(path, entry)):",
       "        if not path.is_file():",
-      [SAFE + "::test_overwrite_removes_only_unchanged_stale_files_it_wrote"]),
+      [SAFE + "::test_overwrite_removes_only_unchanged_stale_files_it_wrote",
+       "tests/test_output_edits.py::test_an_edit_that_keeps_the_size_is_still_an_edit"],
+      note="survived test_overwrite_removes_only_unchanged_stale_files_it_wrote alone (it "
+           "exercises the overwrite path, not remove_written); test_output_edits now calls "
+           "remove_written on an edited file and catches it"),
     M("foreign-file-replaced", "own", "output", "pbe_cfd/output.py",
       "        if not file_is_marked(target):\n            raise",
       "        if False:\n            raise",
