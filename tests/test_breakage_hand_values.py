@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pytest
 
-from pbe_cfd.methods.breakage_sources import quadrature_breakage_source
+from pbe_cfd.methods.breakage_sources import add_qmom_breakage
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.breakage import (COLLISIONAL, CONSTANT, EQUAL, POWER, UNIFORM,
                                       daughter_moment_factor, daughter_share,
@@ -130,26 +130,36 @@ def test_daughter_shares():
         assert daughter_share(EQUAL, r) == 0.5
 
 
-def test_quadrature_source_of_two_nodes():
-    """Two nodes (scaled: masses x, number weights w, binder b), power selection a = 1.5,
-    uniform and equal daughters: dM_ij/dt = sum_a w_a S(x_a) (F(i+j) - 1) x_a^i b_a^j."""
+def test_qmom_breakage_sources_of_two_nodes():
+    """QMOM's breakage sources (``add_qmom_breakage``, what its right-hand side calls) of two
+    nodes (scaled: masses x, number weights w, binder b), power selection a = 1.5, uniform and
+    equal daughters: dM_ij/dt = sum_a w_a S(x_a) (F(i+j) - 1) x_a^i b_a^j for the layout of a
+    bivariate 2-node state (M00..M30, then M01, M11)."""
     x = np.array([0.3, 2.5])
     w = np.array([0.7, 0.2])
     b = np.array([0.05, 0.9])
+    cell = np.zeros(P.N_CELL)               # power selection: the cell factor is s0
     for code, F in ((UNIFORM, lambda k: 2.0 / (k + 1)), (EQUAL, lambda k: 2.0 ** (1 - k))):
         params, config = packed(POWER, daughters=code)
-        factor = S0
-        for i, j in ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (3, 0), (2, 1)):
+        config[P.ORDER], config[P.BIVARIATE] = 2, 1
+        out = np.zeros(6)
+        add_qmom_breakage(out, x, w, b, 2, cell, params, config)
+        slots = [((k, 0), k) for k in range(4)] + [((k, 1), 4 + k) for k in range(2)]
+        for (i, j), slot in slots:
             expected = 0.0
             for a in range(2):
                 s = S0 * (x[a] * 1e-9 / P_REF) ** 1.5
                 expected += w[a] * s * (F(i + j) - 1.0) * x[a] ** i * b[a] ** j
-            got = quadrature_breakage_source(i, j, x, w, b, 2, factor, params, config)
             if i + j == 1:
-                assert got == 0.0                       # mass and binder: exactly nothing
+                assert out[slot] == 0.0                 # mass and binder: exactly nothing
             else:
-                assert got == pytest.approx(expected, rel=REL, abs=0)
-    assert quadrature_breakage_source(0, 0, x, w, b, 2, 0.0, params, config) == 0.0
+                assert out[slot] == pytest.approx(expected, rel=REL, abs=0), (i, j)
+    params, config = packed(POWER)
+    config[P.ORDER], config[P.BIVARIATE] = 2, 1
+    config[P.BREAKAGE] = 0                  # no breakage table: the sources stay untouched
+    out = np.zeros(6)
+    add_qmom_breakage(out, x, w, b, 2, cell, params, config)
+    assert np.all(out == 0.0)
 
 
 def test_no_breakage_table_means_no_rate():

@@ -3,9 +3,17 @@ breakage added: S = s0 p / p0, s0 = 1e-3 1/s, uniform daughters. Over the 600 s 
 the mean size breaks about once (the number falls to 2.58e10 instead of 1.48e10 without
 breakage), so breakage shapes the result.
 The moment methods (QMOM N = 2, 3; Laguerre m = 3, 4) against the cNMC (10,000 particles x 8
-replicas, seed fixed when the test was
-written): within 10% where the issue asks it (docs/physics.md section 8 and the README report
-what the methods give on every moment and time).
+replicas, seed fixed when the test was written): the closure within 10% of the truth where the
+issue asks it (docs/physics.md section 8 and the README report what the methods give on every
+moment and time). The cNMC mean is the truth only to its statistical error, so the band at
+each output time is 10% plus t_{0.9995, R-1} standard errors of the reference mean (from its
+reported 95% band; a false alarm rate of 1e-3 per comparison), relative to the mean.
+
+These tests are about the closures only: the cNMC and the moment methods evaluate the same
+kernel and efficiency functions (pbe_cfd.physics), so an error in a kernel would move both.
+The kernels and the breakage selection and daughter rules are checked by their own hand
+values, computed in plain Python from the formulas (tests/test_physics_hand_values.py,
+tests/test_breakage_hand_values.py).
 
 Why not every moment at every time: QMOM carries the binder only through M_k1, k < N (one
 binder value per node), so M02 is an estimate of its quadrature. With breakage the dry granules
@@ -49,14 +57,24 @@ def deviation(columns, reference, name):
     return columns[name] / reference[name] - 1.0
 
 
+CLOSURE = 0.10              # the issue's requirement on the closure error
+
+
+def band(reference, name, replicas=8):
+    """CLOSURE plus t_{0.9995, R-1} standard errors of the cNMC mean, relative (per time)."""
+    from scipy import stats
+    se = (reference[name + "_hi"] - reference[name]) / stats.t.ppf(0.975, replicas - 1)
+    return CLOSURE + stats.t.ppf(0.9995, replicas - 1) * se / np.abs(reference[name])
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("nodes", [2, 3])
 def test_qmom_with_breakage_within_ten_percent_of_the_cnmc(reference, nodes):
     c = run_well_mixed(with_breakage("seed-wurster", nodes=nodes)).columns
     assert np.array_equal(c["time_s"], reference["time_s"])
     for name in ("M00", "M20", "d43_m"):
-        assert np.max(np.abs(deviation(c, reference, name))) < 0.10, name
-    assert abs(deviation(c, reference, "M11")[-1]) < 0.10
+        assert np.all(np.abs(deviation(c, reference, name)) < band(reference, name)), name
+    assert abs(deviation(c, reference, "M11")[-1]) < band(reference, "M11")[-1]
     # mass and binder: straight lines of the injected rate Q p_d, to 1e-10 (breakage adds
     # nothing to either)
     t = c["time_s"]
@@ -75,7 +93,7 @@ def test_laguerre_with_breakage_within_ten_percent_of_the_cnmc(reference, order)
     c = run_well_mixed(with_breakage("seed-wurster-laguerre", order=order)).columns
     assert np.array_equal(c["time_s"], reference["time_s"])
     for name in ("M00", "M20", "M11", "M02", "d43_m"):
-        assert np.max(np.abs(deviation(c, reference, name))) < 0.10, name
+        assert np.all(np.abs(deviation(c, reference, name)) < band(reference, name)), name
     t = c["time_s"]
     rate = 1.485e8 * 1000.0 * math.pi / 6.0 * 60e-6 ** 3        # kg/(m3 s)
     for name in ("M10", "M01"):

@@ -106,9 +106,9 @@ def test_constant_kernel_dry_and_wet_classes(m, adaptive, cache):
         if want == 0.0:
             assert si(out, i, j, m, params) == 0.0
         else:
-            assert si(out, i, j, m, params) == pytest.approx(want, rel=rtol), (i, j)
+            assert si(out, i, j, m, params) == pytest.approx(want, rel=rtol, abs=0), (i, j)
     for e, want in dry.items():
-        assert dry_si(out, e, m, params) == pytest.approx(want, rel=rtol), e
+        assert dry_si(out, e, m, params) == pytest.approx(want, rel=rtol, abs=0), e
 
 
 @pytest.mark.parametrize("m", [2, 3, 4])
@@ -131,11 +131,11 @@ def test_constant_kernel_droplet_capture_by_both_classes(m, cache):
                       for e1 in range(i + 1) for e2 in range(j + 1) if (e1, e2) != (i, j))
             drygain = sum(comb(i, e) * pd ** (i - e + j) * D(e) for e in range(i + 1))
             assert si(d, i, j, m, params) == pytest.approx(F * k0 * nd * (wet + drygain),
-                                                           rel=rtol), (i, j)
+                                                           rel=rtol, abs=0), (i, j)
     for e in range(m):
-        assert dry_si(d, e, m, params) == pytest.approx(-F * k0 * nd * D(e), rel=rtol)
+        assert dry_si(d, e, m, params) == pytest.approx(-F * k0 * nd * D(e), rel=rtol, abs=0)
     assert d[m * m + m] * params[P.NUMBER_SCALE] == pytest.approx(
-        -F * k0 * nd * (W(0, 0) + D(0)), rel=rtol)
+        -F * k0 * nd * (W(0, 0) + D(0)), rel=rtol, abs=0)
 
 
 @pytest.mark.parametrize("adaptive", [None, ADAPT], ids=["fixed", "adaptive"])
@@ -190,7 +190,7 @@ def test_dry_start_with_injection_keeps_every_invariant():
     assert c["M01"][0] == 0.0
     assert np.max(np.abs(c["M01"][1:] / (rate * t[1:]) - 1)) < 1e-10
     assert np.all(np.diff(c["dry_M00"]) < 0.0)
-    assert c["dry_M00"][0] == pytest.approx(3.3e10, rel=1e-12)
+    assert c["dry_M00"][0] == pytest.approx(3.3e10, rel=1e-12, abs=0)
     assert 0.0 < c["dry_mass_fraction"][-1] < 1.0
 
 
@@ -295,7 +295,7 @@ def test_adaptive_blend_is_the_bilinear_blend_of_fixed_weights(cache):
     got = rhs(state, aux, params, config)
     assert np.allclose(got, want, rtol=1e-12, atol=1e-13 * np.abs(want).max())
     corners = LL.weight_corners(state, aux)
-    assert sum(f for _, f in corners) == pytest.approx(1.0, rel=1e-15)
+    assert sum(f for _, f in corners) == pytest.approx(1.0, rel=1e-15, abs=0)
 
 
 def test_cache_key_covers_the_dry_class_and_the_adaptive_grid(tmp_path):
@@ -340,16 +340,16 @@ def test_output_columns_add_the_classes_and_the_droplets(cache):
     for i in range(m):
         for j in range(m):
             want = WET(i, j) + (dry_moment(i) if j == 0 else 0.0) + 2e8 * pd ** (i + j)
-            assert cols[f"M{i}{j}"][0] == pytest.approx(want, rel=1e-12), (i, j)
-    assert cols["dry_M00"][0] == pytest.approx(DRY_N, rel=1e-12)
+            assert cols[f"M{i}{j}"][0] == pytest.approx(want, rel=1e-12, abs=0), (i, j)
+    assert cols["dry_M00"][0] == pytest.approx(DRY_N, rel=1e-12, abs=0)
     assert cols["dry_mass_fraction"][0] == pytest.approx(dry_moment(1) / cols["M10"][0],
-                                                         rel=1e-12)
+                                                         rel=1e-12, abs=0)
     w, p, b = LT.population_for_output(state, aux, arrays)
     tol = tolerance(aux, state)
     for i in range(m):
         for j in range(m):
             want = WET(i, j) + (dry_moment(i) if j == 0 else 0.0)
-            assert np.sum(w * p ** i * b ** j) == pytest.approx(want, rel=tol), (i, j)
+            assert np.sum(w * p ** i * b ** j) == pytest.approx(want, rel=tol, abs=0), (i, j)
 
 
 def test_escaped_share_counts_the_dry_class(cache):

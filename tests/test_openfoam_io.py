@@ -42,7 +42,7 @@ def test_snapshot_fields(snap):
     cells, _ = snap
     assert 800 <= cells.n_cells <= 1000
     assert cells.averaged
-    assert cells.time == pytest.approx(1.5)
+    assert cells.time == pytest.approx(1.5, rel=1e-12, abs=0)
     assert np.all(np.isfinite(cells.alpha)) and np.all(np.isfinite(cells.theta))
     assert np.all(cells.alpha >= 0) and np.all(cells.alpha < ALPHA_MAX)
     assert cells.alpha.max() > 0.4            # a dense bed is there
@@ -56,7 +56,7 @@ def test_snapshot_volumes_sum_to_bed(snap):
     cells, _ = snap
     assert np.all(cells.cell_volume > 0)
     np.testing.assert_allclose(cells.cell_volume.sum(), BED_WIDTH * BED_HEIGHT * BED_DEPTH,
-                               rtol=1e-9)
+                               rtol=1e-9, atol=0)
     lo, hi = cells.cell_centre.min(0), cells.cell_centre.max(0)
     assert lo[0] > 0 and hi[0] < BED_WIDTH and lo[1] > 0 and hi[1] < BED_HEIGHT
 
@@ -84,21 +84,21 @@ def test_snapshot_flux(snap):
     assert abs(flux.net_outflow().sum()) <= 1e-12 * total_abs
     # faces connect neighbouring cells only
     d = np.linalg.norm(cells.cell_centre[flux.owner] - cells.cell_centre[flux.neighbour], axis=1)
-    np.testing.assert_allclose(d, BED_WIDTH / 15, rtol=1e-5)
+    np.testing.assert_allclose(d, BED_WIDTH / 15, rtol=1e-5, atol=0)
 
 
 def test_snapshot_flux_balances_alpha_change(snap):
     # the window-averaged solids flux carries exactly the solids that moved over the window:
     # net outflow = -(alpha_end - alpha_start) V / T, up to the time discretisation
     cells, flux = snap
-    assert flux.window_start == pytest.approx(0.5) and flux.time == pytest.approx(1.5)
+    assert flux.window_start == pytest.approx(0.5, rel=1e-12, abs=0) and flux.time == pytest.approx(1.5, rel=1e-12, abs=0)
     out = flux.net_outflow()
     moved = -(flux.alpha_end - flux.alpha_start) * cells.cell_volume / (flux.time -
                                                                        flux.window_start)
     assert np.abs(out - moved).max() < 0.01 * np.abs(out).max()
     # the solids inventory is constant, so the mean field holds the same solids volume
     np.testing.assert_allclose((cells.alpha * cells.cell_volume).sum(),
-                               (flux.alpha_end * cells.cell_volume).sum(), rtol=1e-4)
+                               (flux.alpha_end * cells.cell_volume).sum(), rtol=1e-4, atol=0)
 
 
 # --------------------------------------------------------------------------- fake cases
@@ -131,7 +131,7 @@ def test_cellid_permutation_is_undone(tmp_path, snap):
     got = of.read_cell_fields(case, "latest")
     np.testing.assert_array_equal(got.alpha, cells.alpha)
     np.testing.assert_array_equal(got.theta, cells.theta)
-    np.testing.assert_allclose(got.cell_volume, cells.cell_volume, rtol=1e-12)
+    np.testing.assert_allclose(got.cell_volume, cells.cell_volume, rtol=1e-12, atol=0)
     np.testing.assert_allclose(got.cell_centre, cells.cell_centre, atol=1e-12)
     # spreading back onto VTK cells follows the same map
     np.testing.assert_array_equal(got.to_vtk_cells(got.alpha), cells.alpha[perm])
@@ -155,7 +155,7 @@ def test_split_cells_map_through_cellid(tmp_path, snap):
     got = of.read_cell_fields(case)
     assert got.n_cells == cells.n_cells
     assert len(got.vtk_cell_id) == cells.n_cells + 1
-    np.testing.assert_allclose(got.cell_volume, cells.cell_volume, rtol=1e-9)
+    np.testing.assert_allclose(got.cell_volume, cells.cell_volume, rtol=1e-9, atol=0)
     np.testing.assert_allclose(got.cell_centre, cells.cell_centre, atol=1e-9)
     np.testing.assert_array_equal(got.alpha, cells.alpha)
 
@@ -236,7 +236,7 @@ def test_write_foam_fields_round_trip(tmp_path):
                                  dimensions={"M00": "[0 -3 0 0 0 0 0]"})
     assert [p.name for p in paths] == ["M00", "d43_m"]
     f = FoamFieldFile(case / "600" / "M00")
-    np.testing.assert_allclose(np.asarray(f.internal_field), vals, rtol=1e-9)
+    np.testing.assert_allclose(np.asarray(f.internal_field), vals, rtol=1e-9, atol=0)
     assert f.boundary_field["walls"]["type"] == "zeroGradient"
     assert f.boundary_field["frontAndBack"]["type"] == "empty"
     assert "[0 -3 0 0 0 0 0]" in (case / "600" / "M00").read_text()
@@ -308,7 +308,7 @@ def test_real_case_end_to_end(real_case):
     from foamlib import FoamFieldFile
 
     case, res, lines = real_case
-    assert res.latest_time == pytest.approx(0.3)
+    assert res.latest_time == pytest.approx(0.3, rel=1e-12, abs=0)
     assert set(res.wall_times) == {"blockMesh", "setFields", "twoPhaseEulerFoam", "foamToVTK"}
     assert any("twoPhaseEulerFoam: t =" in s for s in lines)
     for tool in res.wall_times:
@@ -329,14 +329,14 @@ def test_real_case_end_to_end(real_case):
     subprocess.run(["postProcess", "-func", "writeCellVolumes", "-time", tdir.name],
                    cwd=case, env=env, check=True, capture_output=True)
     V = np.asarray(FoamFieldFile(tdir / "V").internal_field, dtype=float)
-    np.testing.assert_allclose(cells.cell_volume, V, rtol=1e-6)
-    np.testing.assert_allclose(V.sum(), BED_WIDTH * BED_HEIGHT * BED_DEPTH, rtol=1e-12)
+    np.testing.assert_allclose(cells.cell_volume, V, rtol=1e-6, atol=0)
+    np.testing.assert_allclose(V.sum(), BED_WIDTH * BED_HEIGHT * BED_DEPTH, rtol=1e-12, atol=0)
     # face flux
     flux = of.read_face_flux(case)
     assert flux.field == "alphaPhi.particlesMean"
     assert flux.n_cells == 900 and len(flux.flux) == 14 * 60 + 15 * 59
     assert np.all(np.isfinite(flux.flux))
-    assert flux.window_start == pytest.approx(0.1)
+    assert flux.window_start == pytest.approx(0.1, rel=1e-12, abs=0)
     out = flux.net_outflow()
     moved = -(flux.alpha_end - flux.alpha_start) * V / (flux.time - flux.window_start)
     assert np.abs(out - moved).max() < 0.02 * np.abs(out).max()
@@ -352,7 +352,7 @@ def test_real_case_write_back_and_snapshot(real_case, tmp_path):
     m00 = cells.alpha * 1e12
     of.write_foam_fields(case, "600", {"M00": m00}, dimensions={"M00": "[0 -3 0 0 0 0 0]"})
     f = FoamFieldFile(case / "600" / "M00")
-    np.testing.assert_allclose(np.asarray(f.internal_field), m00, rtol=1e-9)
+    np.testing.assert_allclose(np.asarray(f.internal_field), m00, rtol=1e-9, atol=0)
     # ParaView's reader (VTK's vtkOpenFOAMReader) sees the new time and field
     (case / "case.foam").touch()
     reader = pv.OpenFOAMReader(str(case / "case.foam"))
@@ -360,18 +360,18 @@ def test_real_case_write_back_and_snapshot(real_case, tmp_path):
     reader.set_active_time_value(600.0)
     grid = reader.read()["internalMesh"]
     assert grid.n_cells == cells.n_cells
-    np.testing.assert_allclose(grid.cell_data["M00"], m00, rtol=1e-6)  # VTK reads float32
+    np.testing.assert_allclose(grid.cell_data["M00"], m00, rtol=1e-6, atol=0)  # VTK reads float32
     with pytest.warns(UserWarning, match="not a number"):
         of.write_foam_fields(case, "pbe_final", {"M00": m00})
     # "latest" still means the CFD time, not the written-back 600
-    assert of.pick_time(case, "latest") == pytest.approx(0.3)
+    assert of.pick_time(case, "latest") == pytest.approx(0.3, rel=1e-12, abs=0)
     vtu, npz = of.write_snapshot(case, "latest", tmp_path / "snap.vtu")
     assert npz == tmp_path / "snap_flux.npz"
     back, flux = of.load_snapshot(vtu, with_flux=True)
     np.testing.assert_array_equal(back.alpha, cells.alpha)
     np.testing.assert_array_equal(back.theta, cells.theta)
-    np.testing.assert_allclose(back.cell_volume, cells.cell_volume)
-    assert back.source["control"]["endTime"] == pytest.approx(0.3)
+    np.testing.assert_allclose(back.cell_volume, cells.cell_volume, atol=0)
+    assert back.source["control"]["endTime"] == pytest.approx(0.3, rel=1e-12, abs=0)
     assert flux.flux.shape == of.read_face_flux(case).flux.shape
 
 
@@ -397,7 +397,7 @@ def test_real_case_coupled_end_to_end(real_case, tmp_path):
     out = tmp_path / "out"
     assert main(["couple", str(scene), "--out", str(out), "--foam-fields"]) == 0
     reader = pv.get_reader(str(out / "vtk" / "pbe.pvd"))
-    assert reader.time_values[-1] == pytest.approx(10.0)
+    assert reader.time_values[-1] == pytest.approx(10.0, rel=1e-12, abs=0)
     reader.set_active_time_value(10.0)
     mesh = reader.read()[0]
     assert mesh.n_cells == 900

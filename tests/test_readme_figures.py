@@ -19,6 +19,11 @@ README states for it:
   figure e then moves by at most (1 + e) delta.
 
 Wall times are machine-dependent and not compared.
+
+The cNMC references judge the closures only: the cNMC evaluates the same kernel and efficiency
+functions (pbe_cfd.physics) as the moment methods, so a kernel error would move reference and
+method together. The kernels themselves are checked against hand values computed in plain
+Python from the formulas (tests/test_physics_hand_values.py).
 """
 import math
 import re
@@ -113,7 +118,7 @@ def test_seed_scenario_deviations_match_the_readme(seed_reference):
         scene_name, changes = SEED_ROWS[label]
         scene = load_scene(scene_name)
         cols = run_well_mixed(scene.with_method(**changes)).columns
-        assert np.allclose(cols["time_s"], t)
+        assert np.allclose(cols["time_s"], t, atol=0)
         for name, cell in zip(header[1:6], row[1:6]):
             value, text, worst, worst_text = parse_figure(cell)
             q = COLUMN[name]

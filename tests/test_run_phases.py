@@ -2,6 +2,7 @@
 output assembly giving the very numbers of the row-by-row one."""
 import dataclasses
 import json
+import time
 
 import numpy as np
 import pytest
@@ -22,19 +23,23 @@ def short_fluid_bed(end=10.0, interval=5.0, **method):
 def coupled():
     scene = short_fluid_bed()
     domain = load_domain(scene)
-    return scene, domain, run_coupled(scene, domain)
+    t0 = time.perf_counter()
+    res = run_coupled(scene, domain)
+    return scene, domain, res, time.perf_counter() - t0
 
 
 def test_phases_cover_the_run_and_reach_summary_json(tmp_path, coupled):
-    """Every phase is a wall time >= 0; setup + solve is the run time (compile apart); the
+    """Every phase is a wall time >= 0 and all of them fit in the call's own wall time; the
     phases of the caller, of the run and of the writing all land in summary.json."""
-    scene, domain, res = coupled
+    scene, domain, res, outer_s = coupled
     ph = res.phases
     assert set(ph) == {"setup_s", "compile_s", "solve_s", "assemble_s"}
     assert all(v >= 0.0 for v in ph.values())
     assert ph["compile_s"] == res.compile_time_s
-    # wall_time_s runs from the start of the setup to the end of the solve, compile excluded
-    assert ph["setup_s"] + ph["solve_s"] == pytest.approx(res.wall_time_s, rel=1e-9, abs=1e-9)
+    # the phases are disjoint parts of the call: together they fit inside the wall time
+    # measured around run_coupled by this test's own clock, and the solve is not empty
+    assert sum(ph.values()) <= outer_s
+    assert ph["solve_s"] > 0.0
     phases = write_coupled(tmp_path, scene, domain, res, render=False,
                            phases={"startup_s": 0.5, "read_s": 0.25})
     summary = json.loads((tmp_path / "summary.json").read_text())
@@ -49,7 +54,7 @@ def test_array_outputs_equal_the_row_by_row_outputs_bitwise(coupled, method):
     """model.moment_outputs assembles all cells at once; the row-by-row path (kept for
     populations of different sizes) does the same arithmetic per cell: equal to the last bit,
     cells with and without free droplets alike."""
-    scene, domain, res = coupled
+    scene, domain, res, _ = coupled
     if method:
         scene = short_fluid_bed(**method)
         res = run_coupled(scene, domain)
@@ -95,7 +100,7 @@ def test_thread_scaling_is_the_ratio_of_the_same_runs_rates():
              "ceiling_per_s": 2e6, "cell_steps_per_s": 2e5}]
     sc = thread_scaling(rows, "QMOM N = 3", 1000)
     assert sc == pytest.approx({"rhs_per_s_median": 1.8, "ceiling_per_s": 2.0,
-                                "cell_steps_per_s": 1.5})
+                                "cell_steps_per_s": 1.5}, rel=1e-12, abs=0)
     assert thread_scaling(rows, "Laguerre m = 3", 1000) == {}
     table = "\n".join(thread_scaling_markdown(rows, ["QMOM N = 3", "Laguerre m = 3"], 1000,
                                               [1, 2]))

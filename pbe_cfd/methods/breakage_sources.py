@@ -14,7 +14,6 @@ sources (i + j = 1) exactly zero, node by node.
 Units: nodes and binder in the method's scaled mass (SI mass / params[MASS_SCALE]), weights in
 its scaled number density; sources in scaled moment units per second. No allocation.
 
-``quadrature_breakage_source`` is the general entry point (one moment (i, j), any nodes);
 ``add_qmom_breakage`` adds QMOM's whole state layout at once.
 """
 import numba as nb
@@ -22,8 +21,7 @@ import numba as nb
 from ..physics import parameters as P
 from ..physics.breakage import cell_selection_factor, daughter_moment_factor, selection_function
 
-__all__ = ["cell_selection_factor", "node_selection_rate", "quadrature_breakage_source",
-           "add_qmom_breakage"]
+__all__ = ["cell_selection_factor", "node_selection_rate", "add_qmom_breakage"]
 
 
 @nb.njit(cache=True, inline="always")
@@ -34,25 +32,6 @@ def node_selection_rate(x, factor, params, config):
         return 0.0
     return selection_function(config[P.BREAKAGE_SELECTION], x * params[P.MASS_SCALE], factor,
                               params)
-
-
-@nb.njit(cache=True)
-def quadrature_breakage_source(i, j, nodes, weights, binder, n, factor, params, config):
-    """dM_ij/dt [scaled moment units per s] of the n-node quadrature (nodes x_a, weights w_a,
-    binder per node b_a, all scaled; see module docstring): sum_a w_a S(x_a) (F(i+j) - 1)
-    x_a^i b_a^j. ``factor``: the cell factor [1/s] of ``cell_selection_factor``; 0 gives 0."""
-    if factor == 0.0 or n <= 0:
-        return 0.0
-    gain = daughter_moment_factor(config[P.BREAKAGE_DAUGHTERS], float(i + j)) - 1.0
-    if gain == 0.0:
-        return 0.0
-    total = 0.0
-    for a in range(n):
-        rate = node_selection_rate(nodes[a], factor, params, config)
-        if rate == 0.0:
-            continue
-        total += weights[a] * rate * nodes[a] ** i * binder[a] ** j
-    return gain * total
 
 
 @nb.njit(cache=True, inline="always")
