@@ -153,6 +153,8 @@ def _allowed(argv, sandbox: Path) -> list[Path]:
     if args.command in ("run", "couple", "compare") and getattr(args, "out", None):
         target = Path(args.out) if not getattr(args, "resume", None) else Path(args.resume)
         out.append((sandbox / target).resolve())
+        if args.command == "compare" and target.name:    # the PSD overlay beside the figure
+            out.append((sandbox / target.with_name(f"{target.stem}_psd{target.suffix}")).resolve())
     if args.command == "render" and args.dir:
         d = (sandbox / args.dir).resolve()
         out += [d / "png", d / "pbe-cfd-manifest.json"]

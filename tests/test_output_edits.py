@@ -31,12 +31,23 @@ def test_an_edit_that_keeps_the_size_is_still_an_edit(tmp_path, monkeypatch):
     o = tmp_path / "o"
     _same_size_edit(o / "b.txt")
     edited = (o / "b.txt").read_bytes()
-    # replace mode: the edited stale file is kept, with a warning naming it
-    with pytest.warns(UserWarning, match="kept .*b.txt: it changed"):
+    # replace mode: an edit known before the run is refused before anything is written
+    with pytest.raises(output.OutputRefused, match="b.txt changed since"):
         with output.atomic_directory("o", overwrite=True) as d:
             (d / "a.txt").write_text("new a\n")
     assert (o / "b.txt").read_bytes() == edited
-    assert set(output.read_manifest(o)["files"]) == {"a.txt"}
+    assert (o / "a.txt").read_text() == "written by pbe-cfd\n"
+    # an edit made while the run computes: the stale file is kept, with a warning naming it
+    with output.atomic_directory("p") as d:
+        (d / "a.txt").write_text("written by pbe-cfd\n")
+        (d / "b.txt").write_text("also ours\n")
+    p = tmp_path / "p"
+    with pytest.warns(UserWarning, match="kept .*b.txt: it changed"):
+        with output.atomic_directory("p", overwrite=True) as d:
+            _same_size_edit(p / "b.txt")
+            (d / "a.txt").write_text("new a\n")
+    assert (p / "b.txt").read_bytes()[:1] in (b"X", b"Y")
+    assert set(output.read_manifest(p)["files"]) == {"a.txt"}
     # add mode: a same-size edit of a file the new output would replace is a collision
     _same_size_edit(o / "a.txt")
     with pytest.raises(output.OutputRefused, match="changed since"):
