@@ -1,7 +1,7 @@
 """A case nobody in this project wrote: OpenFOAM's tutorial twoPhaseEulerFoam/RAS/fluidisedBed
 (package openfoam-examples), run briefly once per module, then read as a user meets it
-(ascii, binary, compressed, decomposed without reconstructPar, renamed phase). The user's case
-is only read; only the requested pbe.* fields are written into it."""
+(ascii, binary, compressed, decomposed without reconstructPar, renamed phase, 3-D). The user's
+case is only read; only the requested pbe.* fields are written into it."""
 from __future__ import annotations
 
 import gzip
@@ -63,6 +63,26 @@ def _shorten(case: Path):
     cd.write_text(text)
 
 
+DEPTH_CELLS = (10, 60, 3)   # the 3-D copy: 1800 cells, 0.15 x 1 x 0.02 m as the tutorial
+
+
+def _three_d(case: Path):
+    """The tutorial extruded in depth: DEPTH_CELLS cells, its front and back planes walls
+    (joined to the patch ``walls``; the fields' entries for the removed empty patch are
+    ignored), alpha from the tutorial's own setFieldsDict on the new mesh."""
+    bm = case / "system" / "blockMeshDict"
+    text = bm.read_text().replace("(30 200 1)", "({} {} {})".format(*DEPTH_CELLS))
+    text, n = re.subn(r"\)\s*empty frontAndBackPlanes\s*\(\s*(\(0 3 2 1\))\s*(\(4 5 6 7\))",
+                      r"    \1\n        \2", text)
+    assert n == 1, "the tutorial's blockMeshDict changed"
+    bm.write_text(text)
+    for orig in (case / "0").glob("alpha.*.orig"):
+        shutil.copyfile(orig, orig.with_suffix(""))      # the 2-D setFields result replaced
+    _tool(case, "blockMesh")
+    _tool(case, "setFields")
+    _tool(case, "twoPhaseEulerFoam")
+
+
 @pytest.fixture(scope="module")
 def tutorial(tmp_path_factory):
     """The run tutorial (ascii) and its variants, each a separate copy."""
@@ -92,6 +112,11 @@ def tutorial(tmp_path_factory):
     _tool(dec, "decomposePar", "-time", END)
     shutil.rmtree(dec / END)               # a parallel run's result: only processor*/END
     cases["decomposed"] = dec
+    deep = root / "3d"
+    _unpack(TUTORIAL, deep)
+    _shorten(deep)
+    _three_d(deep)
+    cases["3d"] = deep
     return cases
 
 
@@ -170,12 +195,42 @@ def _only_pbe_fields_differ(before: dict, after: dict, time: str):
         assert parts[-1].startswith("pbe.") and parts[-2] == time and rel not in before, rel
 
 
-@pytest.mark.parametrize("kind", ["plain", "compressed", "decomposed", "renamed"])
+def _foam_values(case: Path, name: str, decomposed: bool) -> np.ndarray:
+    """The cell values of a field pbe-cfd wrote (ascii nonuniform List) in the case's cell
+    order; for a decomposed case gathered from the processors through their
+    cellProcAddressing (processor cell -> case cell)."""
+    def numbers(path: Path, dtype):
+        m = re.search(r"\d+\s*\((.*?)\)\s*;?\s*(boundaryField|//|$)", path.read_text(),
+                      flags=re.S)
+        return np.array(m.group(1).split(), dtype=dtype)
+    if not decomposed:
+        return numbers(case / END / name, float)
+    parts = [(numbers(case / f"processor{i}" / "constant" / "polyMesh" / "cellProcAddressing",
+                      int), numbers(case / f"processor{i}" / END / name, float))
+             for i in range(2)]
+    out = np.full(sum(len(a) for a, _ in parts), np.nan)
+    for addressing, values in parts:
+        out[addressing] = values
+    return out
+
+
+def _final_vtk(out: Path, field: str) -> np.ndarray:
+    from pbe_cfd.cfd.vtk import read_series
+    t, mesh = read_series(out / "vtk" / "pbe.pvd")[-1]
+    return np.asarray(mesh.cell_data[field][0], dtype=float)
+
+
+N_CELLS = {"3d": DEPTH_CELLS[0] * DEPTH_CELLS[1] * DEPTH_CELLS[2]}   # else the tutorial's 30 x 200
+
+
+@pytest.mark.parametrize("kind", ["plain", "binary", "compressed", "decomposed", "renamed", "3d"])
 def test_couple_writes_only_the_requested_fields_into_the_users_case(tutorial, tmp_path, kind,
                                                                      monkeypatch, capsys):
-    """`couple` and `couple --foam-fields` with [transport], run from another directory, over
-    the user's case with a log.foamToVTK and a VTK/ of the user's own: every file of the case
-    is as it was, but the pbe.* fields of the time read (per processor when decomposed)."""
+    """`couple` and `couple --foam-fields`, each with and without [transport], run from another
+    directory, over the user's case with a log.foamToVTK and a VTK/ of the user's own: each
+    reads every cell of the case's mesh; every file of the case is as it was, but the pbe.*
+    fields of the time read (per processor when decomposed), and those hold the run's final
+    moments (the transport run's replacing the first with --overwrite)."""
     import json
 
     from pbe_cfd.cli import main
@@ -191,24 +246,63 @@ def test_couple_writes_only_the_requested_fields_into_the_users_case(tutorial, t
     (case / "VTK" / "mine.vtu").write_text("the user's own VTK\n")
     scenes = tmp_path / "scenes"
     scenes.mkdir()
-    plain = _scene(scenes / "s.toml", "../cases/bed", extra)
+    still = _scene(scenes / "s.toml", "../cases/bed", extra)
     moving = _scene(scenes / "t.toml", "../cases/bed", extra, transport=True)
     work = tmp_path / "work"
     work.mkdir()
     monkeypatch.chdir(work)
     before = _tree(case)
-    assert main(["couple", str(plain), "--out", "o1"]) == 0
-    assert _tree(case) == before
-    summary = json.loads((work / "o1" / "summary.json").read_text())
-    assert any("accept_material_mismatch" in w for w in summary["warnings"])
-    assert main(["couple", str(moving), "--foam-fields", "--out", "o2"]) == 0
+    for out, scene in (("o1", still), ("o2", moving)):
+        assert main(["couple", str(scene), "--out", out]) == 0
+        assert _tree(case) == before, out
+        summary = json.loads((work / out / "summary.json").read_text())
+        assert any("accept_material_mismatch" in w for w in summary["warnings"])
+        assert summary["stats"]["cells"] == N_CELLS.get(kind, 30 * 200)
+    decomposed = kind == "decomposed"
+    assert main(["couple", str(still), "--foam-fields", "--out", "o3"]) == 0
+    first = _tree(case)
+    _only_pbe_fields_differ(before, first, END)
+    # 10 significant digits written against float32 VTK values (2**-24 relative): rtol 1e-6
+    np.testing.assert_allclose(_foam_values(case, "pbe.M00", decomposed),
+                               _final_vtk(work / "o3", "M00"), rtol=1e-6, atol=0)
+    assert main(["couple", str(moving), "--foam-fields", "--overwrite", "--out", "o4"]) == 0
     after = _tree(case)
     _only_pbe_fields_differ(before, after, END)
-    where = [case / f"processor{i}" for i in range(2)] if kind == "decomposed" else [case]
+    assert set(after) == set(first)
+    np.testing.assert_allclose(_foam_values(case, "pbe.M00", decomposed),
+                               _final_vtk(work / "o4", "M00"), rtol=1e-6, atol=0)
+    where = [case / f"processor{i}" for i in range(2)] if decomposed else [case]
     for d in where:
         assert (d / END / "pbe.M00").is_file()
-    assert not (case / END).exists() or kind != "decomposed"
-    assert sorted(p.name for p in work.iterdir()) == ["o1", "o2"]
+    assert not (case / END).exists() or not decomposed
+    assert sorted(p.name for p in work.iterdir()) == ["o1", "o2", "o3", "o4"]
+    if kind == "3d":
+        _section_drawn_from_the_run(work / "o1")
+
+
+def _section_drawn_from_the_run(out: Path):
+    """`render --section z=0` over the 3-D run: the plane cuts the middle layer of cells (the
+    tutorial's depth is -0.01 to 0.01 m in 3 layers), its polygons carry those cells' values
+    from the run's last VTK file, and the picture is drawn."""
+    from pbe_cfd.cfd.section import read_section
+    from pbe_cfd.cfd.vtk import read_pvd, read_series
+    from pbe_cfd.cli import main
+    t, mesh = read_series(out / "vtk" / "pbe.pvd")[-1]
+    polys, data, axes, note = read_section(read_pvd(out / "vtk" / "pbe.pvd")[-1][1], ("z", 0.0))
+    nx, ny, nz = DEPTH_CELLS
+    assert axes == ("x", "y") and len(polys) == nx * ny
+    pts = np.asarray(mesh.points)
+    centre_z = np.array([pts[c].mean(axis=0)[2] for c in mesh.cells[0].data])
+    layer = np.abs(centre_z) < 0.01 / nz                 # the middle of three layers
+    assert layer.sum() == nx * ny
+    np.testing.assert_allclose(np.sort(data["d43_m"]),
+                               np.sort(np.asarray(mesh.cell_data["d43_m"][0])[layer]),
+                               rtol=1e-6, atol=0)       # float32 values, read twice
+    png = out / "png" / "d43_m_t2s.png"
+    stamp = png.stat().st_mtime_ns
+    assert main(["render", str(out), "--section", "z=0", "--fields", "d43_m", "--times", "2",
+                 "--overwrite"]) == 0
+    assert png.stat().st_mtime_ns != stamp
 
 
 def test_a_material_mismatch_is_refused_in_one_line(tutorial, tmp_path, capsys):
