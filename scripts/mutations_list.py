@@ -172,10 +172,11 @@ MUTATIONS = [
     M("upwind-wrong-volume", "own", "transport", "pbe_cfd/solids_flux.py",
       "    off = sp.csr_matrix((mag / (volume[down] * alpha[up]), (down, up)), shape=(n, n))",
       "    off = sp.csr_matrix((mag / (volume[up] * alpha[up]), (down, up)), shape=(n, n))",
-      [TRANS + "::test_conserved_and_uniform_stays_uniform"],
-      note="SURVIVOR, equivalent on the tested mesh: its cells have equal volumes, so "
-           "V_down = V_up; a mesh with unequal cell volumes would catch it (conservation of "
-           "the bed totals) -- not written in this round"),
+      [TRANS + "::test_conserved_and_uniform_stays_uniform",
+       TRANS + "::test_unequal_cell_volumes_upwind_step_by_hand"],
+      note="equivalent on the first test's mesh (equal volumes, V_down = V_up); the ring of "
+           "unequal volumes checks one substep against the upwind update written by hand "
+           "and the bed total sum V_i S_i"),
     M("cfl-substeps-halved", "own", "transport", "pbe_cfd/transport.py",
       "        k = max(1, int(math.ceil(duration / self.dt_max * (1.0 - 1e-12))))",
       "        k = max(1, int(math.ceil(0.5 * duration / self.dt_max * (1.0 - 1e-12))))",
