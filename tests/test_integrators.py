@@ -163,6 +163,97 @@ def test_each_step_is_third_order(which):
     assert np.all((orders > 3.5) & (orders < 4.6)), (errors, orders)
 
 
+@numba.njit
+def _rodas3_step(y, h, buf, jac, pivots, coefs, cell, aux, params, config, work, rtol, atol):
+    """One RODAS3 step of size h [s] for QMOM (method code 0) at the given rtol, atol [scaled
+    units]: (outcome, error norm); buf[STAGE] holds the embedded solution, buf[YNEW] the step."""
+    n = y.shape[0]
+    rhs(0, y, buf[codes.F0], cell, aux, params, config, work)
+    n_inv = conserved(0, config, params, pivots, coefs)
+    jacobian(0, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, config, work, 1e-8,
+             1e-14, n)
+    out = rodas3_attempt(0, y, h, buf, jac, np.zeros((n, n)), np.zeros(n, dtype=np.int64),
+                         cell, aux, params, config, work, rtol, atol, n)
+    return out[0], out[1]
+
+
+def test_rodas3_error_norm_is_the_embedded_solutions_local_error_over_the_tolerance():
+    """The number RODAS3 compares with 1 is max_i |y_i - yhat_i| / (atol + rtol max(|y0_i|,
+    |y_i|)): y the third-order step, yhat the second-order embedded solution (the stage
+    y0 + 2 k1 + k3 that y adds k4 to). Checked on one step of the closed-form capture problem
+    (capture at 20 /s, exponential start as in test_each_step_is_third_order: a monodisperse
+    start puts the QMOM nodes on the realizability boundary): (1) the norm written out here
+    from the two solutions equals the one returned, to rounding; (2) y - yhat is the local
+    error of yhat in the free droplets against the closed form within a factor 2 (yhat's
+    error is O(h^3), y's O(h^4): at h = 0.005 s, a tenth of the capture time, y - yhat and
+    yhat - exact differ by y's own error, measured 5% of it); (3) the step is accepted exactly
+    when the norm is <= 1 (one tolerance pair accepts it, the other rejects it)."""
+    base = capture_scene(100.0, "implicit")
+    scene = dataclasses.replace(base, initial=dataclasses.replace(base.initial,
+                                                                  distribution="exponential"))
+    arrays = model.pack(scene)
+    aux = method_of(scene).aux(scene, arrays, None)
+    y0 = model.initial_moments(scene, arrays, arrays.state_names)
+    cell = model.well_mixed_cell(scene)[0]
+    n = y0.size
+    h = 0.005
+    droplets = capture_exact(np.array([h]), 100.0)[1][0] / arrays.number_scale
+    outcomes = set()
+    for rtol, atol in ((1e-4, 1e-10), (1e-6, 1e-12)):
+        buf = np.zeros((codes.N_BUF, n))
+        outcome, err = _rodas3_step(y0.copy(), h, buf, np.zeros((n, n)),
+                                    np.zeros(2, dtype=np.int64), np.zeros((2, n)), cell, aux,
+                                    arrays.params, arrays.config, np.zeros(WORK_SIZE), rtol,
+                                    atol)
+        y, yhat = buf[codes.YNEW], buf[codes.STAGE]
+        by_hand = np.max(np.abs(y - yhat) / (atol + rtol * np.maximum(np.abs(y0), np.abs(y))))
+        # y = fl(yhat + k4) rounds by eps |y| / 2: y - yhat differs from the k4 the code
+        # divides by up to eps |y|, i.e. eps / rtol in the norm (weight >= rtol |y|)
+        rounding = 2.0 * np.finfo(float).eps / rtol
+        assert err == pytest.approx(by_hand, rel=1e-12, abs=rounding), (rtol, err, by_hand)
+        ratio = abs(yhat[n - 1] - droplets) / abs(y[n - 1] - yhat[n - 1])
+        assert 0.5 < ratio < 2.0, (rtol, ratio)
+        assert (outcome == codes.ACCEPT) == (by_hand <= 1.0), (rtol, outcome, by_hand)
+        outcomes.add(outcome)
+    assert outcomes == {codes.ACCEPT, codes.REJECT_ERROR}
+
+
+def test_implicit_error_is_proportional_to_rtol():
+    """Tolerance proportionality of the implicit scheme on the closed-form capture problem
+    (capture at 20 /s). RODAS3 propagates its third-order solution and sizes steps on the
+    second-order estimate: h ~ rtol^(1/3), the propagated local error ~ h^4 and the step count
+    ~ 1/h, so the global error ~ h^3 ~ rtol. From rtol 1e-6 to 1e-8 the error must shrink by
+    100, within a factor 3 either way (step-size rounding at the output times, the opening
+    step); each error within error_bound of the closed form (tests/error_bounds.py)."""
+    pd = droplet_mass(D_DROP, 1000.0)
+    errors = {}
+    for rtol in (1e-6, 1e-8):
+        res = run_well_mixed(capture_scene(100.0, "implicit", rtol=rtol))
+        c, t = res.columns, res.columns["time_s"]
+        granules, droplets, granule_mass = capture_exact(t, 100.0)
+        nd = c["droplet_number_density"]
+        errors[rtol] = max(relative(c["M00"] - nd, granules), relative(nd, droplets),
+                           relative(c["M10"] - nd * pd, granule_mass))
+        assert errors[rtol] < error_bound(rtol, granules, droplets, granule_mass), rtol
+    ratio = errors[1e-6] / errors[1e-8]
+    assert 100.0 / 3.0 < ratio < 300.0, (errors, ratio)
+
+
+@pytest.mark.parametrize("integrator", ["explicit", "implicit"])
+def test_rejected_steps_are_rare_on_a_smooth_scene(integrator):
+    """The step controller proposes h_new = h 0.9 err^(-1/3) (growth at most 5x): if the
+    error constant of the next step is that of the last, its estimate is 0.9^3 = 0.73 of the
+    tolerance, and a rejection needs that constant to grow by 1 / 0.73 = 1.37 within one step.
+    On the capture problem at rtol 1e-8 (hundreds of steps per e-fold: the constant changes by
+    about 1% per step) that happens only at the opening guess and after output times, so at
+    most a tenth of the accepted steps may be rejected (measured 0.1% explicit, 0.8%
+    implicit). A controller that overshoots its own prediction is rejected after nearly every
+    accepted step: the rejections, the wasted right-hand sides, are what it costs."""
+    res = run_well_mixed(capture_scene(100.0, integrator))
+    st = res.stats
+    assert st["rejected_error"] <= 0.1 * st["accepted_steps"], st
+
+
 def test_rodas3_stays_third_order_near_the_realizability_boundary():
     """The study-ktgf cell at 10 s (QMOM N = 3, aggregated from a monodisperse start: its
     moment set lies near the boundary, where the RHS is strongly curved and its Jacobian's

@@ -173,6 +173,43 @@ def test_conserved_and_uniform_stays_uniform(mesh, bundled):
     assert np.max(np.abs(states - start) / np.abs(start).max(axis=0)) > 1e-2
 
 
+def test_unequal_cell_volumes_upwind_step_by_hand():
+    """Upwind transport on a ring of cells of unequal volume against the update written out
+    here: with a constant flux F [m3/s] from cell i-1 to cell i (a ring's only divergence-free
+    flux), cell i gains F q_(i-1) and loses F q_i per second, q = S / alpha the population per
+    m3 of solids, so one explicit substep dt changes the state per m3 of bed by
+    dt F (S_(i-1) / alpha_(i-1) - S_i / alpha_i) / V_i. The bed total sum_i V_i S_i is
+    unchanged on the closed ring. Equal volumes (the other ring tests) cannot tell V_i
+    (receiver) from V_(i-1) (donor) in that formula; these volumes differ by up to 6x."""
+    volumes = 1.0e-6 * np.array([1.0, 3.0, 0.5, 2.0, 1.5, 0.7])
+    n, flux = volumes.size, 1.0e-7
+    domain = ring(n=n, flux=flux)
+    domain.cells.cell_volume = volumes
+    scene = bed_scene(transport={"courant": 0.5})
+    tr, rows, active, arrays = setup(scene, domain)
+    alpha = tr.alpha
+    assert np.array_equal(tr.volume, volumes)
+    rng = np.random.default_rng(11)
+    # dry monodisperse populations of different sizes per cell (their mixtures are realizable)
+    states = np.array([mono(arrays, alpha[c] * RHO / P0 * rng.uniform(0.5, 1.5),
+                            P0 * rng.uniform(0.8, 3.0)) for c in range(n)])
+    start = states.copy()
+    total0 = volumes @ states
+    dt = tr.dt_max
+    assert tr.transport(states, dt) == 1
+    donor = np.roll(np.arange(n), 1)                 # cell i receives from cell i-1
+    by_hand = start + dt * flux * (start[donor] / alpha[donor, None]
+                                   - start / alpha[:, None]) / volumes[:, None]
+    # one substep is a sum of three terms of size <= |S|: a few rounding errors of |S|
+    scale = np.abs(start).max(axis=0)
+    assert np.max(np.abs(states - by_hand) / scale) <= 1e-14
+    assert np.max(np.abs(states - start) / scale) > 1e-2          # it really moved
+    for _ in range(99):
+        tr.transport(states, dt)
+    # 100 substeps, each a sparse product of rounding size: 1e-13 of the totals
+    assert np.max(np.abs(volumes @ states - total0) / np.abs(total0)) <= 1e-13
+
+
 # ---------------------------------------------------------------------------- tracer
 @pytest.mark.parametrize("mesh", ["ring", "bundled"])
 def test_binder_tracer_spreads_conserved_and_realizable_every_substep(mesh, bundled):
