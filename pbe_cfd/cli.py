@@ -298,13 +298,18 @@ def _couple_recorded(args, scene, out, phases, t_read, caught):
         phases = write_coupled(tmp, scene, domain, result, phases=phases)
         if args.foam_fields:
             written = write_foam_fields(scene, domain, result, args.overwrite)
-            executor.mirror_to_processors(written, args.overwrite)  # per processor too
+            written = list(written) + list(executor.mirror_to_processors(written,
+                                                                         args.overwrite))
     executor.finish()  # the output is complete: drop what was kept for a resume
     print(f"{scene.name}: {result.stats['active_cells']} of {result.stats['cells']} cells to "
           f"t = {scene.end_time:g} s in {result.wall_time_s:.2f} s "
           f"({result.stats['cell_steps_per_second']:.3g} cell-steps/s)"
           f"{_compile_text(result)}; wrote {args.out}/")
     print(f"{scene.name}: {_phases_text(phases)}")
+    if args.foam_fields:
+        dirs = sorted({str(Path(p).parent) for p in written})
+        print(f"{scene.name}: wrote {len(written)} pbe.* field files into the case: "
+              f"{', '.join(dirs)}")
     return 0
 
 

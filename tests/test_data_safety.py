@@ -426,7 +426,10 @@ def test_foam_fields_never_replace_a_field_pbe_cfd_did_not_write(box, capsys):
             "pbe.M00")
     assert tree(case) == before and not (box / "c").exists()
     (case / "1.5" / "pbe.M00").unlink()
+    capsys.readouterr()
     assert main(["couple", "s.toml", "--foam-fields", "--out", "c"]) == 0
+    # the run says what it wrote into the user's case, and where
+    assert f"pbe.* field files into the case: {case / '1.5'}" in capsys.readouterr().out
     written = case / "1.5" / "pbe.M00"
     assert output.file_is_marked(written)
     assert (case / "1.5" / "alpha.particlesMean").read_text() == "the CFD's own field\n"

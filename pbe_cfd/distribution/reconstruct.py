@@ -145,8 +145,9 @@ def interpolate_rows(q, x, y):
     j1 = np.clip(j, 0, last)
     x0, x1 = np.take_along_axis(lx, j0, 1), np.take_along_axis(lx, j1, 1)
     y0, y1 = np.take_along_axis(y, j0, 1), np.take_along_axis(y, j1, 1)
-    gap = np.where(j1 > j0, x1 - x0, 1.0)
-    t = np.where(j1 > j0, (q[None, :] - x0) / gap, 0.0)
+    with np.errstate(invalid="ignore"):       # inf - inf in rows without a node (masked below)
+        gap = np.where(j1 > j0, x1 - x0, 1.0)
+        t = np.where(j1 > j0, (q[None, :] - x0) / gap, 0.0)
     return np.where((nv > 0)[:, None], y0 + t * (y1 - y0), 0.0)
 
 
