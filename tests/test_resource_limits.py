@@ -4,7 +4,6 @@ error control, the product kernel past its gel time; each refused in one line (e
 names the key and the limit, by `plan` as well as by the runs."""
 import dataclasses
 import math
-import textwrap
 
 import pytest
 
@@ -16,28 +15,9 @@ from pbe_cfd.methods import laguerre_tensor
 from pbe_cfd.scene import SceneError, load_scene
 
 from conftest import make_scene
+from test_data_safety import TINY_RUN
 
-TINY = textwrap.dedent("""
-    [scene]
-    name = "tiny"
-    end_time = 2.0
-    output_interval = 1.0
-    [domain]
-    type = "well-mixed"
-    solids_fraction = 0.3
-    [material]
-    density = 1000.0
-    [initial]
-    distribution = "monodisperse"
-    number_density = 1e10
-    mean_mass = 1e-9
-    [aggregation]
-    kernel = "constant"
-    rate = 1e-11
-    [method]
-    name = "qmom"
-    nodes = 2
-""")
+TINY = TINY_RUN           # the smallest well-mixed run (test_data_safety)
 
 
 def one_line_refusal(capsys, *keys):
