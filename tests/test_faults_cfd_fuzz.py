@@ -18,10 +18,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from pbe_cfd.cfd import openfoam as of
+from pbe_cfd.io import openfoam as of
 from pbe_cfd.cli import main
-from pbe_cfd.domain import load_domain
-from pbe_cfd.scene import load_scene
+from pbe_cfd.runs.domain import load_domain
+from pbe_cfd.scene.scene import load_scene
 from test_data_safety import tiny_couple_text
 
 TUTORIAL = Path("/usr/share/doc/openfoam-examples/examples/multiphase/twoPhaseEulerFoam/"

@@ -10,14 +10,14 @@ import subprocess
 import sys
 import textwrap
 
-from pbe_cfd import output, output_guard
+from pbe_cfd.io import output, output_guard
 from pbe_cfd.cli import main
 from test_data_safety import box  # noqa: F401 (fixture)
 from test_output_faults import siblings
 
 CLAIM_AND_WAIT = textwrap.dedent("""
     import sys, time
-    from pbe_cfd import output
+    from pbe_cfd.io import output
     output.prepare_directory(sys.argv[1], kind="run")
     print("claimed", flush=True)
     time.sleep(60)
@@ -76,7 +76,7 @@ def test_a_stale_pid_of_another_live_process_is_not_taken_for_a_holder(box, caps
 
 KILLED_WHILE_WRITING = textwrap.dedent("""
     import os, sys
-    from pbe_cfd import output
+    from pbe_cfd.io import output
     with output.atomic_directory(sys.argv[1], overwrite=True, kind="run") as d:
         (d / "a.txt").write_text("half")
         print(os.getpid(), flush=True)
