@@ -18,6 +18,7 @@ import numpy as np
 from . import integrate, model
 from .methods.registry import method_of
 from .physics import parameters as P
+from .progress import compile_text, notice_if_slow, record_compile_s
 from .scene import SceneError
 
 #: relative width w of the smooth viscous Stokes switch, 0.5 (1 - tanh((St - St*)/(w St*))),
@@ -141,6 +142,27 @@ class CellBatch:
                                   np.zeros_like(self.reached[one]))
         seconds = _time.perf_counter() - start
         self.compiled_now = sum(integrate.integrate_cells_kernel.stats.cache_misses.values()) > misses
+        return seconds
+
+    def kernel_name(self) -> str:
+        """The compiled kernel this batch runs, as a run names it: method and integrator."""
+        scheme = {code: name for name, code in integrate.SCHEMES.items()}.get(
+            int(self.config[P.INTEGRATOR]), "?")
+        method = self.scene.method.name if self.scene is not None else \
+            f"method {int(self.config[P.METHOD])}"
+        return f"the {method} kernel with the {scheme} integrator"
+
+    def compile_announced(self, progress, extra=None) -> float:
+        """``compile`` (and ``extra()``, more kernels of the run, if given), telling
+        ``progress`` what compiles and roughly how long it takes when it is slow (a first
+        run); a compile's time is kept for the next notice. Returns the wall time [s]."""
+        name = self.kernel_name()
+        with notice_if_slow(progress, compile_text(name)):
+            seconds = self.compile()
+            if extra is not None:
+                seconds += extra()
+        if self.compiled_now:
+            record_compile_s(name, seconds)
         return seconds
 
     def advance(self, t0: float, t1: float, states: np.ndarray | None = None):

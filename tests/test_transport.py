@@ -274,6 +274,28 @@ def test_binder_repair_keeps_number_mass_and_binder():
     assert unrealizable_cells(mixes, aux, arrays.params, arrays.config)[0] == 0
 
 
+def test_the_mixture_repair_compiles_the_scenes_method_alone():
+    """The repair after transport checks and re-projects with the scene's method only (its
+    code a compile-time constant): compiling it for a QMOM scene compiles (or loads) no
+    Laguerre or CQMOM function and not the run-time dispatch over every method
+    (test_binder_repair_keeps_number_mass_and_binder checks what it does)."""
+    from numba.core import types
+
+    from pbe_cfd import transport as tmod
+    from pbe_cfd.methods import cqmom, laguerre
+    from pbe_cfd.methods.dispatch import QMOM, method_project, method_realizable
+    others = (laguerre.laguerre_realizable, laguerre.laguerre_project,
+              cqmom.cqmom_realizable, cqmom.cqmom_project, method_realizable, method_project)
+    before = [len(f.overloads) for f in others]
+    scene = bed_scene(transport={}, initial={"binder_fraction": 0.01})
+    tr, rows, active, arrays = setup(scene, ring(n=3, alpha=[0.3, 0.3, 0.3]))
+    assert tr.repair is not None
+    tr.compile(len(arrays.state_names))
+    assert [len(f.overloads) for f in others] == before
+    assert tmod._repair_cells.signatures
+    assert all(sig[0] == types.literal(QMOM) for sig in tmod._repair_cells.signatures)
+
+
 # ---------------------------------------------------------------------------- splitting
 @pytest.mark.parametrize("splitting", ["strang", "lie"])
 def test_advance_splits_sources_and_reaches_t1(splitting):
