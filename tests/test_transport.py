@@ -13,16 +13,16 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from pbe_cfd import model
-from pbe_cfd.cfd.openfoam import FaceFlux, load_snapshot
-from pbe_cfd.couple import run_coupled
-from pbe_cfd.domain import Domain, build_cells, coupled_scales, load_domain
+from pbe_cfd.runs import model
+from pbe_cfd.io.openfoam import FaceFlux, load_snapshot
+from pbe_cfd.runs.couple import run_coupled
+from pbe_cfd.runs.domain import Domain, build_cells, coupled_scales, load_domain
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.kernels import radial_distribution
-from pbe_cfd.scene import SceneError, load_scene
-from pbe_cfd.simulate import run_well_mixed
-from pbe_cfd.solids_flux import divergence_free, pair_weighted_average
-from pbe_cfd.transport import build_transport, unrealizable_cells
+from pbe_cfd.scene.scene import SceneError, load_scene
+from pbe_cfd.runs.simulate import run_well_mixed
+from pbe_cfd.transport.solids_flux import divergence_free, pair_weighted_average
+from pbe_cfd.transport.operator import build_transport, unrealizable_cells
 
 from conftest import AVICEL, make_scene
 
@@ -281,11 +281,12 @@ def test_the_mixture_repair_compiles_the_scenes_method_alone():
     (test_binder_repair_keeps_number_mass_and_binder checks what it does)."""
     from numba.core import types
 
-    from pbe_cfd import transport as tmod
-    from pbe_cfd.methods import cqmom, laguerre
+    from pbe_cfd.methods.cqmom.cqmom import cqmom_project, cqmom_realizable
     from pbe_cfd.methods.dispatch import QMOM, method_project, method_realizable
-    others = (laguerre.laguerre_realizable, laguerre.laguerre_project,
-              cqmom.cqmom_realizable, cqmom.cqmom_project, method_realizable, method_project)
+    from pbe_cfd.methods.laguerre.rhs import laguerre_project, laguerre_realizable
+    from pbe_cfd.transport import operator as tmod
+    others = (laguerre_realizable, laguerre_project, cqmom_realizable, cqmom_project,
+              method_realizable, method_project)
     before = [len(f.overloads) for f in others]
     scene = bed_scene(transport={}, initial={"binder_fraction": 0.01})
     tr, rows, active, arrays = setup(scene, ring(n=3, alpha=[0.3, 0.3, 0.3]))
@@ -381,7 +382,7 @@ def test_transport_scene_keys_are_validated(tmp_path):
 
 
 def test_plan_reports_cfl_split_step_and_mixing_time():
-    from pbe_cfd.plan import describe_plan
+    from pbe_cfd.runs.plan import describe_plan
 
     text = describe_plan(load_scene("fluid-bed-transport"))
     assert "transport CFL" in text and "split step" in text and "bed mixing time" in text
