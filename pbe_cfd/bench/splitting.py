@@ -69,7 +69,7 @@ def splitting_rows(quiet=False, quick=False) -> list:
 def splitting_markdown(rows, plain_rhs=None) -> list:
     """The study's table (Markdown lines); ``plain_rhs``: RHS calls of the scene without
     [transport], for the ratio column."""
-    head = " | ".join(k.replace("_m", "").replace("droplet_number_density", "droplets")
+    head = " / ".join(k.replace("_m", "").replace("droplet_number_density", "droplets")
                       for k in COMPARED)
     lines = ["", f"| fluid-bed-transport splitting | split step [s] | run CPU [s] | solve "
              f"[s] | RHS calls{' (x no transport)' if plain_rhs else ''} | max rel. "
