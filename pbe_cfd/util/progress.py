@@ -40,7 +40,7 @@ def last_compile_s(kernel: str) -> float | None:
 
 
 def record_compile_s(kernel: str, seconds: float):
-    """Keep the compile time of ``kernel`` [s] for the next notice (silently skipped where
+    """Keep the compile time of ``kernel`` [s of CPU] for the next notice (silently skipped where
     the cache directory cannot be written)."""
     path = _compile_record()
     try:
@@ -59,8 +59,8 @@ def record_compile_s(kernel: str, seconds: float):
 def compile_text(kernel: str) -> str:
     """The notice of a compile: what compiles and roughly how long it takes."""
     last = last_compile_s(kernel)
-    how_long = (f"about {last:.0f} s (the last compile on this machine)" if last is not None
-                else FIRST_COMPILE_HINT)
+    how_long = (f"about {last:.0f} s on an idle core (the last compile on this machine)"
+                if last is not None else FIRST_COMPILE_HINT)
     return f"{COMPILING}: {kernel}, {how_long}"
 
 
