@@ -4,7 +4,7 @@ import hashlib
 
 import pytest
 
-from pbe_cfd.scene import SceneError
+from pbe_cfd.scene.scene import SceneError
 
 from conftest import make_scene
 
@@ -16,7 +16,7 @@ def _tree(root):
 
 
 def test_decompose_refuses_a_case_with_processor_directories(tmp_path):
-    from pbe_cfd.distributed import make_executor
+    from pbe_cfd.runs.distributed import make_executor
 
     case = tmp_path / "my-bed"
     (case / "system").mkdir(parents=True)
