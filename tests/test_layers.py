@@ -10,7 +10,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "pbe_cfd"
 #: layers from the bottom up; a module may import its own layer and the ones below
 LAYERS = [
     ("utilities", ("pbe_cfd", "pbe_cfd.progress", "pbe_cfd.output", "pbe_cfd.plotting",
-                   "pbe_cfd.population", "pbe_cfd.cfd", "pbe_cfd.results",
+                   "pbe_cfd.population", "pbe_cfd.cfd", "pbe_cfd.results", "pbe_cfd.io",
                    "pbe_cfd.psd_figure")),
     ("physics", ("pbe_cfd.physics",)),
     ("methods", ("pbe_cfd.methods", "pbe_cfd.integrate")),
@@ -18,7 +18,7 @@ LAYERS = [
     ("domain", ("pbe_cfd.model", "pbe_cfd.domain", "pbe_cfd.distribution")),
     ("orchestration", ("pbe_cfd.batch", "pbe_cfd.simulate", "pbe_cfd.couple",
                        "pbe_cfd.executor", "pbe_cfd.distributed", "pbe_cfd.transport",
-                       "pbe_cfd.solids_flux", "pbe_cfd.plan")),
+                       "pbe_cfd.solids_flux", "pbe_cfd.plan", "pbe_cfd.runs")),
     ("studies", ("pbe_cfd.bench",)),
     ("cli", ("pbe_cfd.cli",)),
 ]

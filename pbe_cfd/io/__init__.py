@@ -1,0 +1,1 @@
+"""Input and output: OpenFOAM cases, tables, VTK."""

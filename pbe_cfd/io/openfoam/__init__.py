@@ -1,0 +1,1 @@
+"""OpenFOAM case I/O of the coupled runs."""
