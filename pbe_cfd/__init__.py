@@ -19,7 +19,7 @@ __version__ = "0.1.0"
 UNCOMPILED = ("cli.py", "plan.py", "results.py", "plotting.py", "progress.py", "simulate.py",
               "couple.py", "executor.py", "batch.py", "cfd/render.py", "cfd/section.py",
               "cfd/figure_pool.py", "cfd/figure_parts.py", "cfd/bed_moments.py", "cfd/vtk.py",
-              "cfd/cases.py", "distributed/",
+              "cfd/cases.py", "distributed/", "runs/", "io/", "physics/fluidisation.py",
               "bench/__init__.py", "bench/accuracy.py", "bench/accuracy_report.py",
               "bench/analytic.py", "bench/cluster.py", "bench/cnmc.py", "bench/common.py",
               "bench/couple.py", "bench/integrators.py", "bench/laguerre.py",

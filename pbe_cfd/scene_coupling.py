@@ -11,6 +11,8 @@ Keys (SI):
                   (default flow_time / 3: the flow's start-up after the diameter changed)
   first_flow_time s of flow of the first CFD run when the scene's case is the bundled snapshot
                   (the template then runs from its packed bed; default flow_time)
+  first_average_from  s where that first run's fieldAverage window begins (default
+                  average_from)
   mesh            "small" or "full": the template's mesh for that first run
   warn_fraction   warn of defluidisation when the granules' minimum fluidisation velocity
                   reaches this fraction of the inlet's superficial velocity (default 0.8)
@@ -32,6 +34,7 @@ class Coupling:
     d32_change: float | None = None
     average_from: float | None = None
     first_flow_time: float | None = None
+    first_average_from: float | None = None
     mesh: str = "small"
     warn_fraction: float = 0.8
     inlet_velocity: float | None = None
@@ -46,6 +49,12 @@ class Coupling:
         """s of flow of the first CFD run (from the template's packed bed)."""
         return self.first_flow_time if self.first_flow_time is not None else self.flow_time
 
+    @property
+    def first_window_start(self) -> float:
+        """s where the first run's averaging window begins."""
+        return (self.first_average_from if self.first_average_from is not None
+                else self.window_start)
+
 
 def parse_coupling(table, domain, error) -> Coupling:
     """Validate the ``[coupling]`` table (``table``: the scene module's key reader) of a scene
@@ -56,6 +65,8 @@ def parse_coupling(table, domain, error) -> Coupling:
         d32_change=table.number("d32_change", None, positive=True),
         average_from=table.number("average_from", None, non_negative=True, unit="s"),
         first_flow_time=table.number("first_flow_time", None, positive=True, unit="s"),
+        first_average_from=table.number("first_average_from", None, non_negative=True,
+                                        unit="s"),
         mesh=table.choice("mesh", ("small", "full"), "small"),
         warn_fraction=table.number("warn_fraction", 0.8, positive=True, high=1.0),
         inlet_velocity=table.number("inlet_velocity", None, positive=True, unit="m/s"))
@@ -69,9 +80,9 @@ def parse_coupling(table, domain, error) -> Coupling:
     if not c.window_start < c.flow_time:
         fail("coupling.average_from", f"expected below flow_time = {c.flow_time:g} s, got "
               f"{c.window_start:g} s")
-    if c.first_flow_time is not None and not c.window_start < c.first_flow:
-        fail("coupling.first_flow_time", f"expected above average_from = "
-              f"{c.window_start:g} s, got {c.first_flow:g} s")
+    if not c.first_window_start < c.first_flow:
+        fail("coupling.first_flow_time", f"expected above the first run's average_from = "
+             f"{c.first_window_start:g} s, got {c.first_flow:g} s")
     if domain.type != "openfoam":
         fail("coupling", "two-way coupling re-runs an OpenFOAM case: expected domain.type = "
               "\"openfoam\"")

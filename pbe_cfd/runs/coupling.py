@@ -130,12 +130,13 @@ def _first_cfd(scene, store, log) -> dict:
     d = initial_diameter(scene)
     t0 = _time.perf_counter()
     try:
-        rerun.start_case(target, scene.domain.phase, d, c.first_flow, c.window_start,
+        rerun.start_case(target, scene.domain.phase, d, c.first_flow, c.first_window_start,
                          mesh=c.mesh, log=log)
     except of.OpenFOAMError as exc:
         raise _segment_error(0, 0.0, 0.0, exc) from None
     return {"case": target.name, "time_name": rerun.latest_time_name(target), "diameter": d,
-            "cfd_wall_s": _time.perf_counter() - t0, "window": [c.window_start, c.first_flow]}
+            "cfd_wall_s": _time.perf_counter() - t0,
+            "window": [c.first_window_start, c.first_flow]}
 
 
 def _next_cfd(scene, store, k, prev_case, prev_time, d, t_process, log) -> dict:
@@ -178,7 +179,8 @@ def _ends_here(c, t_start, t, d32, d_cfd, t_end) -> bool:
         return True
     if c.interval is not None and t - t_start >= c.interval * (1 - 1e-9):
         return True
-    return c.d32_change is not None and abs(d32 / d_cfd - 1.0) >= c.d32_change
+    return (c.d32_change is not None
+            and abs(d32 / d_cfd - 1.0) >= c.d32_change * (1 - 1e-9))
 
 
 def run_two_way(scene, store, progress=None, log=None) -> TwoWayRun:
