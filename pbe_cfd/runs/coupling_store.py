@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import output
+from ..io.openfoam.rerun import SEGMENT_KIND
 
 #: Name of the segment store next to an output directory DIR: DIR.coupling/.
 STORE_SUFFIX = ".coupling"
@@ -73,11 +74,17 @@ class SegmentStore:
         return self
 
     def _drop_unfinished(self):
-        """Remove the case of a CFD segment that did not finish (its own files only)."""
+        """Remove the case of a CFD segment that did not finish. pbe-cfd made that directory
+        (its manifest says so); a run killed outright leaves in it files the OpenFOAM tools
+        wrote after the manifest was last written, which are listed first."""
         for p in sorted(self.path.glob("segment_*")):
             k = int(p.name.split("_")[1])
-            if str(k) not in self.progress["cfd"]:
-                output.remove_written(p)
+            if str(k) in self.progress["cfd"]:
+                continue
+            manifest = output.read_manifest(p)
+            if manifest is not None and manifest.get("kind") == SEGMENT_KIND:
+                output.record_new_files(p, set(), kind=SEGMENT_KIND)
+            output.remove_written(p)
 
     def case_dir(self, k: int) -> Path:
         """The OpenFOAM case of segment ``k``."""

@@ -197,6 +197,7 @@ def start_case(target, phase: str, diameter: float, flow_time: float, avg_start:
             shutil.copyfile(src / rel, dest)
             output.apply_umask(dest, directory=(src / rel).stat().st_mode & 0o111 != 0)
         set_diameter(target, phase, diameter)
+        output.record_new_files(target, set(), kind=SEGMENT_KIND)   # ours, before any tool
         of.run_case(target, mesh=mesh, log=log, end_time=flow_time, avg_start=avg_start)
         return target
     return _owned(target, set(), body)
@@ -229,6 +230,7 @@ def continue_case(source, time_name: str, target, phase: str, diameter: float,
         set_diameter(target, phase, diameter)
         set_window(target, time_name, t0 + flow_time, t0 + avg_from)
         (target / "case.foam").touch()
+        output.record_new_files(target, set(), kind=SEGMENT_KIND)   # ours, before any tool
         started = _time.perf_counter()
         _run_tool(target, SOLVER, [], install.env(), say, t0 + flow_time)
         _run_tool(target, VTK_TOOL, ["-latestTime", "-no-boundary", "-no-point-data",
