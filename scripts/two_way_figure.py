@@ -19,10 +19,10 @@ import numpy as np
 
 
 def main(argv=None):
-    from pbe_cfd.domain import build_cells, load_domain
-    from pbe_cfd.output import read_columns_csv
+    from pbe_cfd.runs.domain import build_cells, load_domain
+    from pbe_cfd.io.output import read_columns_csv
     from pbe_cfd.runs.coupling_output import bed_state
-    from pbe_cfd.scene import load_scene
+    from pbe_cfd.scene.scene import load_scene
 
     ap = argparse.ArgumentParser()
     ap.add_argument("one")

@@ -13,7 +13,7 @@ from pbe_cfd import cli
 from pbe_cfd.physics.fluidisation import minimum_fluidisation_velocity
 from pbe_cfd.runs.coupling import _ends_here, carry_over
 from pbe_cfd.runs.coupling_output import defluidisation_warnings, umf_of
-from pbe_cfd.scene import SceneError, scene_from_dict
+from pbe_cfd.scene.scene import SceneError, scene_from_dict
 from references import wen_yu
 
 AIR = {"gas_density": 1.1586, "gas_viscosity": 1.84e-5}     # the bundled case at 300 K, 1 bar

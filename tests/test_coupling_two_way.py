@@ -8,12 +8,12 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from pbe_cfd.batch import SimulationError
+from pbe_cfd.runs.batch import SimulationError
 from pbe_cfd.io.openfoam import rerun
 from pbe_cfd.runs.coupling import initial_diameter, run_two_way
 from pbe_cfd.runs.coupling_output import combined_result, segment_rows
 from pbe_cfd.runs.coupling_store import SegmentStore
-from pbe_cfd.scene import scene_from_dict
+from pbe_cfd.scene.scene import scene_from_dict
 
 pytestmark = [pytest.mark.openfoam,
               pytest.mark.skipif(shutil.which("twoPhaseEulerFoam") is None,

@@ -1,1 +1,1 @@
-"""Input and output: OpenFOAM cases, tables, VTK."""
+"""Result files, their manifest and guard, OpenFOAM case I/O, VTK series."""

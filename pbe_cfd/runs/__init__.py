@@ -1,1 +1,1 @@
-"""Runs: the two-way coupled run and its segment store (more runs move here)."""
+"""A run: the scene's arrays, the cell batches, well-mixed and coupled runs, executors."""

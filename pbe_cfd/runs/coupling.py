@@ -29,16 +29,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import model
-from ..batch import CellBatch, SimulationError, check_physics, output_times
-from ..cfd import openfoam as of
-from ..domain import (Domain, build_cells, case_path, coupled_scales, initial_states,
+from . import model
+from .batch import CellBatch, SimulationError, check_physics, output_times
+from ..io import openfoam as of
+from .domain import (Domain, build_cells, case_path, coupled_scales, initial_states,
                       load_domain, theta_grid)
-from ..executor import SerialExecutor
+from .executor import SerialExecutor
 from ..io.openfoam import rerun
 from ..methods.registry import method_of
 from ..physics import parameters as P
-from ..population import mean_diameters
+from ..util.population import mean_diameters
 
 
 @dataclass
@@ -122,7 +122,7 @@ def _first_cfd(scene, store, log) -> dict:
     user = case_path(scene)
     if user is not None:
         t = of.pick_time(user, scene.domain.time, phase=scene.domain.phase)
-        from ..cfd.openfoam.material import case_material
+        from ..io.openfoam.material import case_material
         d = case_material(user, scene.domain.phase)["diameter"][0] or initial_diameter(scene)
         return {"case": str(user), "time_name": of.time_name(user, t), "diameter": d,
                 "cfd_wall_s": 0.0, "window": None}
@@ -250,7 +250,7 @@ def _granulate(scene, seg, arrays, aux, states, times, progress) -> float:
     t0 = _time.perf_counter()
     transport = None
     if scene.transport is not None:
-        from ..transport import build_transport
+        from ..transport.operator import build_transport
         transport = build_transport(scene, seg.domain, seg.active, seg.rows, arrays=arrays,
                                     aux=aux)
     executor = SerialExecutor()

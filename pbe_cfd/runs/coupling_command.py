@@ -13,7 +13,7 @@ import sys
 import time as _time
 from pathlib import Path
 
-from .. import output
+from ..io import output
 from .coupling_store import PROGRESS, SegmentStore, store_path
 
 #: couple options a two-way run does not take (serial, its own segment cases)
@@ -25,14 +25,14 @@ REFUSED = (("scheduler", "--scheduler"), ("workers", "--workers"), ("chunks", "-
 def wanted(args, default_scene: str) -> bool:
     """True when ``couple`` runs two-way: SCENE has ``[coupling]``, or --resume DIR names the
     output of a two-way run."""
-    from ..scene import load_scene
+    from ..scene.scene import load_scene
     if args.resume:
         return (store_path(args.resume) / PROGRESS).is_file()
     return load_scene(args.scene or default_scene).coupling is not None
 
 
 def _scene(args, default_scene):
-    from ..scene import load_scene
+    from ..scene.scene import load_scene
     source = args.scene
     if args.resume and not source:
         source = json.loads((store_path(args.resume) / PROGRESS).read_text())["scene"]
@@ -40,7 +40,7 @@ def _scene(args, default_scene):
 
 
 def _check(args, scene):
-    from ..cfd import openfoam as of
+    from ..io import openfoam as of
     for attr, flag in REFUSED:
         if getattr(args, attr, None):
             raise output.UsageError(f"{scene.source}: [coupling] runs serially in its own "
@@ -54,8 +54,8 @@ def _check(args, scene):
 
 def two_way(args, default_scene: str) -> int:
     """Run a two-way coupled scene and write its outputs; returns the exit code."""
-    from ..domain import case_path
-    from ..progress import Progress
+    from .domain import case_path
+    from ..util.progress import Progress
     from .coupling import run_two_way
     from .coupling_output import combined_result
 
@@ -95,7 +95,7 @@ def two_way(args, default_scene: str) -> int:
 def write_two_way(tmp: Path, scene, store, run, result):
     """The coupled outputs across segments, segments.csv and .png, each segment's logs and
     dictionaries (segments/NNN/), and summary.json's ``coupling`` section."""
-    from ..couple import write_coupled
+    from .couple import write_coupled
     from ..io.openfoam import rerun
     from .coupling_output import plot_segments, segment_rows
     cols = segment_rows(scene, run)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..couple import CoupledResult, _bed_distribution, _outputs
+from .couple import CoupledResult, _bed_distribution, _outputs
 from ..physics.fluidisation import minimum_fluidisation_velocity
 
 #: fraction of the solids volume below the bed height [-] (ours: a bed surface that ignores

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from ..batch import output_times
+from .batch import output_times
 
 #: cells of the template's meshes (openfoam_case/README.md)
 TEMPLATE_CELLS = {"small": 900, "full": 3600}

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import output
+from ..io import output
 from ..io.openfoam.rerun import SEGMENT_KIND
 
 #: Name of the segment store next to an output directory DIR: DIR.coupling/.

@@ -24,10 +24,10 @@ import warnings
 from collections.abc import Callable
 from pathlib import Path
 
-from ... import output
-from ...cfd import cases
-from ...cfd import openfoam as of
-from ...cfd.openfoam.case import _last_sim_time, _stop_group, _tail
+from .. import openfoam as of
+from .. import output
+from . import cases
+from .case import _last_sim_time, _stop_group, _tail
 
 #: the solver a segment runs, and the tool that writes its VTK internal mesh afterwards
 SOLVER = "twoPhaseEulerFoam"
