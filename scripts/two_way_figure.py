@@ -32,7 +32,7 @@ def main(argv=None):
     one, two = Path(a.one), Path(a.two)
     b1 = read_columns_csv(one / "bed_moments.csv")
     b2 = read_columns_csv(two / "bed_moments.csv")
-    seg = read_columns_csv(two / "segments.csv")
+    seg = _columns(two / "segments.csv")
     s1 = json.loads((one / "summary.json").read_text())
     s2 = json.loads((two / "summary.json").read_text())
     scene = load_scene(s1["scene"]["source"])
@@ -60,6 +60,13 @@ def main(argv=None):
               f"{int(seg['spray_cells'][k])} / {flat['spray_cells']} | "
               f"{seg['u_mf_m_s'][k]:.3g} |")
     _figure(a.out, b1, b2, seg, flat)
+
+
+def _columns(path):
+    import csv
+    with open(path) as fh:
+        rows = list(csv.DictReader(fh))
+    return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
 
 
 def _figure(path, b1, b2, seg, flat):

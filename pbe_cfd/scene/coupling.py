@@ -29,15 +29,15 @@ class Coupling:
     """``[coupling]``: the segment schedule [s of process time, or a relative d32 change],
     the flow time [s] and averaging start [s] of each CFD re-run, the first run's flow time
     [s] and mesh, and the defluidisation warning (fraction [-], inlet velocity [m/s])."""
-    flow_time: float
-    interval: float | None = None
-    d32_change: float | None = None
-    average_from: float | None = None
-    first_flow_time: float | None = None
-    first_average_from: float | None = None
-    mesh: str = "small"
-    warn_fraction: float = 0.8
-    inlet_velocity: float | None = None
+    flow_time: float                      # s of flow per CFD re-run, from the previous state
+    interval: float | None = None         # s of process time between CFD re-runs
+    d32_change: float | None = None       # relative change of the bed's d32 that re-runs the CFD
+    average_from: float | None = None     # s after a re-run's start where its average begins
+    first_flow_time: float | None = None  # s of flow of the template's first run (bundled case)
+    first_average_from: float | None = None   # s where that first run's average begins
+    mesh: str = "small"                   # the template's mesh for that first run
+    warn_fraction: float = 0.8            # defluidisation warning at U_mf >= this x U_inlet
+    inlet_velocity: float | None = None   # m/s compared with U_mf (default: the case's inlet)
 
     @property
     def window_start(self) -> float:
