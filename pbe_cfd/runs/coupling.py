@@ -183,10 +183,11 @@ def _ends_here(c, t_start, t, d32, d_cfd, t_end) -> bool:
             and abs(d32 / d_cfd - 1.0) >= c.d32_change * (1 - 1e-9))
 
 
-def run_two_way(scene, store, progress=None, log=None) -> TwoWayRun:
+def run_two_way(scene, store, progress=None, log=None, warn=None) -> TwoWayRun:
     """Run the segments of a two-way coupled scene (module docstring), continuing the finished
     steps the ``store`` holds. ``progress(fraction, text)`` after each output time, ``log``
-    receives the CFD's progress lines."""
+    receives the CFD's progress lines, ``warn`` the defluidisation warning of a segment's end
+    (``coupling_output.defluidisation_warning``) before the next CFD runs."""
     check_physics(scene)
     method = method_of(scene)
     times = output_times(scene)
@@ -233,6 +234,11 @@ def run_two_way(scene, store, progress=None, log=None) -> TwoWayRun:
         states, volumes = np.asarray(seg.history[-1]), vol
         if seg.t_end >= scene.end_time * (1 - 1e-12):
             return run
+        if warn is not None:
+            from .coupling_output import defluidisation_warning
+            text = defluidisation_warning(scene, run.fluidisation, seg.d32_end, seg.t_end)
+            if text:
+                warn(text)
         k, t_start, prev = k + 1, seg.t_end, cfd
         cfd = store.cfd(k)
         if cfd is None:

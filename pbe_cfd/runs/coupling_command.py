@@ -71,8 +71,11 @@ def two_way(args, default_scene: str) -> int:
     store.open(scene, resume=bool(args.resume))
     progress = Progress(f"{scene.name} (two-way)")
     started = _time.perf_counter()
+    said = []                       # warnings already printed during the run
     try:
-        run = run_two_way(scene, store, progress=progress, log=progress.notice)
+        run = run_two_way(scene, store, progress=progress, log=progress.notice,
+                          warn=lambda text: (said.append(text),
+                                             print(f"warning: {text}", file=sys.stderr)))
     except KeyboardInterrupt:
         output.note_interrupted(out, f"{out} not written; the finished segments are kept in "
                                 f"{store.path} (`pbe-cfd couple --resume {out_arg}` continues)")
@@ -81,7 +84,8 @@ def two_way(args, default_scene: str) -> int:
         progress.close()
     result = combined_result(scene, run, _time.perf_counter() - started)
     for w in result.warnings:
-        print(f"warning: {w}", file=sys.stderr)
+        if w not in said:
+            print(f"warning: {w}", file=sys.stderr)
     with output.atomic_directory(out, args.overwrite, kind="couple") as tmp:
         write_two_way(tmp, scene, store, run, result)
     store.remove()
