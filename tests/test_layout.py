@@ -11,7 +11,8 @@ _spec.loader.exec_module(layout)
 
 
 def test_no_test_module_sits_where_the_table_does_not_place_it():
-    wrong = [f"tests/{rel.as_posix()} belongs in tests/{want or '.'}"
+    wrong = [f"tests/{rel.as_posix()} belongs in tests/{want or '.'}" if want is not None
+             else f"tests/{rel.as_posix()} has no row in RULES"
              for rel, want in layout.misplaced()]
     assert not wrong, ("run python scripts/test_layout.py --apply (or add a row to its "
                        "RULES):\n" + "\n".join(wrong))
@@ -20,10 +21,11 @@ def test_no_test_module_sits_where_the_table_does_not_place_it():
 def test_the_check_finds_a_root_module_of_a_layer_and_a_module_in_the_wrong_folder(tmp_path):
     (tmp_path / "viz").mkdir()
     for rel in ("test_layers.py", "test_cli_extra.py", "viz/test_couple_more.py",
-                "viz/test_pictures_more.py"):
+                "viz/test_pictures_more.py", "test_unheard_of.py"):
         (tmp_path / rel).write_text("")
     found = {rel.as_posix(): want for rel, want in layout.misplaced(tmp_path)}
-    assert found == {"test_cli_extra.py": "cli", "viz/test_couple_more.py": "runs"}
+    assert found == {"test_cli_extra.py": "cli", "viz/test_couple_more.py": "runs",
+                     "test_unheard_of.py": None}
 
 
 def test_every_folder_of_the_table_is_a_folder_of_the_package():
