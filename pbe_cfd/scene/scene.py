@@ -1,4 +1,4 @@
-"""Scene files: TOML -> validated, frozen dataclasses (the keys: README.md, "Scenes").
+"""Scene files: TOML -> validated, frozen dataclasses (the keys: docs/scene-keys.md).
 
 A table present means that effect runs; an absent table is not computed at all. Every error
 names the file, the key and what was expected, and is raised as ``SceneError``."""
@@ -12,7 +12,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from . import limits
+from . import coupling as scene_coupling, limits
 from ..io.openfoam import case_keys
 from ..methods.registry import METHOD_NAMES, METHODS, MOMENT_METHODS
 from ..physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
@@ -21,10 +21,8 @@ from ..physics.kernels import KERNEL_BY_NAME
 
 #: the names the scene accepts, from the registries (physics.kernels, physics.efficiency,
 #: methods.registry)
-KERNEL_NAMES = tuple(KERNEL_BY_NAME)
-EFFICIENCY_NAMES = tuple(EFFICIENCY_BY_NAME)
-SELECTION_NAMES = tuple(SELECTION_BY_NAME)
-DAUGHTER_NAMES = tuple(DAUGHTERS_BY_NAME)
+KERNEL_NAMES, EFFICIENCY_NAMES = tuple(KERNEL_BY_NAME), tuple(EFFICIENCY_BY_NAME)
+SELECTION_NAMES, DAUGHTER_NAMES = tuple(SELECTION_BY_NAME), tuple(DAUGHTERS_BY_NAME)
 
 
 class SceneError(ValueError):
@@ -135,7 +133,7 @@ class BinderInjection:
 
 @dataclass(frozen=True)
 class Method:
-    """Numerical method and its accuracy knobs (README.md, "Scenes")."""
+    """Numerical method and its accuracy knobs (which method reads which: docs/scene-keys.md)."""
     name: str
     nodes: int = 3
     binder_nodes: int = 2
@@ -193,6 +191,7 @@ class Scene:
     binder_injection: BinderInjection | None = None
     transport: Transport | None = None
     breakage: Breakage | None = None
+    coupling: scene_coupling.Coupling | None = None   # two-way coupling; None: one-way
     source: str = ""
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -214,7 +213,7 @@ class Scene:
 
 # ------------------------------------------------------------------------------ validation
 _TABLES = ("scene", "domain", "material", "initial", "aggregation", "binder_injection",
-           "method", "transport", "breakage")
+           "method", "transport", "breakage", "coupling")
 
 
 class _Table:
@@ -330,7 +329,7 @@ def load_scene(source) -> Scene:
 
 
 def scene_from_dict(data: dict, path="<scene>") -> Scene:
-    """Validate a parsed TOML document into a ``Scene`` (README.md, "Scenes")."""
+    """Validate a parsed TOML document into a ``Scene`` (the keys: docs/scene-keys.md)."""
     for key in data:
         if key not in _TABLES:
             raise SceneError(path, key, f"unknown table; expected one of: {', '.join(_TABLES)}")
@@ -366,10 +365,12 @@ def scene_from_dict(data: dict, path="<scene>") -> Scene:
                              "transport needs a domain with cells: expected domain.type = \"openfoam\"")
 
     breakage = _breakage(path, data["breakage"], domain) if "breakage" in data else None
+    coupling = (scene_coupling.parse_coupling(_Table(path, "coupling", data["coupling"]),
+                                              domain, SceneError) if "coupling" in data else None)
     scene = Scene(name=name, end_time=end_time, output_interval=output_interval, domain=domain,
                   material=material, initial=initial, method=method, aggregation=aggregation,
                   binder_injection=injection, transport=transport, breakage=breakage,
-                  source=str(path), raw=data)
+                  coupling=coupling, source=str(path), raw=data)
     _cross_checks(path, scene)
     for key, refusal in limits.scene_refusals(scene, METHODS[scene.method.name]):
         raise SceneError(path, key, refusal)
