@@ -67,6 +67,7 @@ RULES = (
     ("test_output", "io"),
     ("test_data_safety", "io"),
     ("test_cfd_input", "io"),
+    ("test_faults", "io"),
     ("test_own_case", "io"),
     ("test_paraview", "io"),
     # viz: pictures and their drawing processes
