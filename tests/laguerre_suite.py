@@ -159,7 +159,7 @@ METHODS = {"laguerre m=3": {"name": "laguerre", "order": 3},
 def run_method(case, method, t_end):
     """{name: array over (t_end / 2, t_end)} of the method's output columns, or the one-line
     reason it stopped."""
-    from pbe_cfd.simulate import run_well_mixed
+    from pbe_cfd.runs.simulate import run_well_mixed
     try:
         c = run_well_mixed(scene(case, method, t_end)).columns
     except Exception as exc:                  # a stop is a result of the suite
