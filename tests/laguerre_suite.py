@@ -14,8 +14,8 @@ k0 per kernel so that beta(P0, P0) N0 = 1 /s (constant 1e-10 m3/s, sum 0.05 m3/(
 10x mean mass a fifth of the aggregation frequency there, nu10 = beta(10 P0, 10 P0) N0 / 10
 (+ the sum kernel's k0 M10 share): constant 0.1, sum 1.0, eke 0.1468 /s.
 Without droplets: binder fraction y0 = 0.25 in every granule (M_ij = y0^j M_(i+j),0 for all
-t), reference the fixed-pivot sectional solver (16 pivots per octave, P0 1e-4 .. 3e3),
-end time the first time its M10 / M00 reaches 10 P0.
+t), reference the fixed-pivot sectional solver (16 pivots per octave, P0 1e-4 .. 3e3, the
+sum kernel's to 3e5), end time the first time its M10 / M00 reaches 10 P0.
 With droplets: a dry start (y0 = 0), free droplets of p_d = 0.2 P0 (nd0 = 0.1 N0 at t = 0,
 injected at R = 1e9 /(m3 s)), captured at f = 10 times the kernel; reference the bivariate
 cNMC (tests/references/cnmc_bivariate.py: 2000 granules x 8 replicas, seed fixed before
@@ -79,8 +79,13 @@ def droplet_diameter():
 
 
 # ---------------------------------------------------------------------------- references
-def _pivots(per_octave=16):
-    return sectional.pivots(P0 * 1e-4, P0 * 3e3, per_octave)
+#: the top pivot [P0] per kernel: the grid must hold the population (under 1e-3 of the mass
+#: on its top decade, checked per case); the sum kernel's tail reaches further
+P_TOP = {"constant": 3e3, "sum": 3e5, "eke": 3e3}
+
+
+def _pivots(per_octave=16, kernel="constant"):
+    return sectional.pivots(P0 * 1e-4, P0 * P_TOP[kernel], per_octave)
 
 
 #: a bound on the end time [s] per kernel: four times pure aggregation's time to 10x
@@ -90,7 +95,7 @@ T_MAX = {"constant": 80.0, "sum": 20.0, "eke": 80.0}
 def end_time(case):
     """(First time [s] the sectional reference of the case without droplets reaches a 10x
     mean mass, its dense output N(t))."""
-    x = _pivots()
+    x = _pivots(kernel=case["kernel"])
     n0 = sectional.initial_exponential(x, N0, P0)
     return sectional_kernels.time_of_growth(x, n0, case["kernel"], case["k0"], case["s0"],
                                             case["exponent"], P0, case["daughters"], 10.0,
@@ -103,13 +108,13 @@ def reference(case, t_end, dense):
     estimated from a second grid of half the resolution), extra facts)."""
     times = np.array([0.5 * t_end, t_end])
     if not case["droplets"]:
-        x = _pivots()
+        x = _pivots(kernel=case["kernel"])
         N = np.array([dense(t) for t in times])
         top = sectional.top_mass_share(x, N)
         M = sectional.moments(x, N, 2)
         # the grid's own error, second order in the pivot spacing: Richardson's estimate
         # |M(8 per octave) - M(16 per octave)| / 3
-        xc = _pivots(8)
+        xc = _pivots(8, case["kernel"])
         Mc = sectional.moments(xc, sectional_kernels.solve(
             xc, sectional.initial_exponential(xc, N0, P0), times, case["kernel"], case["k0"],
             case["s0"], case["exponent"], P0, case["daughters"]), 2)
@@ -154,6 +159,10 @@ METHODS = {"laguerre m=3": {"name": "laguerre", "order": 3},
            "laguerre m=3 following": {"name": "laguerre", "order": 3,
                                       "following_support": True},
            "qmom N=3": {"name": "qmom", "nodes": 3}}
+#: measured beside the suite on the droplet cases (a dry start): the dry class's weight shape
+DRY_SHAPE_VARIANT = ("laguerre m=3 following, dry shape 2",
+                     {"name": "laguerre", "order": 3, "following_support": True,
+                      "dry_weight_shape_mass": 2.0})
 
 
 def run_method(case, method, t_end):
@@ -185,7 +194,9 @@ def measure(selected=None):
         ref, band, info = reference(case, t_end, dense)
         row = {"case": case["name"], "t_end": t_end, "band": {n: float(band[n].max())
                                                            for n in MOMENTS}, **info}
-        for label, method in METHODS.items():
+        row["reference"] = {n: [float(v) for v in ref[n]] for n in MOMENTS}
+        variants = list(METHODS.items()) + ([DRY_SHAPE_VARIANT] if case["droplets"] else [])
+        for label, method in variants:
             run = run_method(case, method, t_end)
             row[label] = run if isinstance(run, str) else errors(run, ref)
         row["seconds"] = time.time() - t0
@@ -214,7 +225,7 @@ def table(rows):
 
 if __name__ == "__main__":
     out = sys.argv[1] if len(sys.argv) > 1 else None
-    rows = measure()
+    rows = measure(sys.argv[2:])
     if out:
         with open(out, "w") as fh:
             json.dump(rows, fh, indent=1)
