@@ -1,4 +1,4 @@
-"""The Laguerre ROM on the held-out suite of tests/laguerre_suite.py (fixed before any method
+"""The Laguerre ROM on the held-out suite of tests/methods/laguerre/laguerre_suite.py (fixed before any method
 was run on it): aggregation (constant, sum, eke) with power-law breakage (a = 1/3, 1, 2),
 uniform and equal daughters, with and without binder droplets, over the time the mean mass
 grows 10x; references the fixed-pivot sectional solver and the bivariate cNMC
@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(HERE, "references"))
+sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.join(HERE, "..", "..", "references"))
 
 import cnmc_bivariate  # noqa: E402
 import sectional  # noqa: E402

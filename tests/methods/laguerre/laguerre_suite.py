@@ -23,7 +23,7 @@ looking), end time that of the same case without droplets.
 Compared: M00, M10, M01, M20, M11, M02 (free droplets included, as the output columns) at half
 the end time and at the end time.
 
-Run ``python tests/laguerre_suite.py`` to print the table of docs/results/laguerre.md.
+Run ``python tests/methods/laguerre/laguerre_suite.py`` to print the table of docs/results/laguerre.md.
 """
 import json
 import math
@@ -34,8 +34,9 @@ import time
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
-sys.path.insert(0, os.path.join(HERE, "references"))
+TESTS = os.path.join(HERE, "..", "..")
+sys.path.insert(0, TESTS)                        # conftest's make_scene
+sys.path.insert(0, os.path.join(TESTS, "references"))
 
 import cnmc_bivariate  # noqa: E402
 import sectional  # noqa: E402
