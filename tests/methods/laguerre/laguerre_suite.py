@@ -23,7 +23,8 @@ looking), end time that of the same case without droplets.
 Compared: M00, M10, M01, M20, M11, M02 (free droplets included, as the output columns) at half
 the end time and at the end time.
 
-Run ``python tests/methods/laguerre/laguerre_suite.py`` to print the table of docs/results/laguerre.md.
+Run ``python tests/methods/laguerre/laguerre_suite.py`` to print the table of
+docs/results/laguerre.md.
 """
 import json
 import math
