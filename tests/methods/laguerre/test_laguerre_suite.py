@@ -1,7 +1,7 @@
 """The Laguerre ROM on the held-out suite of tests/methods/laguerre/laguerre_suite.py (fixed
 before any method was run on it): aggregation (constant, sum, eke) with power-law breakage
-(a = 1/3, 1, 2), uniform and equal daughters, with and without binder droplets, over the time the mean mass
-grows 10x; references the fixed-pivot sectional solver and the bivariate cNMC
+(a = 1/3, 1, 2), uniform and equal daughters, with and without binder droplets, over the
+time the mean mass grows 10x; references the fixed-pivot sectional solver and the bivariate cNMC
 (tests/references/, numpy/scipy only, sharing no code with pbe_cfd).
 
 The references are checked here against closed forms first. The targets (every case finishes,
