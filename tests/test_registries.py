@@ -172,7 +172,9 @@ def test_switched_factors_multiply():
 
 # ------------------------------------------------------------------------------ methods
 def test_method_registry_agrees_with_the_scene_and_dispatch():
-    assert S.METHOD_NAMES == tuple(m.name for m in M.METHOD_REGISTRY)
+    assert M.METHOD_NAMES == tuple(m.name for m in M.METHOD_REGISTRY)
+    with pytest.raises(S.SceneError, match="qmom"):    # the scene asks the registry
+        S._method("<scene>", {"name": "nonsense"})
     codes = [m.code for m in M.METHOD_REGISTRY if m.integrated]
     assert len(set(codes)) == len(codes)
     assert set(M.MOMENT_METHODS) == {m.name for m in M.METHOD_REGISTRY if m.integrated}
