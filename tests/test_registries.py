@@ -114,17 +114,9 @@ def test_factor_names_codes_and_switches_agree_with_the_scene_and_the_layout():
 
 
 def single_config_slots():
-    """The named single slots of ``config`` (the constants of physics/parameters.py between
-    its config header and the switch block): distinct, below the efficiency switches."""
-    import ast
-    import inspect
-    source = inspect.getsource(P)
-    section = source[source.index("# ---- config"):source.index("N_SWITCHES_START =")]
-    slots = {}
-    for node in ast.parse(section).body:
-        if isinstance(node, ast.Assign) and isinstance(node.value, ast.Constant):
-            slots[node.targets[0].id] = node.value.value
-    return slots
+    """The named single slots of ``config`` (the table ``physics.parameters.CONFIG``, numbered
+    in its order): distinct, below the efficiency switches."""
+    return {name: getattr(P, name) for name, _ in P.CONFIG}
 
 
 def config_with(names):
