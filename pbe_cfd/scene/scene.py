@@ -12,7 +12,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from . import limits
+from . import coupling as scene_coupling, limits
 from ..io.openfoam import case_keys
 from ..methods import registry
 from ..physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
@@ -21,10 +21,8 @@ from ..physics.kernels import KERNEL_BY_NAME
 
 #: the names the scene accepts, from the registries (physics.kernels, physics.efficiency,
 #: methods.registry)
-KERNEL_NAMES = tuple(KERNEL_BY_NAME)
-EFFICIENCY_NAMES = tuple(EFFICIENCY_BY_NAME)
-SELECTION_NAMES = tuple(SELECTION_BY_NAME)
-DAUGHTER_NAMES = tuple(DAUGHTERS_BY_NAME)
+KERNEL_NAMES, EFFICIENCY_NAMES = tuple(KERNEL_BY_NAME), tuple(EFFICIENCY_BY_NAME)
+SELECTION_NAMES, DAUGHTER_NAMES = tuple(SELECTION_BY_NAME), tuple(DAUGHTERS_BY_NAME)
 
 
 class SceneError(ValueError):
@@ -193,6 +191,7 @@ class Scene:
     binder_injection: BinderInjection | None = None
     transport: Transport | None = None
     breakage: Breakage | None = None
+    coupling: scene_coupling.Coupling | None = None   # two-way coupling; None: one-way
     source: str = ""
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -214,7 +213,7 @@ class Scene:
 
 # ------------------------------------------------------------------------------ validation
 _TABLES = ("scene", "domain", "material", "initial", "aggregation", "binder_injection",
-           "method", "transport", "breakage")
+           "method", "transport", "breakage", "coupling")
 
 
 class _Table:
@@ -366,10 +365,12 @@ def scene_from_dict(data: dict, path="<scene>") -> Scene:
                              "transport needs a domain with cells: expected domain.type = \"openfoam\"")
 
     breakage = _breakage(path, data["breakage"], domain) if "breakage" in data else None
+    coupling = (scene_coupling.parse_coupling(_Table(path, "coupling", data["coupling"]),
+                                              domain, SceneError) if "coupling" in data else None)
     scene = Scene(name=name, end_time=end_time, output_interval=output_interval, domain=domain,
                   material=material, initial=initial, method=method, aggregation=aggregation,
                   binder_injection=injection, transport=transport, breakage=breakage,
-                  source=str(path), raw=data)
+                  coupling=coupling, source=str(path), raw=data)
     _cross_checks(path, scene)
     for key, refusal in limits.scene_refusals(scene, registry.METHODS[scene.method.name]):
         raise SceneError(path, key, refusal)

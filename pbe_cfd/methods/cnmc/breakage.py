@@ -6,7 +6,7 @@ is sum_i S(p_i) over its granules (free droplets never break). It is realised by
 aggregation: class a (mass interval [lo_a, hi_a]) is proposed at n_a B_a with B_a =
 max(S(lo_a), S(hi_a)) (x (1 + 1e-12)), a member uniformly, and the break accepted with
 S(p_i) / B_a. B_a bounds S on the class because every selection function of the registry is
-monotone in p (constant, or a non-negative power of p; ``tests/test_registries.py`` checks).
+monotone in p (constant, or a non-negative power of p; ``tests/physics/test_registries.py`` checks).
 
 The split (constant number, Smith & Matsoukas 1998; Lin, Lee & Matsoukas 2002): the parent
 (p, b) becomes the first daughter (u p, u b) in its own slot, u from the daughter rule; the
