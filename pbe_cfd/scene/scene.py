@@ -569,8 +569,7 @@ def _cross_checks(path, scene: Scene):
             and scene.binder_injection is None):
         raise SceneError(path, "initial.number_density",
                          "expected a positive number density (or a binder injection)")
-    entry = registry.METHODS[scene.method.name]
-    if not entry.integrated and scene.domain.type != "well-mixed":
+    if not registry.METHODS[scene.method.name].integrated and scene.domain.type != "well-mixed":
         raise SceneError(path, "method.name",
                          f"the {scene.method.name} reference runs well-mixed scenes: expected "
                          f"{' or '.join(registry.MOMENT_METHODS)} for an openfoam domain")
