@@ -17,7 +17,7 @@ from .methods.registry import method_of
 from .physics import parameters as P
 from .physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
 from .physics.efficiency import switch_on
-from .physics.injection import droplet_mass
+from .physics.injection import droplet_liquid, droplet_mass, droplet_moment
 from .physics.kernels import KERNEL_BY_NAME
 from .physics.kernels import collision_velocity as _collision_velocity
 from .population import (DERIVED, columns_from_particle_rows, columns_from_particles,
@@ -104,6 +104,7 @@ def pack(scene) -> Arrays:
     pd = 0.0
     if scene.binder_injection is not None:
         pd = droplet_mass(scene.binder_injection.droplet_diameter, scene.material.binder_density)
+        params[P.DROPLET_SOLIDS] = scene.binder_injection.solids_fraction
     params[P.DROPLET_MASS] = pd
     config[P.SEPARATE_DROPLETS] = int(scene.separate_droplets)
     params[P.DROPLET_FACTOR] = agg.droplet_factor if scene.separate_droplets else 0.0
@@ -171,7 +172,7 @@ def initial_moments(scene, arrays: Arrays, names) -> np.ndarray:
         i, j = int(name[1]), int(name[2])
         value = size_moment(scene, i, j)
         if not scene.separate_droplets and nd0 > 0.0:
-            value += nd0 * pd ** (i + j)
+            value += nd0 * droplet_moment(pd, droplet_liquid(arrays.params), i, j)
         state[idx] = value / (arrays.number_scale * arrays.mass_scale ** (i + j))
     return state
 
@@ -187,7 +188,7 @@ def product_gel_time(scene) -> float | None:
     return 1.0 / (agg.rate * m20)
 
 
-def _outputs_by_row(out, rows, states, names, cols, nd, pd, n_ref, p_ref, rho):
+def _outputs_by_row(out, rows, states, names, cols, nd, pd, bd, n_ref, p_ref, rho):
     """``moment_outputs``'s moments, d32 and d43 row by row (populations of different
     sizes): see there."""
     for r, (w, p, b) in enumerate(rows):
@@ -197,7 +198,7 @@ def _outputs_by_row(out, rows, states, names, cols, nd, pd, n_ref, p_ref, rho):
             k = int(c[1]) + int(c[2])
             value = (state[names.index(c)] * n_ref * p_ref ** k if c in names
                      else estimated[c])
-            out[c][r] = value + nd[r] * pd ** k
+            out[c][r] = value + nd[r] * droplet_moment(pd, bd, int(c[1]), int(c[2]))
         ww = np.append(w, nd[r]) if nd[r] > 0 else w
         pp = np.append(p, pd) if nd[r] > 0 else p
         out["d32_m"][r], out["d43_m"][r] = mean_diameters(ww, pp, rho)
@@ -233,7 +234,8 @@ def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
         return out
     nd = states[:, -1] * n_ref if separate else np.zeros(n_rows)
     if len({len(w) for w, _, _ in rows}) > 1:       # populations of different sizes
-        _outputs_by_row(out, rows, states, names, cols, nd, pd, n_ref, p_ref, rho)
+        _outputs_by_row(out, rows, states, names, cols, nd, pd, droplet_liquid(arrays.params),
+                        n_ref, p_ref, rho)
     else:                                            # one (rows, particles) array each
         w_all, p_all, b_all = (np.array([r[k] for r in rows], dtype=float) for k in range(3))
         estimated = columns_from_particle_rows(w_all, p_all, b_all,
@@ -242,7 +244,8 @@ def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
             k = int(c[1]) + int(c[2])
             value = (states[:, names.index(c)] * n_ref * p_ref ** k if c in names
                      else estimated[c])
-            out[c][:] = value + nd * pd ** k
+            out[c][:] = value + nd * droplet_moment(pd, droplet_liquid(arrays.params),
+                                                    int(c[1]), int(c[2]))
         with_droplets = nd > 0
         for sel in (with_droplets, ~with_droplets):
             if not np.any(sel):

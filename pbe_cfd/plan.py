@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import model
+from . import model, spray
 from .methods.registry import method_of
 from .physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
 from .physics.efficiency import EFFICIENCY_BY_NAME
@@ -62,6 +62,7 @@ def describe_plan(scene) -> str:
         where = "spray-zone cells" if inj.zone is not None else "every cell"
         lines.append(f"  binder injection: {inj.rate:g} droplets/(m3 s) of "
                      f"{inj.droplet_diameter * 1e6:g} um into {where}")
+        lines.extend(_spray_lines(scene, inj))
     brk = scene.breakage
     if brk is None:
         left_out.append("breakage (no [breakage] table)")
@@ -177,6 +178,19 @@ def averaging_window(scene, cells) -> str:
         return (f"{first} to {cells.time:g} s (fieldAverage has no timeStart: the whole run, "
                 "start-up included)")
     return f"{start} to {cells.time:g} s"
+
+
+def _spray_lines(scene, inj) -> list[str]:
+    """The plan's lines on the sprayed binder's solids and the spray schedule."""
+    out = []
+    if inj.solids_fraction > 0.0:
+        out.append(f"    binder solution: solids fraction {inj.solids_fraction:g}; the liquid "
+                   f"{1.0 - inj.solids_fraction:g} p_d wets (b), the solids join the granule")
+    if inj.schedule:
+        parts = [f"{t0:g}-{t1:g} s: {rate:g}"
+                 for t0, t1, rate in spray.segments(inj, scene.end_time)]
+        out.append(f"    spray schedule (droplets/(m3 s)): {'; '.join(parts)}")
+    return out
 
 
 def spray_lines(scene, cells, active: np.ndarray) -> list[str]:

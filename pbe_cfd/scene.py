@@ -12,7 +12,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from . import limits
+from . import limits, spray
+from .spray import BinderInjection, Zone  # noqa: F401 (part of the scene API)
 from .cfd import case_keys
 from .methods.registry import METHOD_NAMES, METHODS, MOMENT_METHODS
 from .physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
@@ -39,16 +40,6 @@ class SceneError(ValueError):
 
 
 # ------------------------------------------------------------------------------ dataclasses
-@dataclass(frozen=True)
-class Zone:
-    """Spray zone of an OpenFOAM domain: cells with alpha in [alpha_low, alpha_high] [-] whose
-    centre lies in the box [box_min, box_max] [m]."""
-    alpha_low: float = 0.0
-    alpha_high: float = 1.0
-    box_min: tuple = (-math.inf, -math.inf, -math.inf)
-    box_max: tuple = (math.inf, math.inf, math.inf)
-
-
 @dataclass(frozen=True)
 class Domain:
     """Where the population lives. Well-mixed: one cell (granular_temperature [m2/s2],
@@ -123,14 +114,6 @@ class Breakage:
     reference_granular_temperature: float | None = None
     yield_strength: float | None = None
     critical_deformation_number: float | None = None
-
-
-@dataclass(frozen=True)
-class BinderInjection:
-    """Binder droplets: rate [droplets/(m3 s)], droplet_diameter [m], zone (OpenFOAM only)."""
-    rate: float
-    droplet_diameter: float
-    zone: Zone | None = None
 
 
 @dataclass(frozen=True)
@@ -349,7 +332,8 @@ def scene_from_dict(data: dict, path="<scene>") -> Scene:
 
     domain = _domain(path, data["domain"])
     aggregation = _aggregation(path, data["aggregation"]) if "aggregation" in data else None
-    injection = (_injection(path, data["binder_injection"], domain)
+    injection = (spray.parse_injection(path, data["binder_injection"], domain, _Table,
+                                       _vector3, SceneError)
                  if "binder_injection" in data else None)
     material = _material(path, data["material"], aggregation, injection)
     initial = _initial(path, data["initial"], material, domain)
@@ -453,25 +437,6 @@ def _breakage(path, data, domain):
     return Breakage(**kw)
 
 
-def _injection(path, data, domain):
-    t = _Table(path, "binder_injection", data)
-    rate = t.number("rate", non_negative=True, unit="droplets/(m3 s)")
-    diameter = t.number("droplet_diameter", positive=True, unit="m")
-    zone = None
-    if t.has("zone"):
-        if domain.type != "openfoam":
-            raise SceneError(path, "binder_injection.zone",
-                             "a spray zone needs cells: expected domain.type = \"openfoam\"")
-        z = _Table(path, "binder_injection.zone", t.raw("zone"))
-        zone = Zone(alpha_low=z.number("alpha_low", 0.0, non_negative=True, high=1.0),
-                    alpha_high=z.number("alpha_high", 1.0, non_negative=True, high=1.0),
-                    box_min=_vector3(path, f"{z.name}.box_min", z.raw("box_min", [-1e30] * 3)),
-                    box_max=_vector3(path, f"{z.name}.box_max", z.raw("box_max", [1e30] * 3)))
-        z.finish()
-    t.finish()
-    return BinderInjection(rate=rate, droplet_diameter=diameter, zone=zone)
-
-
 def _material(path, data, aggregation, injection):
     t = _Table(path, "material", data)
     values = dict(
@@ -568,6 +533,16 @@ def _cross_checks(path, scene: Scene):
             and scene.binder_injection is None):
         raise SceneError(path, "initial.number_density",
                          "expected a positive number density (or a binder injection)")
+    inj = scene.binder_injection
+    if (inj is not None and inj.solids_fraction > 0.0 and scene.separate_droplets
+            and scene.method.name == "laguerre"):
+        raise SceneError(path, "binder_injection.solids_fraction",
+                         "the Laguerre ROM's droplet-capture tensors hold pure-liquid droplets: "
+                         "expected 0 with [aggregation] droplet_factor, or another method")
+    if inj is not None and inj.schedule and not METHODS[scene.method.name].integrated:
+        raise SceneError(path, "binder_injection.schedule",
+                         f"the {scene.method.name} reference sprays at one constant rate: expected "
+                         f"{' or '.join(MOMENT_METHODS)} for a spray schedule (start, stop)")
     if not METHODS[scene.method.name].integrated and scene.domain.type != "well-mixed":
         raise SceneError(path, "method.name",
                          f"the {scene.method.name} reference runs well-mixed scenes: expected "

@@ -14,7 +14,7 @@ LAYERS = [
                    "pbe_cfd.psd_figure")),
     ("physics", ("pbe_cfd.physics",)),
     ("methods", ("pbe_cfd.methods", "pbe_cfd.integrate")),
-    ("scene", ("pbe_cfd.scene",)),
+    ("scene", ("pbe_cfd.scene", "pbe_cfd.spray")),
     ("domain", ("pbe_cfd.model", "pbe_cfd.domain", "pbe_cfd.distribution")),
     ("orchestration", ("pbe_cfd.batch", "pbe_cfd.simulate", "pbe_cfd.couple",
                        "pbe_cfd.executor", "pbe_cfd.distributed", "pbe_cfd.transport",

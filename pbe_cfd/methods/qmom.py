@@ -18,6 +18,7 @@ import numba as nb
 import numpy as np
 
 from ..physics import parameters as P
+from ..physics.injection import droplet_liquid
 from ..physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ..physics.properties import DIAMETER, N_PROPS
 from ..physics.rates import pair_rate, particle_properties
@@ -305,10 +306,11 @@ def _droplet_sources(state, out, cell, params, config, nodes, weights, binder, p
     inj = cell[P.INJECTION] / number_scale
     pd = params[P.DROPLET_MASS]
     xd = pd / mass_scale
+    xl = droplet_liquid(params) / mass_scale      # the droplet's liquid (xl = xd: pure)
     if config[P.SEPARATE_DROPLETS] == 1:
         nd = state[n_state - 1]
         if nd > 0.0 and factor != 0.0 and n > 0:
-            particle_properties(pd, pd, params, config, props, n_max)
+            particle_properties(pd, droplet_liquid(params), params, config, props, n_max)
             captured = 0.0
             droplet_factor = number_scale * params[P.DROPLET_FACTOR]
             for a in range(n):
@@ -330,8 +332,8 @@ def _droplet_sources(state, out, cell, params, config, nodes, weights, binder, p
                     pa = 1.0
                     total = 1.0     # (x + xd)^k, built up from k = 0
                     for k in range(n_max):
-                        # (x+xd)^k (b + xd) - x^k b = b H_k + xd (x + xd)^k
-                        out[n_size + k] += flux * (ba * h + xd * total)
+                        # (x+xd)^k (b + xl) - x^k b = b H_k + xl (x + xd)^k
+                        out[n_size + k] += flux * (ba * h + xl * total)
                         h = s * h + xd * pa
                         pa *= xa
                         total *= s
@@ -342,7 +344,7 @@ def _droplet_sources(state, out, cell, params, config, nodes, weights, binder, p
         for k in range(n_size):
             out[k] += value
             if bivariate and k < n_max:
-                out[n_size + k] += value * xd
+                out[n_size + k] += value * xl
             value *= xd
 
 
@@ -435,12 +437,13 @@ def qmom_conserved(config, params, pivots, coefs):
     """Linear invariants of the QMOM state for the time integrator: rows c of ``coefs``
     (n_inv, N_STATE) with c . d(state)/dt independent of the state (the injection only):
     granule mass M10 plus the free droplets' mass x_d n_d, and (bivariate) binder mass M01 plus
-    x_d n_d, x_d = p_d / p_ref. ``pivots[r]`` is the entry with coefficient 1 (M10, M01).
-    Returns the number of invariants."""
+    their liquid x_l n_d, x_d = p_d / p_ref, x_l = b_d / p_ref. ``pivots[r]`` is the entry with
+    coefficient 1 (M10, M01). Returns the number of invariants."""
     n_max = config[P.ORDER]
     n_state = config[P.N_STATE]
     separate = config[P.SEPARATE_DROPLETS] == 1
     xd = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
+    xl = droplet_liquid(params) / params[P.MASS_SCALE]
     count = 2 if config[P.BIVARIATE] == 1 else 1
     for r in range(count):
         for k in range(n_state):
@@ -448,7 +451,7 @@ def qmom_conserved(config, params, pivots, coefs):
         pivots[r] = 1 if r == 0 else 2 * n_max
         coefs[r, pivots[r]] = 1.0
         if separate:
-            coefs[r, n_state - 1] = xd
+            coefs[r, n_state - 1] = xd if r == 0 else xl
     return count
 
 

@@ -39,7 +39,9 @@ BREAKAGE_REFERENCE_MASS = 23    # p_ref of the selection [kg]
 BREAKAGE_REFERENCE_THETA = 24   # Theta_ref of the collisional selection [m2/s2]
 YIELD_STRENGTH = 25      # granule yield strength Y of the Stokes deformation number [Pa] (0: no gate)
 CRITICAL_DEFORMATION = 26       # critical Stokes deformation number St_def* [-]
-N_PARAMS = 27
+DROPLET_SOLIDS = 27      # solids fraction s of the sprayed binder [-]: a droplet holds liquid
+                         # b_d = (1 - s) p_d (0: pure liquid; physics.injection)
+N_PARAMS = 28
 
 # ---- config (int64) ---------------------------------------------------------------------
 KERNEL = 0               # code of the collision kernel (physics.kernels.KERNEL_REGISTRY)
