@@ -12,10 +12,10 @@ import math
 import numpy as np
 import pytest
 
+from conftest import make_scene
 from pbe_cfd.physics import drying
-from pbe_cfd.scene import SceneError
-from pbe_cfd.simulate import run_well_mixed
-from tests.conftest import make_scene
+from pbe_cfd.runs.simulate import run_well_mixed
+from pbe_cfd.scene.scene import SceneError
 
 N0 = 1.0e10          # 1/m3
 P0 = 1.0e-9          # kg (granule mass, liquid included)

@@ -13,11 +13,12 @@ import sys
 import numpy as np
 import pytest
 
-from pbe_cfd import model, spray
+from conftest import make_scene
 from pbe_cfd.physics import parameters as P
-from pbe_cfd.scene import SceneError
-from pbe_cfd.simulate import run_well_mixed
-from tests.conftest import make_scene
+from pbe_cfd.runs import model
+from pbe_cfd.runs.simulate import run_well_mixed
+from pbe_cfd.scene import spray
+from pbe_cfd.scene.scene import SceneError
 
 K0 = 1.0e-10          # m3/s
 N0 = 1.0e10           # 1/m3

@@ -22,7 +22,9 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ..physics import parameters as P
-from . import cqmom, laguerre_tensor, qmom
+from .cqmom import cqmom
+from .laguerre import tensor as laguerre_tensor
+from .qmom import qmom
 from .dispatch import CQMOM, LAGUERRE, QMOM
 
 #: config[P.METHOD] of a method that the per-cell integrator does not run (the cNMC)
@@ -188,7 +190,7 @@ def _cnmc_plan(scene):
 def _cnmc_ensemble(scene, arrays, cell, times, progress=None):
     import dataclasses
 
-    from . import cnmc
+    from .cnmc import ensemble as cnmc
     m = scene.method
     initial = dataclasses.asdict(scene.initial)     # the keys simulate_ensemble reads
     return cnmc.simulate_ensemble(arrays.params, arrays.config, cell, initial, times,
