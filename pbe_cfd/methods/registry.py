@@ -116,7 +116,8 @@ def _qmom_keys(t, defaults):
 
 
 def _qmom_state_names(scene):
-    return qmom.state_names(scene.method.nodes, scene.bivariate, scene.separate_droplets)
+    return qmom.state_names(scene.method.nodes, scene.bivariate, scene.separate_droplets,
+                            getattr(scene, "drying", None) is not None)
 
 
 def _qmom_population(state, aux, arrays):

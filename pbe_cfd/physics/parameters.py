@@ -41,7 +41,13 @@ YIELD_STRENGTH = 25      # granule yield strength Y of the Stokes deformation nu
 CRITICAL_DEFORMATION = 26       # critical Stokes deformation number St_def* [-]
 DROPLET_SOLIDS = 27      # solids fraction s of the sprayed binder [-]: a droplet holds liquid
                          # b_d = (1 - s) p_d (0: pure liquid; physics.injection)
-N_PARAMS = 28
+DRY_DRIVING = 28         # D_v rho_g (Y_s(T_wb) - Y) of the drying air [kg/(m s)] (physics.drying)
+DRY_RE = 29              # rho_g / mu_g of the air [s/m2]: Re = DRY_RE u_slip d
+DRY_SCHMIDT = 30         # Schmidt number mu_g / (rho_g D_v) of water vapour in the air [-]
+DRY_CRITICAL = 31        # critical moisture X_cr [kg liquid / kg dry solids]
+DRY_EQUILIBRIUM = 32     # equilibrium moisture X_eq [kg liquid / kg dry solids]
+DRY_SLIP = 33            # gas-particle slip velocity of the Sherwood number [m/s]
+N_PARAMS = 34
 
 # ---- config (int64) ---------------------------------------------------------------------
 KERNEL = 0               # code of the collision kernel (physics.kernels.KERNEL_REGISTRY)
@@ -55,7 +61,8 @@ BREAKAGE = 7             # 1 if a [breakage] table is present (physics.breakage)
 BREAKAGE_SELECTION = 8   # code of the breakage selection function (physics.breakage)
 BREAKAGE_DAUGHTERS = 9   # code of the breakage daughter rule (physics.breakage)
 INTEGRATOR = 10          # per-cell time integrator: 0 explicit, 1 implicit, 2 auto (integrate)
-N_SWITCHES_START = 11    # a new single slot goes above this line and moves this number up
+DRYING = 11              # 1 if a [drying] table is present: the state holds the evaporated liquid
+N_SWITCHES_START = 12    # a new single slot goes above this line and moves this number up
 # config[EFFICIENCY_SWITCHES + code] = 1: the efficiency factor of that code applies
 # (physics.efficiency.EFFICIENCY_REGISTRY); room for MAX_EFFICIENCIES factors
 EFFICIENCY_SWITCHES = N_SWITCHES_START

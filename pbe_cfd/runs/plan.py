@@ -70,6 +70,10 @@ def describe_plan(scene) -> str:
     else:
         lines.extend(_breakage_lines(scene, brk))
         fields.update(SELECTION_BY_NAME[brk.selection].cell_fields)
+    if scene.drying is None:
+        left_out.append("drying (no [drying] table)")
+    else:
+        lines.extend(_drying_lines(scene.drying))
     if scene.transport is None:
         if dom.type == "openfoam":
             left_out.append("transport between cells (no [transport] table)")
@@ -179,6 +183,18 @@ def averaging_window(scene, cells) -> str:
         return (f"{first} to {cells.time:g} s (fieldAverage has no timeStart: the whole run, "
                 "start-up included)")
     return f"{start} to {cells.time:g} s"
+
+
+def _drying_lines(dry) -> list[str]:
+    """The plan's lines on the [drying] table: the air, its wet bulb, the drying curve."""
+    from ..physics.drying import gas_state
+    rho, mu, diffusivity, t_wb, driving = gas_state(dry.air_temperature, dry.air_humidity,
+                                                    dry.pressure)
+    return [f"  drying: air at {dry.air_temperature:g} K, humidity {dry.air_humidity:g} kg/kg, "
+            f"{dry.pressure:g} Pa (wet bulb {t_wb:.2f} K, driving force {driving:.4g} kg/kg); "
+            f"Ranz-Marshall Sh at slip {dry.slip_velocity:g} m/s",
+            f"    constant rate above X_cr = {dry.critical_moisture:g}, falling rate to X_eq = "
+            f"{dry.equilibrium_moisture:g} (kg liquid per kg dry solids)"]
 
 
 def _spray_lines(scene, inj) -> list[str]:

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from . import limits, spray
+from .drying import Drying, drying_refusals, parse_drying
 from .spray import BinderInjection, Zone  # noqa: F401 (part of the scene API)
 from ..io.openfoam import case_keys
 from ..methods.registry import METHOD_NAMES, METHODS, MOMENT_METHODS
@@ -176,6 +177,7 @@ class Scene:
     binder_injection: BinderInjection | None = None
     transport: Transport | None = None
     breakage: Breakage | None = None
+    drying: Drying | None = None
     source: str = ""
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -197,7 +199,7 @@ class Scene:
 
 # ------------------------------------------------------------------------------ validation
 _TABLES = ("scene", "domain", "material", "initial", "aggregation", "binder_injection",
-           "method", "transport", "breakage")
+           "method", "transport", "breakage", "drying")
 
 
 class _Table:
@@ -350,10 +352,12 @@ def scene_from_dict(data: dict, path="<scene>") -> Scene:
                              "transport needs a domain with cells: expected domain.type = \"openfoam\"")
 
     breakage = _breakage(path, data["breakage"], domain) if "breakage" in data else None
+    drying = (parse_drying(path, data["drying"], _Table, SceneError) if "drying" in data
+              else None)
     scene = Scene(name=name, end_time=end_time, output_interval=output_interval, domain=domain,
                   material=material, initial=initial, method=method, aggregation=aggregation,
                   binder_injection=injection, transport=transport, breakage=breakage,
-                  source=str(path), raw=data)
+                  drying=drying, source=str(path), raw=data)
     _cross_checks(path, scene)
     for key, refusal in limits.scene_refusals(scene, METHODS[scene.method.name]):
         raise SceneError(path, key, refusal)
@@ -539,6 +543,8 @@ def _cross_checks(path, scene: Scene):
         raise SceneError(path, "binder_injection.solids_fraction",
                          "the Laguerre ROM's droplet-capture tensors hold pure-liquid droplets: "
                          "expected 0 with [aggregation] droplet_factor, or another method")
+    for key, refusal in drying_refusals(scene):
+        raise SceneError(path, key, refusal)
     if inj is not None and inj.schedule and not METHODS[scene.method.name].integrated:
         raise SceneError(path, "binder_injection.schedule",
                          f"the {scene.method.name} reference sprays at one constant rate: expected "

@@ -23,6 +23,7 @@ from ...physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ...physics.properties import DIAMETER, N_PROPS
 from ...physics.rates import pair_rate, particle_properties
 from ..quadrature.breakage_sources import add_qmom_breakage
+from ..quadrature.drying_sources import add_qmom_drying
 from ..quadrature.binder import solve_node_binder
 from ..quadrature.gauss import wheeler_nodes
 
@@ -40,16 +41,20 @@ BINDER_TOLERANCE = 1.0e-6
 
 
 
-def state_length(nodes, bivariate, separate_droplets):
+def state_length(nodes, bivariate, separate_droplets, drying=False):
     """Number of entries of one cell's QMOM state."""
-    return 2 * nodes + (nodes if bivariate else 0) + (1 if separate_droplets else 0)
+    return (2 * nodes + (nodes if bivariate else 0) + (1 if drying else 0)
+            + (1 if separate_droplets else 0))
 
 
-def state_names(nodes, bivariate, separate_droplets):
-    """Names of the state entries: moment names 'M{i}{j}', then 'droplet_number_density'."""
+def state_names(nodes, bivariate, separate_droplets, drying=False):
+    """Names of the state entries: moment names 'M{i}{j}', 'evaporated_liquid' (with drying:
+    the liquid evaporated so far, scaled as a mass moment), then 'droplet_number_density'."""
     names = [f"M{k}0" for k in range(2 * nodes)]
     if bivariate:
         names += [f"M{k}1" for k in range(nodes)]
+    if drying:
+        names.append("evaporated_liquid")
     if separate_droplets:
         names.append("droplet_number_density")
     return names
@@ -58,7 +63,7 @@ def state_names(nodes, bivariate, separate_droplets):
 @nb.njit(cache=True)
 def work_size(n_max):
     """Length of the float work array the QMOM functions need for n_max nodes."""
-    return _off_cache(n_max) + _CACHE_HEADER + 3 * n_max + 1
+    return _off_cache(n_max) + _CACHE_HEADER + 3 * n_max + 2
 
 
 # ---- work layout (flat offsets; no reshape in the per-call path) -----------------------------
@@ -307,6 +312,8 @@ def qmom_rhs(state, out, cell, aux, params, config, work):
                         out[n_size + k] += pair * (ba * ha + bc * hc)
     if config[P.BREAKAGE] == 1:
         add_qmom_breakage(out, nodes, weights, binder, n, cell, params, config)
+    if config[P.DRYING] == 1:
+        add_qmom_drying(out, nodes, weights, binder, n, params, config)
     _droplet_sources(state, out, cell, params, config, nodes, weights, binder, props, n, factor,
                      u0)
 
@@ -331,6 +338,8 @@ def qmom_conserved(config, params, pivots, coefs):
         coefs[r, pivots[r]] = 1.0
         if separate:
             coefs[r, n_state - 1] = xd if r == 0 else xl
+        if config[P.DRYING] == 1:        # what evaporates leaves M10 and M01 for this entry
+            coefs[r, n_state - 1 - config[P.SEPARATE_DROPLETS]] = 1.0
     return count
 
 
@@ -350,8 +359,9 @@ def _project_into(state, target, config, nodes, weights, binder, n):
             if k < n_max and config[P.BIVARIATE] == 1:
                 target[2 * n_max + k] += power * binder[a]
             power *= nodes[a]
-    if config[P.SEPARATE_DROPLETS] == 1:
-        target[config[P.N_STATE] - 1] = state[config[P.N_STATE] - 1]
+    for k in range(2 * n_max + (n_max if config[P.BIVARIATE] == 1 else 0),
+                   config[P.N_STATE]):
+        target[k] = state[k]         # the evaporated liquid and the droplets, as carried
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -372,8 +382,10 @@ def qmom_realizable(state, aux, params, config, work):
             return False
     if config[P.SEPARATE_DROPLETS] == 1 and state[n_state - 1] < 0.0:
         return False
+    if config[P.DRYING] == 1 and state[n_state - 1 - config[P.SEPARATE_DROPLETS]] < 0.0:
+        return False
     if state[0] == 0.0:
-        for k in range(n_state - config[P.SEPARATE_DROPLETS]):
+        for k in range(n_state - config[P.SEPARATE_DROPLETS] - config[P.DRYING]):
             if state[k] != 0.0:
                 return False
         return True
