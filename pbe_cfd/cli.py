@@ -206,6 +206,9 @@ def couple_command(args):
     refusal = _threads_refusal(args.threads)
     if refusal:
         return _fail(refusal)
+    from .runs import coupling_command
+    if coupling_command.wanted(args, DEFAULT_COUPLED):     # [coupling]: two-way
+        return coupling_command.two_way(args, DEFAULT_COUPLED)
     import time
     if args.resume:
         _apply_resume(args)

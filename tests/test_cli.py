@@ -286,6 +286,56 @@ def test_the_compile_is_said_while_it_runs_and_reported_apart(tmp_path, capsys, 
     assert summary["wall_time_s"] < 100.0     # the run alone, without the compile
 
 
+def test_the_compile_notice_names_the_kernel_and_the_last_compile_here(tmp_path, monkeypatch):
+    """The notice of a compile names the kernel (method and integrator) and says roughly how
+    long it takes: the figure measured for a first compile where this machine has none on
+    record, else the CPU time of the last compile here, which a compile records."""
+    import time
+
+    from pbe_cfd.methods.registry import method_of
+    from pbe_cfd.runs import model
+    from pbe_cfd.runs.batch import CellBatch
+    from pbe_cfd.util import progress
+    monkeypatch.setenv("PBE_CFD_CACHE", str(tmp_path / "cache"))
+    path = tmp_path / "tiny.toml"
+    path.write_text(GOOD)
+    scene = load_scene(path)
+    arrays = model.pack(scene)
+    aux = method_of(scene).aux(scene, arrays, None)
+    state = model.initial_moments(scene, arrays, arrays.state_names)
+    batch = CellBatch.for_scene(scene, arrays, aux, model.well_mixed_cell(scene),
+                                state[None, :].copy())
+    name = batch.kernel_name()
+    assert name == f"the {scene.method.name} kernel with the {scene.method.integrator} integrator"
+    assert progress.compile_text(name) == (f"{progress.COMPILING}: {name}, "
+                                           f"{progress.FIRST_COMPILE_HINT}")
+    said = []
+
+    clock = {"cpu": 100.0}
+
+    class Clock:                               # the batch's clock: CPU seconds
+        perf_counter = staticmethod(time.perf_counter)
+
+        @staticmethod
+        def process_time():
+            return clock["cpu"]
+
+    def compiled(self):
+        self.compiled_now = True               # numba compiling for 42.4 s of CPU, in
+        clock["cpu"] += 42.4                   # 1000 s of wall time on a loaded machine
+        return 1000.0
+
+    monkeypatch.setattr(CellBatch, "compile", compiled)
+    monkeypatch.setattr("pbe_cfd.runs.batch._time", Clock)
+    monkeypatch.setattr("pbe_cfd.util.progress.NOTICE_AFTER_S", 1e-3)
+    progress_calls = type("P", (), {"notice": lambda self, text: said.append(text)})()
+    assert batch.compile_announced(progress_calls, extra=lambda: (time.sleep(0.05), 0.0)[1]) \
+        == pytest.approx(1000.0, abs=1e-12)
+    assert said == [f"{progress.COMPILING}: {name}, {progress.FIRST_COMPILE_HINT}"]
+    assert progress.compile_text(name) == (f"{progress.COMPILING}: {name}, about 42 s on an "
+                                           "idle core (the last compile on this machine)")
+
+
 def test_a_warm_run_says_nothing_and_compile_leaves_nothing_to_compile(tmp_path, capsys):
     """After ``CellBatch.compile`` the run itself compiles nothing (so the run time holds no
     compile), and a run whose kernels are cached is not announced as compiling."""

@@ -1,4 +1,4 @@
-"""Drying of the liquid binder (docs/physics.md section 14).
+"""Drying of the liquid binder (docs/physics.md section 15).
 
 Closed forms (QMOM; no aggregation, a monodisperse wet population is one node, so the
 quadrature of the drift is exact): every granule has the dry mass m_s = p0 (1 - y0) and the

@@ -275,6 +275,29 @@ def test_binder_repair_keeps_number_mass_and_binder():
     assert unrealizable_cells(mixes, aux, arrays.params, arrays.config)[0] == 0
 
 
+def test_the_mixture_repair_compiles_the_scenes_method_alone():
+    """The repair after transport checks and re-projects with the scene's method only (its
+    code a compile-time constant): compiling it for a QMOM scene compiles (or loads) no
+    Laguerre or CQMOM function and not the run-time dispatch over every method
+    (test_binder_repair_keeps_number_mass_and_binder checks what it does)."""
+    from numba.core import types
+
+    from pbe_cfd.methods.cqmom.cqmom import cqmom_project, cqmom_realizable
+    from pbe_cfd.methods.dispatch import QMOM, method_project, method_realizable
+    from pbe_cfd.methods.laguerre.rhs import laguerre_project, laguerre_realizable
+    from pbe_cfd.transport import operator as tmod
+    others = (laguerre_realizable, laguerre_project, cqmom_realizable, cqmom_project,
+              method_realizable, method_project)
+    before = [len(f.overloads) for f in others]
+    scene = bed_scene(transport={}, initial={"binder_fraction": 0.01})
+    tr, rows, active, arrays = setup(scene, ring(n=3, alpha=[0.3, 0.3, 0.3]))
+    assert tr.repair is not None
+    tr.compile(len(arrays.state_names))
+    assert [len(f.overloads) for f in others] == before
+    assert tmod._repair_cells.signatures
+    assert all(sig[0] == types.literal(QMOM) for sig in tmod._repair_cells.signatures)
+
+
 # ---------------------------------------------------------------------------- splitting
 @pytest.mark.parametrize("splitting", ["strang", "lie"])
 def test_advance_splits_sources_and_reaches_t1(splitting):

@@ -1,4 +1,4 @@
-"""Drying: evaporation of the liquid binder b from granules (docs/physics.md section 14).
+"""Drying: evaporation of the liquid binder b from granules (docs/physics.md section 15).
 
 A particle (p, b) [kg] loses liquid at the rate e(p, b) [kg/s], so both its mass and its
 liquid drift, dp/dt = db/dt = -e; its dry mass p - b (primary solids and dissolved binder

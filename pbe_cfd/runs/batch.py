@@ -21,6 +21,7 @@ from ..methods.registry import method_of
 from ..physics import parameters as P
 from ..scene import spray
 from ..scene.scene import SceneError
+from ..util.progress import compile_text, notice_if_slow, record_compile_s
 
 #: relative width w of the smooth viscous Stokes switch, 0.5 (1 - tanh((St - St*)/(w St*))),
 #: a cell continues with when its step controller stalls under the sharp step (docs/results/
@@ -148,6 +149,30 @@ class CellBatch:
                                   np.zeros_like(self.reached[one]))
         seconds = _time.perf_counter() - start
         self.compiled_now = sum(integrate.integrate_cells_kernel.stats.cache_misses.values()) > misses
+        return seconds
+
+    def kernel_name(self) -> str:
+        """The compiled kernel this batch runs, as a run names it: method and integrator."""
+        scheme = {code: name for name, code in integrate.SCHEMES.items()}.get(
+            int(self.config[P.INTEGRATOR]), "?")
+        method = self.scene.method.name if self.scene is not None else \
+            f"method {int(self.config[P.METHOD])}"
+        return f"the {method} kernel with the {scheme} integrator"
+
+    def compile_announced(self, progress, extra=None) -> float:
+        """``compile`` (and ``extra()``, more kernels of the run, if given), telling
+        ``progress`` what compiles and roughly how long it takes when it is slow (a first
+        run); a compile's CPU time is kept for the next notice (numba compiles on one
+        thread: on an idle core the wall time, and unlike it not stretched by other load).
+        Returns the wall time [s]."""
+        name = self.kernel_name()
+        cpu = _time.process_time()
+        with notice_if_slow(progress, compile_text(name)):
+            seconds = self.compile()
+            if extra is not None:
+                seconds += extra()
+        if self.compiled_now:
+            record_compile_s(name, _time.process_time() - cpu)
         return seconds
 
     def advance(self, t0: float, t1: float, states: np.ndarray | None = None):

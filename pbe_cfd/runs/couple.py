@@ -24,7 +24,6 @@ from .executor import SerialExecutor
 from ..methods.registry import MOMENT_METHODS, method_of
 from ..physics import parameters as P
 from ..util.population import mean_diameters
-from ..util.progress import notice_if_slow
 from ..scene.scene import SceneError
 
 __all__ = ["CoupledResult", "run_coupled", "write_coupled", "check_foam_fields",
@@ -85,8 +84,8 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
         from ..transport.operator import build_transport
         transport = build_transport(scene, domain, active, rows, arrays=arrays, aux=aux)
         warnings.extend(transport.warnings)
-    with notice_if_slow(progress):
-            compile_s = batch.compile()
+    compile_s = batch.compile_announced(
+        progress, None if transport is None else lambda: transport.compile(batch.states.shape[1]))
     solve_start = _time.perf_counter()
     setup_s = solve_start - start - compile_s
     start += compile_s                      # the run time excludes the compile

@@ -227,7 +227,7 @@ def _outputs_by_row(out, rows, states, names, cols, nd, pd, bd, n_ref, p_ref, rh
 def _liquid_columns(out, evaporated, in_droplets):
     """The liquid inventory [kg/m3] and the moisture content [-] of a run with drying:
     evaporated, held by free droplets, held by granules (M01 less the droplets'), and
-    liquid over dry mass M01 / (M10 - M01) (docs/physics.md section 14)."""
+    liquid over dry mass M01 / (M10 - M01) (docs/physics.md section 15)."""
     out["liquid_evaporated"] = evaporated
     out["liquid_droplets"] = in_droplets
     out["liquid_granules"] = out["M01"] - in_droplets

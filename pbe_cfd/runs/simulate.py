@@ -11,7 +11,6 @@ from ..physics.injection import droplet_liquid
 from ..scene import spray
 from .batch import CellBatch, SimulationError, check_physics, output_times
 from ..methods.registry import method_of
-from ..util.progress import notice_if_slow
 
 __all__ = ["RunResult", "SimulationError", "run_well_mixed", "output_times", "check_physics"]
 
@@ -49,8 +48,7 @@ def run_well_mixed(scene, progress=None) -> RunResult:
     states[0] = state
     batch = CellBatch.for_scene(scene, arrays, aux, model.well_mixed_cell(scene),
                                 state[None, :].copy())
-    with notice_if_slow(progress):
-        compile_s = batch.compile()
+    compile_s = batch.compile_announced(progress)
     start += compile_s                      # the run time excludes the compile
     for k in range(1, len(times)):
         batch.step(times[k - 1], times[k])

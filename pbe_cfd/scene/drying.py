@@ -1,4 +1,4 @@
-"""The [drying] table of a scene (docs/physics.md section 14): the fluidising air and the
+"""The [drying] table of a scene (docs/physics.md section 15): the fluidising air and the
 drying curve of the granules. Absent: nothing evaporates."""
 from dataclasses import dataclass
 
@@ -39,7 +39,7 @@ def parse_drying(path, data, table, error):
     return Drying(**values)
 
 
-#: methods that carry the drying drift (docs/physics.md section 14)
+#: methods that carry the drying drift (docs/physics.md section 15)
 DRYING_METHODS = ("qmom",)
 
 

@@ -12,7 +12,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from . import limits, spray
+from . import coupling as scene_coupling, limits, spray
 from .drying import Drying, drying_refusals, parse_drying
 from .spray import BinderInjection, Zone  # noqa: F401 (part of the scene API)
 from ..io.openfoam import case_keys
@@ -23,10 +23,8 @@ from ..physics.kernels import KERNEL_BY_NAME
 
 #: the names the scene accepts, from the registries (physics.kernels, physics.efficiency,
 #: methods.registry)
-KERNEL_NAMES = tuple(KERNEL_BY_NAME)
-EFFICIENCY_NAMES = tuple(EFFICIENCY_BY_NAME)
-SELECTION_NAMES = tuple(SELECTION_BY_NAME)
-DAUGHTER_NAMES = tuple(DAUGHTERS_BY_NAME)
+KERNEL_NAMES, EFFICIENCY_NAMES = tuple(KERNEL_BY_NAME), tuple(EFFICIENCY_BY_NAME)
+SELECTION_NAMES, DAUGHTER_NAMES = tuple(SELECTION_BY_NAME), tuple(DAUGHTERS_BY_NAME)
 
 
 class SceneError(ValueError):
@@ -178,6 +176,7 @@ class Scene:
     transport: Transport | None = None
     breakage: Breakage | None = None
     drying: Drying | None = None
+    coupling: scene_coupling.Coupling | None = None   # two-way coupling; None: one-way
     source: str = ""
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -199,7 +198,7 @@ class Scene:
 
 # ------------------------------------------------------------------------------ validation
 _TABLES = ("scene", "domain", "material", "initial", "aggregation", "binder_injection",
-           "method", "transport", "breakage", "drying")
+           "method", "transport", "breakage", "coupling", "drying")
 
 
 class _Table:
@@ -354,10 +353,12 @@ def scene_from_dict(data: dict, path="<scene>") -> Scene:
     breakage = _breakage(path, data["breakage"], domain) if "breakage" in data else None
     drying = (parse_drying(path, data["drying"], _Table, SceneError) if "drying" in data
               else None)
+    coupling = (scene_coupling.parse_coupling(_Table(path, "coupling", data["coupling"]),
+                                              domain, SceneError) if "coupling" in data else None)
     scene = Scene(name=name, end_time=end_time, output_interval=output_interval, domain=domain,
                   material=material, initial=initial, method=method, aggregation=aggregation,
                   binder_injection=injection, transport=transport, breakage=breakage,
-                  drying=drying, source=str(path), raw=data)
+                  drying=drying, coupling=coupling, source=str(path), raw=data)
     _cross_checks(path, scene)
     for key, refusal in limits.scene_refusals(scene, METHODS[scene.method.name]):
         raise SceneError(path, key, refusal)

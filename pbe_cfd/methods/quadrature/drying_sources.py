@@ -1,4 +1,4 @@
-"""Drying as a drift in the binder coordinate (docs/physics.md section 14), for the quadrature
+"""Drying as a drift in the binder coordinate (docs/physics.md section 15), for the quadrature
 methods: each point (x, b) [scaled masses] of weight w drifts at dx/dt = db/dt = -e(x, b)
 (``physics.drying.drying_rate``), so a moment M_kl = sum w x^k b^l gains
 
