@@ -239,7 +239,8 @@ class CellBatch:
         floor or step budget; the step is the one discontinuity of the rates): each continues
         alone from the time it reached to t1."""
         params = self.smooth_params()
-        stalled = (self.status == integrate.STEP_FLOOR) | (self.status == integrate.TOO_MANY_STEPS)
+        stalled = ((self.status == integrate.STEP_BELOW_FLOOR)
+                   | (self.status == integrate.TOO_MANY_STEPS))
         for c in np.flatnonzero(~self.smoothed & stalled):
             t_jump = float(self.reached[c])
             self.smoothed[c] = True

@@ -79,6 +79,8 @@ def run_well_mixed(scene, progress=None) -> RunResult:
 def _size_distribution(scene, arrays, states, aux, populations, columns, warnings):
     """Add d10/d50/d90/span to ``columns`` and return (psd.csv columns, columns.json)."""
     from ..distribution import tables
+    if method_of(scene).distribution is None:       # a method without a reconstruction
+        return None, {"moments.csv": tables.column_labels(scene, arrays.state_names, columns)}
     times = columns["time_s"]
     label = lambda r: f"t = {times[r]:.6g} s"         # noqa: E731 (a row's name)
     recon = tables.reconstruction_of(scene, arrays, states, aux, populations, label)

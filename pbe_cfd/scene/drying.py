@@ -39,18 +39,17 @@ def parse_drying(path, data, table, error):
     return Drying(**values)
 
 
-#: methods that carry the drying drift (docs/physics.md section 15)
-DRYING_METHODS = ("qmom",)
-
-
-def drying_refusals(scene):
+def drying_refusals(scene, methods):
     """[(key, refusal)] of a scene's [drying] table: a liquid to dry, its density, a method
-    that carries the drift, no pure-liquid droplets among the particles."""
+    that carries the drift (``methods``: the registered ``MethodEntry`` list, those with
+    ``dries``), no pure-liquid droplets among the particles."""
     if scene.drying is None:
         return []
-    if scene.method.name not in DRYING_METHODS:
-        return [("drying", f"drying runs in {', '.join(DRYING_METHODS)}: expected method.name "
-                           f"= \"qmom\", got {scene.method.name!r}")]
+    dries = [m.name for m in methods if m.dries]
+    if scene.method.name not in dries:
+        return [("drying", f"drying runs in {', '.join(dries)}: expected method.name "
+                           f"= {' or '.join(repr(n) for n in dries)}, got "
+                           f"{scene.method.name!r}")]
     if not scene.bivariate or scene.material.binder_density is None:
         return [("drying", "nothing to dry: expected a liquid binder ([binder_injection] or "
                            "initial.binder_fraction > 0) and material.binder_density (kg/m3)")]

@@ -16,7 +16,7 @@ from . import coupling as scene_coupling, limits, spray
 from .drying import Drying, drying_refusals, parse_drying
 from .spray import BinderInjection, Zone  # noqa: F401 (part of the scene API)
 from ..io.openfoam import case_keys
-from ..methods.registry import METHOD_NAMES, METHODS, MOMENT_METHODS
+from ..methods import registry
 from ..physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
 from ..physics.efficiency import EFFICIENCY_BY_NAME
 from ..physics.kernels import KERNEL_BY_NAME
@@ -360,7 +360,7 @@ def scene_from_dict(data: dict, path="<scene>") -> Scene:
                   binder_injection=injection, transport=transport, breakage=breakage,
                   drying=drying, coupling=coupling, source=str(path), raw=data)
     _cross_checks(path, scene)
-    for key, refusal in limits.scene_refusals(scene, METHODS[scene.method.name]):
+    for key, refusal in limits.scene_refusals(scene, registry.METHODS[scene.method.name]):
         raise SceneError(path, key, refusal)
     return scene
 
@@ -502,13 +502,13 @@ def _initial(path, data, material, domain):
 
 def _method(path, data):
     t = _Table(path, "method", data)
-    name = t.choice("name", METHOD_NAMES)
+    name = t.choice("name", registry.METHOD_NAMES)
     kw = dict(name=name)
     kw["rtol"] = t.number("rtol", 1.0e-8, positive=True, high=0.1)
     kw["atol"] = t.number("atol", 1.0e-14, positive=True)
     # per-cell time integrator of the moment methods (pbe_cfd.integrate); cnmc ignores it
     kw["integrator"] = t.choice("integrator", ("explicit", "implicit", "auto"), "auto")
-    kw.update(METHODS[name].scene_keys(t, Method))
+    kw.update(registry.METHODS[name].scene_keys(t, Method))
     t.finish()
     return Method(**kw)
 
@@ -538,22 +538,14 @@ def _cross_checks(path, scene: Scene):
             and scene.binder_injection is None):
         raise SceneError(path, "initial.number_density",
                          "expected a positive number density (or a binder injection)")
-    inj = scene.binder_injection
-    if (inj is not None and inj.solids_fraction > 0.0 and scene.separate_droplets
-            and scene.method.name == "laguerre"):
-        raise SceneError(path, "binder_injection.solids_fraction",
-                         "the Laguerre ROM's droplet-capture tensors hold pure-liquid droplets: "
-                         "expected 0 with [aggregation] droplet_factor, or another method")
-    for key, refusal in drying_refusals(scene):
+    entry = registry.METHODS[scene.method.name]
+    for key, refusal in (spray.spray_refusals(scene, entry, registry.MOMENT_METHODS)
+                         + drying_refusals(scene, registry.METHOD_REGISTRY)):
         raise SceneError(path, key, refusal)
-    if inj is not None and inj.schedule and not METHODS[scene.method.name].integrated:
-        raise SceneError(path, "binder_injection.schedule",
-                         f"the {scene.method.name} reference sprays at one constant rate: expected "
-                         f"{' or '.join(MOMENT_METHODS)} for a spray schedule (start, stop)")
-    if not METHODS[scene.method.name].integrated and scene.domain.type != "well-mixed":
+    if not entry.integrated and scene.domain.type != "well-mixed":
         raise SceneError(path, "method.name",
                          f"the {scene.method.name} reference runs well-mixed scenes: expected "
-                         f"{' or '.join(MOMENT_METHODS)} for an openfoam domain")
+                         f"{' or '.join(registry.MOMENT_METHODS)} for an openfoam domain")
 
 
 # ------------------------------------------------------------------------------ bundled scenes

@@ -106,6 +106,25 @@ def _schedule(path, t, error):
     return max(r for _, r in out), tuple(out)
 
 
+def spray_refusals(scene, entry, moment_methods):
+    """[(key, refusal)] of a scene's spray against its method (``entry``: its ``MethodEntry``;
+    ``moment_methods``: the names of the integrated methods): binder solids in droplets of
+    their own need a method whose droplets may carry them; a schedule needs a method the
+    per-cell integration runs (the segments of ``segments``)."""
+    inj = scene.binder_injection
+    if inj is None:
+        return []
+    if inj.solids_fraction > 0.0 and scene.separate_droplets and not entry.solute_droplets:
+        return [("binder_injection.solids_fraction",
+                 f"the {entry.name} method's free droplets hold pure liquid: expected 0 with "
+                 f"[aggregation] droplet_factor, or another method")]
+    if inj.schedule and not entry.integrated:
+        return [("binder_injection.schedule",
+                 f"the {entry.name} reference sprays at one constant rate: expected "
+                 f"{' or '.join(moment_methods)} for a spray schedule (start, stop)")]
+    return []
+
+
 def segments(injection, end_time):
     """[(t0 [s], t1 [s], rate [droplets/(m3 s)])] of a ``BinderInjection`` covering
     [0, end_time [s]] in order."""

@@ -353,7 +353,7 @@ def _split_step(scene, dt_max):
 
 
 #: Split step used when the scene does not set one [s] (see the module docstring; the
-#: splitting-error study in tests/test_transport.py and the issue note justify it).
+#: splitting-error study in tests/transport/test_transport.py and the issue note justify it).
 DEFAULT_SPLIT_STEP = 0.25
 
 

@@ -1,5 +1,5 @@
 """Breakage in the Laguerre ROM (methods.laguerre_breakage) against the closed forms of
-tests/test_breakage.py (issue 16; docs/physics.md section 8).
+tests/methods/test_breakage.py (issue 16; docs/physics.md section 8).
 
 The Laguerre ROM's breakage term is linear, dM_a/dt = F_cell sum_k L[k, a] M_k, with
 L[k, a] = int_S S_unit (F(i + j) - 1) p^i b^j phi~_k. With the consistent reconstruction
@@ -7,12 +7,12 @@ L[k, a] = int_S S_unit (F(i + j) - 1) p^i b^j phi~_k. With the consistent recons
 carried monomial:
 - constant selection: L = diag(F - 1), every carried moment closes (problem 1);
 - constant aggregation + constant selection: the constant kernel's tensors are exact too
-  (tests/test_laguerre.py), so problem 3 closes on every carried moment;
+  (tests/methods/laguerre/test_laguerre.py), so problem 3 closes on every carried moment;
 - power selection S = k p: the source of M_ij needs M_(i+1),j, carried for i < m - 1; the
   top row i = m - 1 is the reconstruction's closure, so M00, M10 and M01 (sources k M10, 0, 0)
   close exactly and the rest carry the closure error.
 Tolerance where the system closes: the integrator's, 100 rtol = 1e-6 (rtol 1e-8; the bound of
-tests/test_qmom_analytic.py), plus the reconstruction's round-off, 100 eps cond(G) of the wet
+tests/methods/qmom/test_qmom_analytic.py), plus the reconstruction's round-off, 100 eps cond(G) of the wet
 weight slices (at most ~1e-9 here, printed by the aux). M10 and M01 exact to 1e-10 (their rows
 of L are exactly zero: F(1) = 1).
 """

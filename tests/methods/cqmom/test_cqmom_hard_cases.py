@@ -1,4 +1,4 @@
-"""The hard-case suite (tests/test_hard_cases.py) for CQMOM: degenerate starts, empty cells,
+"""The hard-case suite (tests/methods/test_hard_cases.py) for CQMOM: degenerate starts, empty cells,
 extreme injection, huge growth, gelation, extreme cells in one mesh, random scenes; and the same
 with breakage (a monodisperse start breaking, the number multiplied by 1e8, dry granules breaking
 while binder arrives, steep power selection on the seed scenario, collisional selection in the
@@ -280,7 +280,7 @@ def test_step_floor_reports_the_time_reached():
     integrate.integrate_cells(state, model.well_mixed_cell(scene), np.zeros(1), arrays.params,
                               arrays.config, 0.0, 1.0, np.array([0.4]), 1e-8, 1e-14, 1000,
                               np.zeros((1, integrate.N_STATS), dtype=np.int64), status, reached)
-    assert status[0] == integrate.STEP_FLOOR
+    assert status[0] == integrate.STEP_BELOW_FLOOR
     assert 0.0 <= reached[0] < 1.0
     assert np.all(np.isfinite(state))
 
@@ -312,7 +312,7 @@ def test_monodisperse_start_breaking_with_every_node_count(n1, n2):
 def test_breakage_multiplies_the_number_by_1e8(n1):
     """Constant selection with s t = ln(1e8): the mean granule mass falls from 1e-9 to 1e-17 kg
     (the scaled nodes span eight decades below their start). Every carried moment of total
-    order below 2 N1 follows M_kl(0) exp(s t (F(k + l) - 1)) (tests/test_cqmom_breakage.py);
+    order below 2 N1 follows M_kl(0) exp(s t (F(k + l) - 1)) (tests/methods/cqmom/test_cqmom_breakage.py);
     checked here for M00 and M20 (M20 falls by exp(-s t / 3): 2e-3)."""
     s = 1.0
     end = math.log(1e8) / s

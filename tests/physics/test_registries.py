@@ -114,17 +114,9 @@ def test_factor_names_codes_and_switches_agree_with_the_scene_and_the_layout():
 
 
 def single_config_slots():
-    """The named single slots of ``config`` (the constants of physics/parameters.py between
-    its config header and the switch block): distinct, below the efficiency switches."""
-    import ast
-    import inspect
-    source = inspect.getsource(P)
-    section = source[source.index("# ---- config"):source.index("N_SWITCHES_START =")]
-    slots = {}
-    for node in ast.parse(section).body:
-        if isinstance(node, ast.Assign) and isinstance(node.value, ast.Constant):
-            slots[node.targets[0].id] = node.value.value
-    return slots
+    """The named single slots of ``config`` (the table ``physics.parameters.CONFIG``, numbered
+    in its order): distinct, below the efficiency switches."""
+    return {name: getattr(P, name) for name, _ in P.CONFIG}
 
 
 def config_with(names):
@@ -172,7 +164,9 @@ def test_switched_factors_multiply():
 
 # ------------------------------------------------------------------------------ methods
 def test_method_registry_agrees_with_the_scene_and_dispatch():
-    assert S.METHOD_NAMES == tuple(m.name for m in M.METHOD_REGISTRY)
+    assert M.METHOD_NAMES == tuple(m.name for m in M.METHOD_REGISTRY)
+    with pytest.raises(S.SceneError, match="qmom"):    # the scene asks the registry
+        S._method("<scene>", {"name": "nonsense"})
     codes = [m.code for m in M.METHOD_REGISTRY if m.integrated]
     assert len(set(codes)) == len(codes)
     assert set(M.MOMENT_METHODS) == {m.name for m in M.METHOD_REGISTRY if m.integrated}

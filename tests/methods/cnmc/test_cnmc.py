@@ -10,7 +10,7 @@ of seeds fixed in this file before any was run; each band covers with probabilit
 where the finite-N bias of the cnmc module docstring bites), so the number of covering seeds is
 binomial and each check requires the count that a correct cNMC reaches with probability
 >= 1 - 1e-3 (``min_covered``). A wrong rate of a few standard errors drops the coverage to a
-few percent and fails. The brute-force check of the cNMC's physics is tests/test_cnmc_physics.py.
+few percent and fails. The brute-force check of the cNMC's physics is tests/methods/cnmc/test_cnmc_physics.py.
 """
 import math
 

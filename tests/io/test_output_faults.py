@@ -158,9 +158,9 @@ def test_an_edited_file_is_refused_before_the_computation(box, capsys, monkeypat
 CRASH_SCRIPT = textwrap.dedent("""
     import os, sys
     from pathlib import Path
-    from pbe_cfd import output
+    from pbe_cfd.io import output
     try:
-        from pbe_cfd import output_guard
+        from pbe_cfd.io import output_guard
     except ImportError:                   # an output module without the exchange
         output_guard = None
     target, k, fallback = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3] == "fallback"
@@ -242,7 +242,7 @@ def test_leftovers_of_a_killed_run_are_reported_and_cleaned(tmp_path, capsys):
     _earlier_output(target)
     killed = textwrap.dedent("""
         import os, sys
-        from pbe_cfd import output
+        from pbe_cfd.io import output
         with output.atomic_directory(sys.argv[1], overwrite=True, kind="run") as d:
             (d / "a.txt").write_text("half")
             os._exit(9)
@@ -272,7 +272,7 @@ def test_leftovers_of_a_killed_run_are_reported_and_cleaned(tmp_path, capsys):
 # ---------------------------------------------------------------------------- T6: two runs
 HOLD_SCRIPT = textwrap.dedent("""
     import sys, time
-    from pbe_cfd import output
+    from pbe_cfd.io import output
     output.prepare_directory(sys.argv[1], kind="run")
     print("claimed", flush=True)
     time.sleep(60)

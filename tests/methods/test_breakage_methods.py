@@ -17,7 +17,7 @@ from scipy import stats
 from pbe_cfd.runs import model
 from pbe_cfd.methods.cnmc import box as cnmc_box
 from pbe_cfd.methods.cnmc.breakage import split
-from pbe_cfd.methods.cnmc.slots import d4
+from pbe_cfd.methods.cnmc.slots import Particles, Slots, d4
 from pbe_cfd.methods.dispatch import WORK_SIZE
 from pbe_cfd.methods.qmom.qmom import qmom_rhs
 from pbe_cfd.physics import parameters as P
@@ -56,8 +56,9 @@ def _split_outcomes(p0, b0, i, trials, seed, config, outcome, errors):
         members, bcnt, bpos, bin_of, lo, hi, dirty, table, tabd, dlist, dpos, dcnt = cls[:12]
         m_ref, ptot, s4 = cnmc_box._fill_classes(p, isdrop, False, rho, bin_of, bpos, members,
                                                  bcnt, lo, hi, dirty, dlist, dpos, dcnt)
-        ptot, s4 = split(i, p, b, isdrop, rho, m_ref, ptot, s4, bin_of, bpos, members, bcnt,
-                         lo, hi, dirty, dlist, dpos, dcnt, config)
+        ptot, s4 = split(i, Particles(p, b, isdrop, rho, m_ref), ptot, s4,
+                         Slots(bin_of, bpos, members, bcnt, lo, hi, dirty, dlist, dpos, dcnt),
+                         config)
         expected = p0.copy()
         expected[i] = p1
         if k < n:

@@ -175,7 +175,7 @@ def test_step_floor_reports_cell_and_time():
     integrate.integrate_cells(state, model.well_mixed_cell(scene), np.zeros(1), arrays.params,
                               arrays.config, 0.0, 1.0, np.array([0.4]), 1e-8, 1e-14, 1000,
                               np.zeros((1, integrate.N_STATS), dtype=np.int64), status, reached)
-    assert status[0] == integrate.STEP_FLOOR
+    assert status[0] == integrate.STEP_BELOW_FLOOR
     assert 0.0 <= reached[0] < 1.0
     assert np.all(np.isfinite(state))
 

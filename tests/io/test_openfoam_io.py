@@ -16,7 +16,7 @@ from pbe_cfd.io import openfoam as of
 
 BED_WIDTH, BED_HEIGHT, BED_DEPTH = 0.15, 0.6, 0.02  # m
 ALPHA_MAX = 0.62  # packing limit of the case (constant/phaseProperties)
-CASE = (Path(__file__).resolve().parents[1] / "openfoam_case").resolve()   # the template
+CASE = (Path(__file__).resolve().parents[2] / "openfoam_case").resolve()   # the template
 
 needs_openfoam = pytest.mark.skipif(shutil.which("blockMesh") is None,
                                     reason="OpenFOAM (blockMesh) not installed")

@@ -15,7 +15,7 @@ Tolerances. The moment methods: problems 1 and 3 close exactly under any quadrat
 breakage term is diagonal in the moments and the constant kernel's sources are polynomials in
 the carried moments), so what remains is the integrator's error: it keeps each step's local
 error estimate below rtol = 1e-8 of the state, and over the few hundred steps of these runs
-the global error stays below 100 rtol = 1e-6 (the bound of tests/test_qmom_analytic.py).
+the global error stays below 100 rtol = 1e-6 (the bound of tests/methods/qmom/test_qmom_analytic.py).
 Problem 2 closes for M0 and M1 only (dM_k/dt = k_s (2/(k+1) - 1) M_(k+1) needs M_(2N) of an
 N-node quadrature): M0 and M1 to 1e-6; the carried higher moments are checked to 1e-6 against
 the same closure computed independently here (a plain-NumPy Gauss rule from the moments),

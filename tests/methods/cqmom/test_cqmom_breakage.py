@@ -1,4 +1,4 @@
-"""CQMOM with breakage against the closed forms of tests/test_breakage.py (issue 16).
+"""CQMOM with breakage against the closed forms of tests/methods/test_breakage.py (issue 16).
 
 Problems (N0 granules per m3 of an exponential start, binder fraction y0 = 0.25 on every
 granule, so M_kl = y0^l M_(k+l),0 for all t):
@@ -13,13 +13,13 @@ Both close exactly under CQMOM: the breakage source of a carried M_kl is s (F(k+
 constant kernel's gains are polynomials in carried moments of total order below k + l. What
 remains is the integrator's error: each step's local error estimate below rtol = 1e-8 of the
 state, the global error over these few hundred steps below 100 rtol = 1e-6 (the bound of
-tests/test_breakage.py and tests/test_cqmom_analytic.py). M10 and M01 get exactly nothing
+tests/methods/test_breakage.py and tests/methods/cqmom/test_cqmom_analytic.py). M10 and M01 get exactly nothing
 from breakage and aggregation: 1e-10 relative (round-off of the scaled sums).
 
 3. power selection S = k p (exponent 1), uniform daughters: dM_k0/dt = k (F(k) - 1) M_(k+1),0
    closes for M00 and M10 only (to 1e-6 against the closed form); the size moments of CQMOM
    follow exactly QMOM's closure with N1 nodes (their sources do not see the binder), computed
-   independently in tests/test_breakage.py (a plain-NumPy Gauss rule, scipy); a mixed moment
+   independently in tests/methods/test_breakage.py (a plain-NumPy Gauss rule, scipy); a mixed moment
    of total order k + l < 2 N1 is y0^l times that closure's M_(k+l),0 (every granule keeps
    y0; the size rule reproduces those orders, so the conditional moments stay y0^l).
 

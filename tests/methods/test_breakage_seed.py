@@ -12,8 +12,8 @@ reported 95% band; a false alarm rate of 1e-3 per comparison), relative to the m
 These tests are about the closures only: the cNMC and the moment methods evaluate the same
 kernel and efficiency functions (pbe_cfd.physics), so an error in a kernel would move both.
 The kernels and the breakage selection and daughter rules are checked by their own hand
-values, computed in plain Python from the formulas (tests/test_physics_hand_values.py,
-tests/test_breakage_hand_values.py).
+values, computed in plain Python from the formulas (tests/physics/test_physics_hand_values.py,
+tests/physics/test_breakage_hand_values.py).
 
 Why not every moment at every time: QMOM carries the binder only through M_k1, k < N (one
 binder value per node), so M02 is an estimate of its quadrature. With breakage the dry granules

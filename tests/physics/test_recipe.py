@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 KERNEL_FUNCTION = '''
 @nb.njit(cache=True, inline="always")
@@ -127,8 +127,8 @@ def test_a_kernel_and_a_factor_added_by_the_recipe_run_everywhere(tmp_path):
                          capture_output=True, text=True)
     assert run.returncode == 0, run.stderr[-3000:]
     run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rA", "-p",
-                          "no:cacheprovider", "tests/test_registries.py",
-                          "tests/test_physics_registry.py"],
+                          "no:cacheprovider", "tests/physics/test_registries.py",
+                          "tests/physics/test_physics_registry.py"],
                          cwd=tmp_path, env=env, capture_output=True, text=True)
     assert run.returncode == 0, run.stdout[-3000:]
     passed = [line for line in run.stdout.splitlines() if line.startswith("PASSED")]

@@ -1,6 +1,6 @@
 """CQMOM in a coupled run with transport (pbe_cfd.transport.operator) and in its outputs.
 
-A closed ring of 16 cells (tests/test_transport.py) whose circulation (period 0.5 s) is much
+A closed ring of 16 cells (tests/transport/test_transport.py) whose circulation (period 0.5 s) is much
 faster than aggregation (tens of s): the bed moments must follow a well-mixed CQMOM run whose
 ktgf cell factor is the pair-weighted bed average of g0(alpha) sqrt(Theta), within 1% (the
 criterion of the QMOM test there: the splitting and the bed averaging of a kernel that varies

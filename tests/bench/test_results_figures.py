@@ -22,7 +22,7 @@ Wall times are machine-dependent and not compared.
 The cNMC references judge the closures only: the cNMC evaluates the same kernel and efficiency
 functions (pbe_cfd.physics) as the moment methods, so a kernel error would move reference and
 method together. The kernels themselves are checked against hand values computed in plain
-Python from the formulas (tests/test_physics_hand_values.py).
+Python from the formulas (tests/physics/test_physics_hand_values.py).
 """
 import math
 import re
@@ -35,7 +35,7 @@ from pbe_cfd import bench
 from pbe_cfd.scene.scene import load_scene
 from pbe_cfd.runs.simulate import run_well_mixed
 
-RESULTS = Path(__file__).resolve().parents[1] / "docs" / "results"
+RESULTS = Path(__file__).resolve().parents[2] / "docs" / "results"
 SEED_DOC = RESULTS / "seed-scenario.md"
 ACCURACY_DOC = RESULTS / "accuracy.md"
 NUMBER = re.compile(r"([+-]?\d+(?:\.\d+)?)(?:-(\d+(?:\.\d+)?))?%")

@@ -29,7 +29,7 @@ from pbe_cfd.runs.simulate import run_well_mixed
 
 from test_breakage import N0, P0, Y0, breakage_scene
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), "references"))
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "references"))
 import sectional  # noqa: E402
 
 K_AGG = 1.0e-10          # m3/s
