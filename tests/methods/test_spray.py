@@ -129,6 +129,27 @@ def test_the_cnmc_refuses_a_schedule_it_cannot_run():
     assert err.value.key == "binder_injection.schedule"
 
 
+@pytest.mark.parametrize("method", ["qmom", "cqmom", "laguerre"])
+def test_only_a_method_whose_own_droplets_hold_solids_takes_a_solution(method):
+    """Droplets of their own ([aggregation] droplet_factor) with binder solids: the Laguerre
+    ROM's capture tensors hold pure-liquid droplets (b = p_d) and refuse; pure liquid, and the
+    quadratures, are accepted."""
+    def scene(solids):
+        return make_scene(scene={"end_time": END, "output_interval": 0.5},
+                          initial={"mean_mass": P0, "number_density": N0},
+                          aggregation={"kernel": "constant", "rate": K0, "droplet_factor": 1.0},
+                          binder_injection={"droplet_diameter": D_DROP, "rate": RATE,
+                                            "solids_fraction": solids},
+                          method={"_replace": True, **METHODS[method]})
+    assert scene(0.0).separate_droplets
+    if method == "laguerre":
+        with pytest.raises(SceneError) as err:
+            scene(SOLIDS)
+        assert err.value.key == "binder_injection.solids_fraction"
+    else:
+        assert scene(SOLIDS).binder_injection.solids_fraction == SOLIDS
+
+
 def test_plan_lists_the_schedule_and_exit_2_names_the_key(tmp_path):
     good = tmp_path / "spray.toml"
     good.write_text(_toml("rate = 2e9\nstart = 2.0\nstop = 6.0\nsolids_fraction = 0.2"))
