@@ -23,9 +23,11 @@ from .reconstruct import _rows_text, diameter_of_mass, mass_of_diameter
 class KernelMixture:
     """Rows of gamma-kernel mixtures: ``kernels`` a list per row of (sigma [kg], x [kg],
     w [1/m3], y [-], status); ``rho`` the granule density [kg/m3]; ``status_text`` the
-    inversion branches' names; ``reported`` the branch codes worth a note."""
+    inversion branches' names; ``reported`` the branch codes worth a note, ``failed`` the
+    code of a row without kernels."""
 
-    def __init__(self, kernels, rho, bivariate, status_text, reported=(), labels=str):
+    def __init__(self, kernels, rho, bivariate, status_text, reported=(), failed=None,
+                 labels=str):
         self.rho = float(rho)
         self.rows = len(kernels)
         n = max((len(k[1]) for k in kernels), default=0)
@@ -45,7 +47,9 @@ class KernelMixture:
             rows = np.flatnonzero(status == code)
             if rows.size:
                 self.notes.append(f"size distribution: EQMOM inversion {status_text[code]} at "
-                                  f"{_rows_text(rows, labels)}")
+                                  f"{_rows_text(rows, labels)}"
+                                  + ("; no granules drawn, d10/d50/d90 = 0 there"
+                                     if code == failed else ""))
 
     def _kernel_cdf(self, p):
         """Per row and kernel the mass fraction of the kernel below p [kg] (rows, n, k)."""
@@ -99,4 +103,5 @@ def of_states(states, aux, arrays, rho, bivariate, labels=str) -> KernelMixture:
     from ..methods.eqmom import entry, inversion
     kernels = [entry.kernels_si(s, aux, arrays) for s in np.atleast_2d(states)]
     return KernelMixture(kernels, rho, bivariate, inversion.STATUS_TEXT,
-                         reported=(inversion.CLOSEST, inversion.FAILED), labels=labels)
+                         reported=(inversion.CLOSEST, inversion.FAILED),
+                         failed=inversion.FAILED, labels=labels)

@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from . import kernel_mixture
 from . import reconstruct as R
 from .quantiles import FRACTIONS, DistributionError, check_grid_covers, log_grid
 
@@ -31,6 +32,8 @@ RECONSTRUCTION_TEXT = {
     "cqmom": "gamma density in granule mass fitted to the carried M00, M10, M20 (one-kernel "
              "gamma EQMOM); binder fraction per size class interpolated in ln p between the "
              "size nodes' mass-mean binder fractions",
+    "eqmom": "the EQMOM's own density: N gamma kernels in granule mass fitted to the carried "
+             "M00 .. M(2N)0; binder fraction per size class from the kernels' binder fractions",
     "laguerre": "the Laguerre ROM's own density (wet and dry classes) integrated per size class",
     "cnmc": "mass histogram of each replica's particle list (50 classes per decade of d), the "
             "replicas' mean and 95% band; d10/d50/d90 exact per replica",
@@ -43,6 +46,9 @@ def reconstruction_of(scene, arrays, states, aux, populations, labels=str):
     name = scene.method.name
     if name == "laguerre":
         return R.laguerre_table(states, aux, arrays, scene.bivariate, labels)
+    if name == "eqmom":
+        return kernel_mixture.of_states(states, aux, arrays, scene.material.density,
+                                        scene.bivariate, labels)
     if name in ("qmom", "cqmom"):
         return R.gamma_of_populations(populations, scene.material.density, scene.bivariate,
                                       labels)
@@ -148,8 +154,9 @@ def column_labels(scene, state_names, columns, bed: bool = False) -> dict:
         elif base.startswith("M"):
             text = ("reconstructed, not carried: " + (
                 "from the quadrature nodes (one binder value per size node)"
-                if method in ("qmom", "cqmom") else "integral of the Laguerre density over "
-                "its support"))
+                if method in ("qmom", "cqmom") else
+                "from the EQMOM kernels' secondary Gauss nodes (binder fraction per kernel)"
+                if method == "eqmom" else "integral of the Laguerre density over its support"))
         elif base in ("d32_m", "d43_m"):
             text = "derived from the method's population (nodes or reconstruction) [m]"
         elif base == "binder_fraction":

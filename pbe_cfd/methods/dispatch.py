@@ -26,12 +26,14 @@ from .cqmom import cqmom_conserved, cqmom_project, cqmom_realizable
 from .cqmom_sources import cqmom_rhs
 from .laguerre import (laguerre_conserved, laguerre_project, laguerre_realizable,
                        laguerre_rhs)
+from .eqmom.sources import eqmom_conserved, eqmom_project, eqmom_realizable, eqmom_rhs
 from .qmom import qmom_conserved, qmom_project, qmom_realizable, qmom_rhs
 
 #: method codes (config[P.METHOD]); the registry of methods is ``pbe_cfd.methods.registry``
 QMOM = 0
 LAGUERRE = 1
 CQMOM = 2
+EQMOM = 3
 
 #: length of the per-cell float work array handed to every method function
 WORK_SIZE = 2048
@@ -68,6 +70,9 @@ def conserved(method, config, params, pivots, coefs):
 @overload(rhs, prefer_literal=True)
 def _rhs(method, state, out, cell, aux, params, config, work):
     code = _code(method)
+    if code == EQMOM:
+        return lambda method, state, out, cell, aux, params, config, work: eqmom_rhs(
+            state, out, cell, aux, params, config, work)
     if code == LAGUERRE:
         return lambda method, state, out, cell, aux, params, config, work: laguerre_rhs(
             state, out, cell, aux, params, config, work)
@@ -83,6 +88,9 @@ def _rhs(method, state, out, cell, aux, params, config, work):
 @overload(realizable, prefer_literal=True)
 def _realizable(method, state, aux, params, config, work):
     code = _code(method)
+    if code == EQMOM:
+        return lambda method, state, aux, params, config, work: eqmom_realizable(
+            state, aux, params, config, work)
     if code == LAGUERRE:
         return lambda method, state, aux, params, config, work: laguerre_realizable(
             state, aux, params, config, work)
@@ -98,6 +106,9 @@ def _realizable(method, state, aux, params, config, work):
 @overload(project, prefer_literal=True)
 def _project(method, state, aux, params, config, work):
     code = _code(method)
+    if code == EQMOM:
+        return lambda method, state, aux, params, config, work: eqmom_project(
+            state, aux, params, config, work)
     if code == LAGUERRE:
         return lambda method, state, aux, params, config, work: laguerre_project(
             state, aux, params, config, work)
@@ -113,6 +124,9 @@ def _project(method, state, aux, params, config, work):
 @overload(conserved, prefer_literal=True)
 def _conserved(method, config, params, pivots, coefs):
     code = _code(method)
+    if code == EQMOM:
+        return lambda method, config, params, pivots, coefs: eqmom_conserved(
+            config, params, pivots, coefs)
     if code == LAGUERRE:
         return lambda method, config, params, pivots, coefs: laguerre_conserved(
             config, params, pivots, coefs)
@@ -135,6 +149,8 @@ def method_rhs(state, out, cell, aux, params, config, work):
         cqmom_rhs(state, out, cell, aux, params, config, work)
     elif config[P.METHOD] == QMOM:
         qmom_rhs(state, out, cell, aux, params, config, work)
+    elif config[P.METHOD] == EQMOM:
+        eqmom_rhs(state, out, cell, aux, params, config, work)
     else:                       # an unknown code: NaN, which stops the cell, never wrong numbers
         for k in range(out.shape[0]):
             out[k] = np.nan
@@ -149,6 +165,8 @@ def method_realizable(state, aux, params, config, work):
         return cqmom_realizable(state, aux, params, config, work)
     if config[P.METHOD] == QMOM:
         return qmom_realizable(state, aux, params, config, work)
+    if config[P.METHOD] == EQMOM:
+        return eqmom_realizable(state, aux, params, config, work)
     return False
 
 
@@ -161,3 +179,5 @@ def method_project(state, aux, params, config, work):
         cqmom_project(state, aux, params, config, work)
     elif config[P.METHOD] == QMOM:
         qmom_project(state, aux, params, config, work)
+    elif config[P.METHOD] == EQMOM:
+        eqmom_project(state, aux, params, config, work)

@@ -23,7 +23,8 @@ import numpy as np
 
 from ..physics import parameters as P
 from . import cqmom, laguerre_tensor, qmom
-from .dispatch import CQMOM, LAGUERRE, QMOM
+from .dispatch import CQMOM, EQMOM, LAGUERRE, QMOM
+from .eqmom import entry as eqmom_entry
 
 #: config[P.METHOD] of a method that the per-cell integrator does not run (the cNMC)
 NOT_INTEGRATED = -1
@@ -249,6 +250,11 @@ METHOD_REGISTRY = (
                 failure_hint=_no_hint, diagnostics=_no_diagnostics, plan_line=_cqmom_plan,
                 repairs_mixture=lambda scene: scene.bivariate,
                 config_slots=lambda scene: {P.BINDER_NODES: scene.method.binder_nodes}),
+    MethodEntry(name="eqmom", code=EQMOM, scene_keys=eqmom_entry.scene_keys,
+                order_key="nodes", order_label="EQMOM N", state_names=eqmom_entry.state_names,
+                aux=eqmom_entry.aux, tabulates_theta=False, population=eqmom_entry.population,
+                failure_hint=eqmom_entry.failure_hint, diagnostics=eqmom_entry.diagnostics,
+                plan_line=eqmom_entry.plan_line, repairs_mixture=lambda scene: True),
 )
 
 #: name -> entry

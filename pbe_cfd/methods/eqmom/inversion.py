@@ -67,7 +67,7 @@ FAILED = 5
 STATUS_TEXT = ("fitted", "discrete (sigma = 0, QMOM with N nodes)",
                "reduced (moments on the boundary: fewer nodes, sigma = 0)",
                "closest sigma (no root of the last moment; M_2N re-projected)",
-               "empty", "not invertible")
+               "empty", "not invertible (no kernels)")
 
 
 def _stirling2(n):
@@ -212,7 +212,7 @@ def invert_normalised(u, n_max, nodes, weights, work, result):
     if abs(f0) <= ROOT_TOLERANCE:
         return DISCRETE, n
     if f0 < 0.0:                       # m_2N below the Gauss rule's: not realizable
-        return FAILED, n
+        return FAILED, 0
     sigma_max = u[2] - 1.0
     lo, f_lo = 0.0, f0
     best, f_best = 0.0, f0
