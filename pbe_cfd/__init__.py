@@ -3,10 +3,11 @@
 numba's on-disk cache is keyed by each module's own source file, so a compiled caller keeps
 inlined code of a callee from another module after that callee changed. To make the cache
 always consistent with the code, it lives in a directory keyed by a hash of the package's
-source files (unless NUMBA_CACHE_DIR is set by the user). Files in UNCOMPILED are left out of
-the hash: no compiled function is in them or reads anything from them (``tests/test_layers.py``
-checks this over the import graph), so a change to the CLI, the pictures or the benchmarks
-does not recompile the kernels.
+source files that compiled code can read (unless NUMBA_CACHE_DIR is set by the user): the
+compiled folders and the few modules outside them that compiled code imports, ``COMPILED``.
+Everything else (the CLI, the runs' orchestration, the pictures, the benchmarks) is left out
+of the hash (``tests/test_layers.py`` checks over the import graph that compiled code reads
+none of it), so a change there does not recompile the kernels.
 """
 import hashlib
 import os
@@ -14,25 +15,20 @@ from pathlib import Path
 
 __version__ = "0.1.0"
 
-#: Source files (paths relative to the package, a trailing "/" for a whole directory) that no
-#: numba-compiled code imports, directly or through other modules.
-UNCOMPILED = ("cli.py", "plan.py", "results.py", "plotting.py", "progress.py", "simulate.py",
-              "couple.py", "executor.py", "batch.py", "cfd/render.py", "cfd/section.py",
-              "cfd/figure_pool.py", "cfd/figure_parts.py", "cfd/bed_moments.py", "cfd/vtk.py",
-              "cfd/cases.py", "distributed/",
-              "bench/__init__.py", "bench/accuracy.py", "bench/accuracy_report.py",
-              "bench/analytic.py", "bench/cluster.py", "bench/cnmc.py", "bench/common.py",
-              "bench/couple.py", "bench/integrators.py", "bench/laguerre.py",
-              "bench/numpy_baseline.py", "bench/throughput.py", "bench/peer.py",
-              "bench/peer_case.py", "bench/peer_reference.py", "bench/peer_report.py")
+#: What compiled code can read (paths relative to the package, a trailing "/" for a folder):
+#: the compiled folders, the folders below them that they import (scene, I/O, utilities), and
+#: the modules of other folders that hold numba functions or that compiled code imports.
+COMPILED = ("__init__.py", "physics/", "methods/", "integrate/", "distribution/", "transport/",
+            "scene/", "io/", "util/", "runs/__init__.py", "runs/model.py", "runs/domain.py",
+            "bench/breakdown.py", "bench/sweeps.py")
 
 
 def _compiled_sources(root: Path) -> list[Path]:
-    """The package's .py files that can change compiled code (all but UNCOMPILED)."""
+    """The package's .py files that can change compiled code (those under COMPILED)."""
     out = []
     for path in sorted(root.rglob("*.py")):
         rel = path.relative_to(root).as_posix()
-        if not any(rel == u or (u.endswith("/") and rel.startswith(u)) for u in UNCOMPILED):
+        if any(rel == c or (c.endswith("/") and rel.startswith(c)) for c in COMPILED):
             out.append(path)
     return out
 

@@ -86,7 +86,8 @@ def _fail(message, code=2):
 
 def write_size_distribution(directory, psd, labels, title, what):
     """psd.csv, psd.png and columns.json of a run into ``directory`` (a new output)."""
-    from . import output, psd_figure
+    from .io import output
+    from .viz import psd_figure
     output.write_columns_csv(directory / "psd.csv", psd)
     output.write_json(directory / "columns.json", labels)
     psd_figure.plot_psd(directory / "psd.png", psd, title=title,
@@ -95,10 +96,11 @@ def write_size_distribution(directory, psd, labels, title, what):
 
 def run_command(args):
     """``pbe-cfd run [SCENE] --out DIR``: a well-mixed run."""
-    from . import output, plotting
-    from .progress import Progress
-    from .scene import describe, load_scene
-    from .simulate import run_well_mixed
+    from .io import output
+    from .viz import plotting
+    from .util.progress import Progress
+    from .scene.scene import describe, load_scene
+    from .runs.simulate import run_well_mixed
 
     scene = load_scene(args.scene or DEFAULT_WELL_MIXED)
     if scene.domain.type != "well-mixed":
@@ -132,9 +134,9 @@ def run_command(args):
 
 def plan_command(args):
     """``pbe-cfd plan SCENE``: what a scene computes."""
-    from .batch import check_physics
-    from .plan import describe_plan
-    from .scene import load_scene
+    from .runs.batch import check_physics
+    from .runs.plan import describe_plan
+    from .scene.scene import load_scene
 
     scene = load_scene(args.scene)
     check_physics(scene)           # what a run would refuse, plan refuses too
@@ -144,7 +146,7 @@ def plan_command(args):
 
 def scenes_command(args):
     """``pbe-cfd scenes``: the bundled scenes."""
-    from .scene import bundled_scenes, load_scene
+    from .scene.scene import bundled_scenes, load_scene
 
     for name, path in sorted(bundled_scenes().items()):
         scene = load_scene(path)
@@ -158,7 +160,7 @@ def scenes_command(args):
 def compare_command(args):
     """``pbe-cfd compare A B --out F.png``: overlay moment trajectories (a coupled run: its
     bed averages)."""
-    from .results import compare_runs
+    from .io.results import compare_runs
     return compare_runs(args.results, args.out, args.overwrite)
 
 
@@ -169,7 +171,7 @@ def _cluster_wanted(args) -> bool:
 def _apply_resume(args):
     """``--resume DIR``: ``--out DIR`` and, when not given, SCENE and ``--chunks`` as the
     earlier run recorded them."""
-    from .distributed import resume_manifest
+    from .runs.distributed import resume_manifest
     args.out = args.resume
     manifest = resume_manifest(args.resume)
     if not args.scene and manifest.get("scene"):
@@ -183,8 +185,9 @@ def _fresh_case(scene, mesh: str, overwrite: bool = False):
     it (an earlier case pbe-cfd made there is replaced only with --overwrite)."""
     import dataclasses
 
-    from .batch import SimulationError
-    from .cfd import cases, openfoam as of
+    from .runs.batch import SimulationError
+    from .io.openfoam import cases
+    from .io import openfoam as of
     target = Path("fluid-bed-case")
     try:
         cases.copy_and_run(target, mesh, overwrite, flag="--run-case: fluid-bed-case",
@@ -197,8 +200,8 @@ def _fresh_case(scene, mesh: str, overwrite: bool = False):
 
 def couple_command(args):
     """``pbe-cfd couple [SCENE] --out DIR``: the per-cell run over an OpenFOAM bed."""
-    from . import output
-    from .cfd import figure_pool
+    from .io import output
+    from .viz import figure_pool
 
     refusal = _threads_refusal(args.threads)
     if refusal:
@@ -211,7 +214,7 @@ def couple_command(args):
     out = output.prepare_directory(args.out, args.overwrite, kind="couple",   # before any work
                                    inputs=_couple_inputs(scene, args))
     if _cluster_wanted(args) and not args.resume:
-        from .distributed import check_store
+        from .runs.distributed import check_store
         check_store(args.out, args.overwrite)
     phases = {"startup_s": _process_age(), "read_s": time.perf_counter() - t_read}
     if not _cluster_wanted(args):
@@ -225,7 +228,7 @@ def couple_command(args):
 def _coupled_scene(args):
     """The scene of ``couple`` (SCENE, else the bundled fluid bed); SceneError unless its
     domain is an OpenFOAM bed."""
-    from .scene import SceneError, load_scene
+    from .scene.scene import SceneError, load_scene
     scene = load_scene(args.scene or DEFAULT_COUPLED)
     if scene.domain.type != "openfoam":
         raise SceneError(scene.source, "domain.type",
@@ -236,7 +239,7 @@ def _coupled_scene(args):
 
 def _couple_inputs(scene, args) -> list:
     """What a coupled run reads (``(what, path)`` pairs), which its --out must not be."""
-    from .domain import case_path
+    from .runs.domain import case_path
     inputs = [("the scene", scene.source)]
     if args.run_case:
         inputs.append(("the case --run-case makes", Path("fluid-bed-case")))
@@ -264,11 +267,11 @@ def _couple_recorded(args, scene, out, phases, t_read, caught):
     and into summary.json, never as raw warning lines)."""
     import time
 
-    from . import output
-    from .couple import check_foam_fields, run_coupled, write_coupled, write_foam_fields
-    from .domain import load_domain
-    from .executor import SerialExecutor
-    from .progress import Progress
+    from .io import output
+    from .runs.couple import check_foam_fields, run_coupled, write_coupled, write_foam_fields
+    from .runs.domain import load_domain
+    from .runs.executor import SerialExecutor
+    from .util.progress import Progress
 
     if args.run_case:
         scene = _fresh_case(scene, args.mesh, args.overwrite)
@@ -278,7 +281,7 @@ def _couple_recorded(args, scene, out, phases, t_read, caught):
         check_foam_fields(scene, domain, args.overwrite)
     executor = SerialExecutor()
     if _cluster_wanted(args):
-        from .distributed import make_executor
+        from .runs.distributed import make_executor
         executor = make_executor(scene, domain, args.out, scene_arg=args.scene,
                                  scheduler=args.scheduler, workers=args.workers,
                                  chunks=args.chunks, decompose=args.decompose,
@@ -315,7 +318,8 @@ def _couple_recorded(args, scene, out, phases, t_read, caught):
 
 def case_command(args):
     """``pbe-cfd case run --mesh small --dir DIR``: copy and run the fluid-bed case."""
-    from .cfd import cases, openfoam as of
+    from .io.openfoam import cases
+    from .io import openfoam as of
     target = Path(args.dir)
     try:
         res = cases.copy_and_run(target, args.mesh, args.overwrite, flag="--dir",
@@ -330,7 +334,7 @@ def case_command(args):
 
 def render_command(args):
     """``pbe-cfd render DIR``: PNGs of a coupled run's VTK series."""
-    from .results import render_run
+    from .io.results import render_run
     for p in render_run(args.dir, args.fields, args.times, args.overwrite,
                         section=args.section):
         print(p)
@@ -341,7 +345,8 @@ def bench_command(args):
     """``pbe-cfd bench STUDY [SCENE] --out DIR [--quick]``."""
     import time
 
-    from . import bench, output
+    from . import bench
+    from .io import output
     out = Path(args.out)
     quick = bool(args.quick)
     study = args.study
@@ -527,9 +532,9 @@ def _on_signal(signum, frame):
 
 
 def main(argv=None):
-    from .batch import SimulationError
-    from .output import OutputFailed, UsageError, interrupted_text, release_claims
-    from .scene import SceneError
+    from .runs.batch import SimulationError
+    from .io.output import OutputFailed, UsageError, interrupted_text, release_claims
+    from .scene.scene import SceneError
 
     parser = build_parser()
     args = parser.parse_args(argv)

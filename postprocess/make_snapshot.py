@@ -14,7 +14,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from pbe_cfd.cfd import openfoam as of
+from pbe_cfd.io import openfoam as of
 
 
 def main(argv: list[str] | None = None) -> int:

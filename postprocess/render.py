@@ -6,7 +6,7 @@
 OUT_DIR is a `pbe-cfd couple` output directory (its vtk/ subdirectory holds the .pvd) or a
 directory holding a .pvd directly; the PNGs go to OUT_DIR/png/ under the same rules as the
 command (a picture pbe-cfd drew earlier is replaced only with --overwrite, any other file
-never). The code lives in pbe_cfd.results and pbe_cfd.cfd.render.
+never). The code lives in pbe_cfd.io.results and pbe_cfd.viz.render.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from pbe_cfd.output import UsageError
-from pbe_cfd.results import render_run
+from pbe_cfd.io.output import UsageError
+from pbe_cfd.io.results import render_run
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -30,10 +30,12 @@ CASES = {
     "seed-wurster": (["run", "seed-wurster"], None),
     "seed-wurster-laguerre": (["run", "seed-wurster-laguerre"], None),
     "seed-wurster-cnmc": (["run", "seed-wurster-cnmc"], None),
+    "seed-wurster-cqmom": (["run", "seed-wurster-cqmom"], None),
     "constant-kernel": (["run", "constant-kernel"], None),
     "study-analytic": (["run", "study-analytic"], None),
     "fluid-bed": (["couple"], None),
     "fluid-bed-transport": (["couple", "fluid-bed-transport"], None),
+    "fluid-bed-breakage": (["couple", "fluid-bed-breakage"], None),
     "fluid-bed-qmom3": (["couple", "{scene}"], ("fluid-bed", {"nodes": 3}, None, 20.0)),
     "fluid-bed-laguerre": (["couple", "{scene}"],
                            ("fluid-bed", {"name": "laguerre", "order": 3},
@@ -42,6 +44,7 @@ CASES = {
 }
 
 WALL_KEYS = ("wall_time_s", "cell_steps_per_second", "cluster", "threads", "source",
+             "compile_time_s", "kernels_compiled", "phases",
              "transport_wall_s", "source_wall_s", "transport_first_call_s",
              "transport_s_per_cell_substep", "source_s_per_cell_split_step")
 

@@ -36,8 +36,8 @@ def main(argv=None) -> int:
     import matplotlib.pyplot as plt
     import pyvista as pv
 
-    from pbe_cfd.cfd.render import render_mesh_field
-    from pbe_cfd.cfd.vtk import read_pvd
+    from pbe_cfd.viz.render import render_mesh_field
+    from pbe_cfd.io.vtk import read_pvd
 
     meshes, labels = [], ("without breakage", "with breakage")
     for run in (args.without, args.with_breakage):

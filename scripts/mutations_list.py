@@ -21,7 +21,7 @@ def M(name, origin, area, file, original, replacement, tests, note=""):
 
 MUTATIONS = [
     # ---- the table of issue 33 ---------------------------------------------------------------
-    M("laguerre-dry-birth-half", "issue", "methods", "pbe_cfd/methods/laguerre_dry.py",
+    M("laguerre-dry-birth-half", "issue", "methods", "pbe_cfd/methods/laguerre/dry.py",
       "T[a] += 0.5 * comb(a, e) * Z[e, :, a - e, :]",
       "T[a] += comb(a, e) * Z[e, :, a - e, :]",
       ["tests/test_laguerre_dry.py::test_constant_kernel_dry_and_wet_classes"]),
@@ -38,7 +38,7 @@ MUTATIONS = [
            "caught, as in the issue, only by test_qmom_analytic's injection test. A test that "
            "fails on the projection's own job (a lost node re-placing the higher moments) "
            "is still wanted"),
-    M("manifest-size-only", "issue", "output", "pbe_cfd/output.py",
+    M("manifest-size-only", "issue", "output", "pbe_cfd/io/output.py",
       '        return _stat_entry(path) == {"size": entry.get("size"),\n'
       '                                     "mtime_ns": entry.get("mtime_ns")}',
       '        return _stat_entry(path)["size"] == entry.get("size")',
@@ -47,11 +47,11 @@ MUTATIONS = [
       "        if up and down:             # central: second-order accurate",
       "        if False:             # central: second-order accurate",
       [INTEG + "::test_rodas3_stays_third_order_near_the_realizability_boundary"]),
-    M("qmom-self-pair-gain-doubled", "issue", "methods", "pbe_cfd/methods/qmom.py",
+    M("qmom-self-pair-gain-doubled", "issue", "methods", "pbe_cfd/methods/qmom/qmom.py",
       "                    out[k] += pair * g\n",
       "                    out[k] += pair * g * (2.0 if a == c else 1.0)\n",
       ["tests/test_hard_cases.py::test_monodisperse_start_with_every_node_count"]),
-    M("cnmc-clock-3pct-fast", "issue", "methods", "pbe_cfd/methods/cnmc_box.py",
+    M("cnmc-clock-3pct-fast", "issue", "methods", "pbe_cfd/methods/cnmc/box.py",
       "    return t + 1.0 / r\n",
       "    return t + 0.97 / r\n",
       ["tests/test_cnmc.py::test_constant_kernel_matches_analytic_moments"]),
@@ -105,25 +105,25 @@ MUTATIONS = [
       "            * (max(theta, 0.0) / params[P.BREAKAGE_REFERENCE_THETA]))",
       [BRK + "::test_collisional_selection_with_and_without_the_gate"]),
     # ---- methods -------------------------------------------------------------------------------
-    M("qmom-number-loss-doubled", "own", "methods", "pbe_cfd/methods/qmom.py",
+    M("qmom-number-loss-doubled", "own", "methods", "pbe_cfd/methods/qmom/qmom.py",
       "                out[0] -= pair\n",
       "                out[0] -= 2.0 * pair\n",
       ["tests/test_qmom_analytic.py::test_constant_kernel"]),
-    M("qmom-droplet-capture-gain", "own", "methods", "pbe_cfd/methods/qmom.py",
+    M("qmom-droplet-capture-gain", "own", "methods", "pbe_cfd/methods/qmom/qmom.py",
       "                    h = s * h + xd * pa\n                    pa *= xa\n"
       "                    out[k] += flux * h\n",
       "                    h = s * h + xd * pa\n                    pa *= xa\n"
       "                    out[k] += 0.5 * flux * h\n",
       ["tests/test_qmom_analytic.py::test_injection_with_separate_droplets_conserves_total_mass_rate"]),
-    M("wheeler-b-coefficient", "own", "methods", "pbe_cfd/methods/quadrature.py",
+    M("wheeler-b-coefficient", "own", "methods", "pbe_cfd/methods/quadrature/gauss.py",
       "        b_new = sig[row + k] / sig[prev + k - 1]",
       "        b_new = 1.01 * sig[row + k] / sig[prev + k - 1]",
       ["tests/test_hard_cases.py::test_random_realizable_sets_invert_and_reproject"]),
-    M("cqmom-self-pair-not-halved", "own", "methods", "pbe_cfd/methods/cqmom_sources.py",
+    M("cqmom-self-pair-not-halved", "own", "methods", "pbe_cfd/methods/cqmom/sources.py",
       "                    if i == j:\n                        rate *= 0.5\n",
       "                    if i == j:\n                        rate *= 1.0\n",
       ["tests/test_cqmom_inversion.py::test_rhs_equals_the_exact_sources_of_a_represented_population"]),
-    M("cqmom-injection-moment", "own", "methods", "pbe_cfd/methods/cqmom_sources.py",
+    M("cqmom-injection-moment", "own", "methods", "pbe_cfd/methods/cqmom/sources.py",
       "        out[n_state - 1] += inj\n",
       "        out[n_state - 1] += 0.5 * inj\n",
       ["tests/test_cqmom_analytic.py::test_dry_granules_and_pure_binder_droplets_as_ordinary_particles",
@@ -132,14 +132,15 @@ MUTATIONS = [
       note="survived the two analytic tests alone (their droplets are ordinary particles, so "
            "the separate-droplet branch never runs); the RHS reference case 'eke droplets "
            "injected' checks the free droplets' source"),
-    M("qmom-breakage-mass-moment", "own", "methods", "pbe_cfd/methods/breakage_sources.py",
+    M("qmom-breakage-mass-moment", "own", "methods",
+      "pbe_cfd/methods/quadrature/breakage_sources.py",
       "            if k != 1:                    # F(1) = 1: the mass moment gets exactly nothing",
       "            if True:                    # F(1) = 1: the mass moment gets exactly nothing",
       ["tests/test_breakage.py::test_qmom_constant_selection"],
       note="equivalent mutant: F(1) - 1 is exactly 0.0 for both daughter rules (2 / (1 + 1) "
            "and 2^0), so the mass source gains exactly nothing either way; the branch only "
            "saves the multiplication"),
-    M("cnmc-acceptance", "own", "methods", "pbe_cfd/methods/cnmc_box.py",
+    M("cnmc-acceptance", "own", "methods", "pbe_cfd/methods/cnmc/box.py",
       "            if np.random.random() * bound < rate:",
       "            if np.random.random() * bound < 1.05 * rate:",
       ["tests/test_cnmc.py::test_constant_kernel_matches_analytic_moments",
@@ -174,7 +175,7 @@ MUTATIONS = [
            "tenth of the accepted steps, from the controller's 0.9^3 margin) catches it: on "
            "the mutant 2277 rejected for 1174 accepted (explicit), 3808 for 1927 (implicit)"),
     # ---- transport -----------------------------------------------------------------------------
-    M("upwind-wrong-volume", "own", "transport", "pbe_cfd/solids_flux.py",
+    M("upwind-wrong-volume", "own", "transport", "pbe_cfd/transport/solids_flux.py",
       "    off = sp.csr_matrix((mag / (volume[down] * alpha[up]), (down, up)), shape=(n, n))",
       "    off = sp.csr_matrix((mag / (volume[up] * alpha[up]), (down, up)), shape=(n, n))",
       [TRANS + "::test_conserved_and_uniform_stays_uniform",
@@ -182,7 +183,7 @@ MUTATIONS = [
       note="equivalent on the first test's mesh (equal volumes, V_down = V_up); the ring of "
            "unequal volumes checks one substep against the upwind update written by hand "
            "and the bed total sum V_i S_i"),
-    M("cfl-substeps-halved", "own", "transport", "pbe_cfd/transport.py",
+    M("cfl-substeps-halved", "own", "transport", "pbe_cfd/transport/operator.py",
       "        k = max(1, int(math.ceil(duration / self.dt_max * (1.0 - 1e-12))))",
       "        k = max(1, int(math.ceil(0.5 * duration / self.dt_max * (1.0 - 1e-12))))",
       [TRANS + "::test_binder_tracer_spreads_conserved_and_realizable_every_substep",
@@ -190,7 +191,7 @@ MUTATIONS = [
       note="survived the tracer test alone: it calls transport() with exactly dt_max, one "
            "substep either way; test_advance_splits_sources_and_reaches_t1 checks the "
            "Courant number used over longer spans"),
-    M("strang-as-lie", "own", "transport", "pbe_cfd/transport.py",
+    M("strang-as-lie", "own", "transport", "pbe_cfd/transport/operator.py",
       "                self.transport(states, 0.5 * (tb - ta))\n"
       "                self._source(source_step, states, ta, tb)\n"
       "                self.transport(states, 0.5 * (tb - ta))\n",
@@ -198,15 +199,15 @@ MUTATIONS = [
       "                self.transport(states, tb - ta)\n",
       [TRANS + "::test_default_split_step_is_second_order_and_within_its_stated_error"]),
     # ---- output safety -------------------------------------------------------------------------
-    M("cwd-ancestors-accepted", "own", "output", "pbe_cfd/output.py",
+    M("cwd-ancestors-accepted", "own", "output", "pbe_cfd/io/output.py",
       "    if target == cwd or target in cwd.parents:",
       "    if target == cwd:",
       [SAFE + "::test_current_directory_and_ancestors_are_refused"]),
-    M("foreign-directory-accepted", "own", "output", "pbe_cfd/output.py",
+    M("foreign-directory-accepted", "own", "output", "pbe_cfd/io/output.py",
       "    manifest = read_manifest(target)\n    if manifest is None:\n        raise",
       "    manifest = read_manifest(target)\n    if False:\n        raise",
       [SAFE + "::test_a_directory_pbe_cfd_did_not_write_is_refused"]),
-    M("remove-changed-files", "own", "output", "pbe_cfd/output.py",
+    M("remove-changed-files", "own", "output", "pbe_cfd/io/output.py",
       "        if not (path.is_file() and _unchanged(path, entry)):",
       "        if not path.is_file():",
       [SAFE + "::test_overwrite_removes_only_unchanged_stale_files_it_wrote",
@@ -214,11 +215,11 @@ MUTATIONS = [
       note="survived test_overwrite_removes_only_unchanged_stale_files_it_wrote alone (it "
            "exercises the overwrite path, not remove_written); test_output_edits now calls "
            "remove_written on an edited file and catches it"),
-    M("foreign-file-replaced", "own", "output", "pbe_cfd/output.py",
+    M("foreign-file-replaced", "own", "output", "pbe_cfd/io/output.py",
       "        if not file_is_marked(target):\n            raise",
       "        if False:\n            raise",
       [SAFE + "::test_compare_writes_a_marked_figure_and_never_replaces_a_users"]),
-    M("collision-ignores-manifest", "own", "output", "pbe_cfd/output.py",
+    M("collision-ignores-manifest", "own", "output", "pbe_cfd/io/output.py",
       "        if rel in files and path.is_file() and _unchanged(path, files[rel]):",
       "        if path.is_file():",
       [SAFE + "::test_render_adds_new_pictures_and_replaces_its_own_only_with_overwrite"]),

@@ -4,7 +4,7 @@ import copy
 import pytest
 from hypothesis import settings
 
-from pbe_cfd.scene import scene_from_dict
+from pbe_cfd.scene.scene import scene_from_dict
 
 # property tests draw a fixed sequence of examples (chosen before looking, the same on every
 # run): a red test is a property that fails, never a draw that happened to be unlucky

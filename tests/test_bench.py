@@ -9,9 +9,9 @@ import pytest
 
 from pbe_cfd import bench, cli
 from pbe_cfd.methods.dispatch import WORK_SIZE
-from pbe_cfd.methods.qmom import qmom_rhs
-from pbe_cfd.scene import load_scene
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.methods.qmom.qmom import qmom_rhs
+from pbe_cfd.scene.scene import load_scene
+from pbe_cfd.runs.simulate import run_well_mixed
 
 
 def _csv(path):
@@ -172,7 +172,7 @@ def test_cnmc_laguerre_couple_studies_write_their_tables(tmp_path):
 
 
 def test_replicated_domain_runs_like_the_original():
-    from pbe_cfd.domain import load_domain
+    from pbe_cfd.runs.domain import load_domain
     scene = load_scene("fluid-bed")
     dom = load_domain(scene)
     big = bench.replicated_domain(dom, 3)

@@ -35,7 +35,7 @@ import pytest
 from scipy import stats
 from scipy.integrate import solve_ivp
 
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.runs.simulate import run_well_mixed
 
 from conftest import make_scene
 

@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pytest
 
-from pbe_cfd.methods.breakage_sources import add_qmom_breakage
+from pbe_cfd.methods.quadrature.breakage_sources import add_qmom_breakage
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.breakage import (COLLISIONAL, CONSTANT, EQUAL, POWER, UNIFORM,
                                       daughter_moment_factor, daughter_share,

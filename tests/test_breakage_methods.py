@@ -14,16 +14,16 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pbe_cfd import model
-from pbe_cfd.methods import cnmc_box
-from pbe_cfd.methods.cnmc_breakage import split
-from pbe_cfd.methods.cnmc_slots import d4
+from pbe_cfd.runs import model
+from pbe_cfd.methods.cnmc import box as cnmc_box
+from pbe_cfd.methods.cnmc.breakage import split
+from pbe_cfd.methods.cnmc.slots import d4
 from pbe_cfd.methods.dispatch import WORK_SIZE
-from pbe_cfd.methods.qmom import qmom_rhs
+from pbe_cfd.methods.qmom.qmom import qmom_rhs
 from pbe_cfd.physics import parameters as P
-from pbe_cfd.plan import describe_plan
-from pbe_cfd.scene import SceneError
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.runs.plan import describe_plan
+from pbe_cfd.scene.scene import SceneError
+from pbe_cfd.runs.simulate import run_well_mixed
 
 from conftest import make_scene
 

@@ -32,8 +32,8 @@ import math
 import numpy as np
 import pytest
 
-from pbe_cfd.scene import Breakage, load_scene
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.scene.scene import Breakage, load_scene
+from pbe_cfd.runs.simulate import run_well_mixed
 
 BREAKAGE = Breakage(selection="power", rate=1e-3, exponent=1.0, daughters="uniform")
 

@@ -11,9 +11,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pbe_cfd.cfd import openfoam as of
-from pbe_cfd.domain import load_domain
-from pbe_cfd.scene import SceneError, load_scene, resolve_scene_path
+from pbe_cfd.io import openfoam as of
+from pbe_cfd.runs.domain import load_domain
+from pbe_cfd.scene.scene import SceneError, load_scene, resolve_scene_path
 
 BUNDLED = of.default_snapshot_path()
 
@@ -129,7 +129,7 @@ def test_exit_2_from_the_command_line(tmp_path, capsys, monkeypatch):
 def test_well_mixed_number_density_beyond_packing_is_refused(scene_factory):
     """1e20 granules of 100 um per m3 fill about 5e7 times the volume: exit 2 naming the
     key, not a run. Just below packing (0.6 of the volume) still runs the check silently."""
-    from pbe_cfd.batch import check_physics
+    from pbe_cfd.runs.batch import check_physics
     mass = 1000.0 * np.pi / 6 * (100e-6) ** 3          # kg, a 100 um granule of 1000 kg/m3
     with pytest.raises(SceneError, match="initial.number_density.*above alpha_max"):
         check_physics(scene_factory(initial={"number_density": 1e20, "mean_mass": mass}))
@@ -140,7 +140,7 @@ def test_well_mixed_number_density_beyond_packing_is_refused(scene_factory):
 def test_alpha_just_above_packing_is_kept_below_it(tmp_path):
     """A solver's overshoot of alpha_max within 1% (validate.PACKING_OVERSHOOT) is read, and
     build_cells keeps those cells just below alpha_max, counting them."""
-    from pbe_cfd.domain import build_cells
+    from pbe_cfd.runs.domain import build_cells
     snap = _snapshot(tmp_path, "alpha", [7, 30], 0.62 * 1.005)
     scene = load_scene(_scene(tmp_path, snap.name))
     dom = load_domain(scene)

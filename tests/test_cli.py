@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from pbe_cfd.cli import main
-from pbe_cfd.output import read_columns_csv
-from pbe_cfd.scene import bundled_scenes, load_scene
+from pbe_cfd.io.output import read_columns_csv
+from pbe_cfd.scene.scene import bundled_scenes, load_scene
 
 GOOD = textwrap.dedent("""
     [scene]
@@ -161,7 +161,7 @@ def coupled_run(tmp_path_factory):
 def test_couple_leaves_no_drawing_process_behind(coupled_run):
     """The drawing processes live as long as the command: a caller that goes on (a test, a
     notebook) must not inherit them."""
-    from pbe_cfd.cfd import figure_pool
+    from pbe_cfd.viz import figure_pool
     assert (coupled_run / "png" / "bed_moments.png").stat().st_size > 0
     assert not figure_pool.drawing_elsewhere()
 
@@ -216,7 +216,7 @@ def test_compare_of_a_coupled_run_uses_its_bed_moments(coupled_run, tmp_path, ca
 def test_compare_draws_the_cnmc_band_under_its_mean_and_a_deviation_panel():
     from matplotlib.collections import PolyCollection
 
-    from pbe_cfd.plotting import BAND_ALPHA, trajectories_figure
+    from pbe_cfd.viz.plotting import BAND_ALPHA, trajectories_figure
     t = np.linspace(0, 600, 61)
     mean = 3.3e10 * np.exp(-t / 800)
     cnmc = {"time_s": t, "M00": mean, "M00_lo": mean * 0.996, "M00_hi": mean * 1.004}
@@ -252,9 +252,9 @@ def test_the_compile_is_said_while_it_runs_and_reported_apart(tmp_path, capsys, 
     out of the run time in the printed summary and in summary.json."""
     import time
 
-    from pbe_cfd import simulate
-    from pbe_cfd.batch import CellBatch
-    from pbe_cfd.progress import COMPILING
+    from pbe_cfd.runs import simulate
+    from pbe_cfd.runs.batch import CellBatch
+    from pbe_cfd.util.progress import COMPILING
     original = CellBatch.compile
     clock = {"offset": 0.0}                   # the run's clock; a compile moves it 1000 s on
 
@@ -272,7 +272,7 @@ def test_the_compile_is_said_while_it_runs_and_reported_apart(tmp_path, capsys, 
 
     monkeypatch.setattr(CellBatch, "compile", slow_compile)
     monkeypatch.setattr(simulate, "_time", Clock)
-    monkeypatch.setattr("pbe_cfd.progress.NOTICE_AFTER_S", 0.3)
+    monkeypatch.setattr("pbe_cfd.util.progress.NOTICE_AFTER_S", 0.3)
     path = tmp_path / "tiny.toml"
     path.write_text(GOOD)
     assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 0
@@ -287,10 +287,11 @@ def test_the_compile_is_said_while_it_runs_and_reported_apart(tmp_path, capsys, 
 def test_a_warm_run_says_nothing_and_compile_leaves_nothing_to_compile(tmp_path, capsys):
     """After ``CellBatch.compile`` the run itself compiles nothing (so the run time holds no
     compile), and a run whose kernels are cached is not announced as compiling."""
-    from pbe_cfd import integrate, model
-    from pbe_cfd.batch import CellBatch
+    from pbe_cfd import integrate
+    from pbe_cfd.runs import model
+    from pbe_cfd.runs.batch import CellBatch
     from pbe_cfd.methods.registry import method_of
-    from pbe_cfd.progress import COMPILING
+    from pbe_cfd.util.progress import COMPILING
     path = tmp_path / "tiny.toml"
     path.write_text(GOOD)
     scene = load_scene(path)

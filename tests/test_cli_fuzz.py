@@ -131,7 +131,7 @@ def base(tmp_path_factory):
             assert main(["couple", "tiny-couple.toml", "--out", "c_prev"]) == 0
     finally:
         os.chdir(cwd)
-    from pbe_cfd import output
+    from pbe_cfd.io import output
     with output.atomic_directory(root / "b_prev") as d:
         (d / "cnmc.csv").write_text("x\n")
         (d / "accuracy.csv").write_text("x\n")

@@ -1,4 +1,4 @@
-"""Constant-number Monte Carlo (pbe_cfd.methods.cnmc): analytic checks, injection,
+"""Constant-number Monte Carlo (pbe_cfd.methods.cnmc.ensemble): analytic checks, injection,
 reproducibility, the majorant, tiny and collapsing boxes.
 
 What is random in the cNMC is the number of particles per volume (M00, the droplets) and how
@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pbe_cfd.methods import cnmc
+from pbe_cfd.methods.cnmc import ensemble as cnmc
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.rates import aggregation_rate, droplet_capture_rate
 

@@ -30,7 +30,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pbe_cfd.methods import cnmc
+from pbe_cfd.methods.cnmc import ensemble as cnmc
 from pbe_cfd.physics import parameters as P
 
 P_VALUE_FLOOR = 1e-6

@@ -5,12 +5,12 @@ import math
 import numpy as np
 import pytest
 
-from pbe_cfd.cfd.openfoam import load_snapshot
-from pbe_cfd.couple import run_coupled, write_coupled
-from pbe_cfd.domain import Domain, load_domain
+from pbe_cfd.io.openfoam import load_snapshot
+from pbe_cfd.runs.couple import run_coupled, write_coupled
+from pbe_cfd.runs.domain import Domain, load_domain
 from pbe_cfd.physics.injection import droplet_mass
-from pbe_cfd.scene import load_scene
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.scene.scene import load_scene
+from pbe_cfd.runs.simulate import run_well_mixed
 
 from conftest import AVICEL, make_scene
 

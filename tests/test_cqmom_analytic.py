@@ -16,10 +16,11 @@ import math
 import numpy as np
 import pytest
 
-from pbe_cfd import integrate, model
-from pbe_cfd.methods import cqmom
-from pbe_cfd.scene import load_scene
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd import integrate
+from pbe_cfd.runs import model
+from pbe_cfd.methods.cqmom import cqmom
+from pbe_cfd.scene.scene import load_scene
+from pbe_cfd.runs.simulate import run_well_mixed
 
 from conftest import make_scene
 

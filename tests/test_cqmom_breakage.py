@@ -38,11 +38,11 @@ import math
 import numpy as np
 import pytest
 
-from pbe_cfd import model
-from pbe_cfd.methods import cqmom as cqmom_core
-from pbe_cfd.methods import cqmom_sources
+from pbe_cfd.runs import model
+from pbe_cfd.methods.cqmom import cqmom as cqmom_core
+from pbe_cfd.methods.cqmom import sources as cqmom_sources
 from pbe_cfd.physics import parameters as P
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.runs.simulate import run_well_mixed
 
 from conftest import make_scene
 

@@ -19,14 +19,15 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from pbe_cfd import integrate, model
-from pbe_cfd.cfd.openfoam import load_snapshot
-from pbe_cfd.couple import Domain, run_coupled
-from pbe_cfd.methods import cqmom
+from pbe_cfd import integrate
+from pbe_cfd.runs import model
+from pbe_cfd.io.openfoam import load_snapshot
+from pbe_cfd.runs.couple import Domain, run_coupled
+from pbe_cfd.methods.cqmom import cqmom
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.injection import droplet_mass
-from pbe_cfd.scene import Breakage, load_scene
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.scene.scene import Breakage, load_scene
+from pbe_cfd.runs.simulate import run_well_mixed
 
 from conftest import make_scene
 from error_bounds import assert_close_to_reference, hankel_realizable, size_moments

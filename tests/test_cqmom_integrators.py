@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from pbe_cfd.physics.injection import droplet_mass
-from pbe_cfd.scene import load_scene
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.scene.scene import load_scene
+from pbe_cfd.runs.simulate import run_well_mixed
 
 from error_bounds import error_bound
 

@@ -21,9 +21,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from pbe_cfd import model
-from pbe_cfd.methods import cqmom, cqmom_sources
-from pbe_cfd.methods.conditional import gauss2_unit_interval, gauss_unit_interval
+from pbe_cfd.runs import model
+from pbe_cfd.methods.cqmom import cqmom, sources as cqmom_sources
+from pbe_cfd.methods.cqmom.conditional import gauss2_unit_interval, gauss_unit_interval
 from pbe_cfd.physics import parameters as P
 
 from conftest import AVICEL, make_scene

@@ -1,4 +1,4 @@
-"""CQMOM in a coupled run with transport (pbe_cfd.transport) and in its outputs.
+"""CQMOM in a coupled run with transport (pbe_cfd.transport.operator) and in its outputs.
 
 A closed ring of 16 cells (tests/test_transport.py) whose circulation (period 0.5 s) is much
 faster than aggregation (tens of s): the bed moments must follow a well-mixed CQMOM run whose
@@ -11,10 +11,10 @@ every M_kl of the state, d32, d43 and the binder fraction M01 / M10 of each acti
 """
 import numpy as np
 
-from pbe_cfd.couple import run_coupled
+from pbe_cfd.runs.couple import run_coupled
 from pbe_cfd.physics.kernels import radial_distribution
-from pbe_cfd.simulate import run_well_mixed
-from pbe_cfd.solids_flux import pair_weighted_average
+from pbe_cfd.runs.simulate import run_well_mixed
+from pbe_cfd.transport.solids_flux import pair_weighted_average
 
 from conftest import AVICEL, make_scene
 from test_transport import P0, RHO, bed_scene, ring

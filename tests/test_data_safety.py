@@ -19,9 +19,9 @@ import meshio
 import numpy as np
 import pytest
 
-from pbe_cfd import output
+from pbe_cfd.io import output
 from pbe_cfd.cli import main
-from pbe_cfd.scene import resolve_scene_path
+from pbe_cfd.scene.scene import resolve_scene_path
 
 TINY_RUN = textwrap.dedent("""
     [scene]
@@ -385,7 +385,7 @@ def test_run_case_refuses_a_users_fluid_bed_case(box, fake_openfoam, capsys):
 def _fake_case(root: Path, time: float = 1.5) -> Path:
     """An OpenFOAM case with the bundled snapshot's mesh and fields: foamToVTK-style output
     and the polyMesh files write_foam_fields needs."""
-    from pbe_cfd.cfd import openfoam as of
+    from pbe_cfd.io import openfoam as of
     cells = of.load_snapshot()
     case = root / "case"
     (case / f"{time:g}").mkdir(parents=True)
@@ -440,7 +440,7 @@ def test_foam_fields_never_replace_a_field_pbe_cfd_did_not_write(box, capsys):
 
 # ---------------------------------------------------------------------------- chunk store
 def test_chunk_store_removes_only_its_own_files(tmp_path):
-    from pbe_cfd.distributed import ChunkStore, ChunkStoreError
+    from pbe_cfd.runs.distributed import ChunkStore, ChunkStoreError
 
     user_dir = tmp_path / "run.chunks"
     user_dir.mkdir()
@@ -465,7 +465,7 @@ def test_chunk_store_removes_only_its_own_files(tmp_path):
 
 
 def test_a_cluster_run_does_not_discard_an_earlier_runs_chunks(box, capsys):
-    from pbe_cfd.distributed import ChunkStore
+    from pbe_cfd.runs.distributed import ChunkStore
     ChunkStore(box / "c.chunks").open("f", {}, resume=False).save_chunk(0, {"x": np.zeros(1)})
     before = tree(box)
     refused(["couple", "tiny-couple.toml", "--workers", "1", "--out", "c"], capsys,

@@ -1,4 +1,4 @@
-"""The per-cell solve on a Dask cluster (pbe_cfd.distributed): a local cluster of 2 worker
+"""The per-cell solve on a Dask cluster (pbe_cfd.runs.distributed): a local cluster of 2 worker
 processes gives the serial run's numbers bitwise, with and without transport and on a
 decomposed OpenFOAM case; failed or lost chunks are reported and completed on resume."""
 import dataclasses
@@ -11,12 +11,12 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
-from pbe_cfd import distributed as D  # noqa: E402
+from pbe_cfd.runs import distributed as D  # noqa: E402
 from pbe_cfd.cli import main  # noqa: E402
-from pbe_cfd.couple import run_coupled  # noqa: E402
-from pbe_cfd.domain import load_domain  # noqa: E402
-from pbe_cfd.output import read_columns_csv  # noqa: E402
-from pbe_cfd.scene import SceneError, bundled_scenes, load_scene  # noqa: E402
+from pbe_cfd.runs.couple import run_coupled  # noqa: E402
+from pbe_cfd.runs.domain import load_domain  # noqa: E402
+from pbe_cfd.io.output import read_columns_csv  # noqa: E402
+from pbe_cfd.scene.scene import SceneError, bundled_scenes, load_scene  # noqa: E402
 
 
 def short(name="fluid-bed", end=10.0, interval=5.0):
@@ -192,7 +192,7 @@ def test_cli_workers_failure_and_resume(serial_short, tmp_path, monkeypatch):
 def test_decomposed_case_one_task_per_processor(tmp_path):
     if shutil.which("blockMesh") is None or shutil.which("decomposePar") is None:
         pytest.skip("OpenFOAM (blockMesh, decomposePar) not installed")
-    from pbe_cfd.cfd import openfoam as of
+    from pbe_cfd.io import openfoam as of
 
     os.environ.setdefault("WM_PROJECT_DIR", "/usr/share/openfoam")
     case = tmp_path / "bed"

@@ -10,12 +10,12 @@ from statistics import NormalDist
 import numpy as np
 import pytest
 
-from pbe_cfd import model
+from pbe_cfd.runs import model
 from pbe_cfd.distribution import reconstruct as R
 from pbe_cfd.distribution import tables
 from pbe_cfd.distribution.quantiles import DistributionError, bisect_quantiles, log_grid
 from pbe_cfd.methods.registry import method_of
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.runs.simulate import run_well_mixed
 
 from conftest import make_scene
 

@@ -12,7 +12,7 @@ import pytest
 
 SCRIPT = textwrap.dedent("""
     import sys, time
-    from pbe_cfd.cfd import figure_pool
+    from pbe_cfd.viz import figure_pool
     if sys.argv[1] == "started":
         assert figure_pool.start_processes()
     print("ready", flush=True)

@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.runs.simulate import run_well_mixed
 
 from conftest import make_scene
 

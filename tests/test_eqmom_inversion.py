@@ -16,7 +16,7 @@ import pytest
 from scipy import integrate, stats
 from scipy.special import gammaln
 
-from pbe_cfd import model
+from pbe_cfd.runs import model
 from pbe_cfd.distribution import tables
 from pbe_cfd.distribution.kernel_mixture import of_states
 from pbe_cfd.methods.eqmom import entry, inversion as I, state as S

@@ -27,7 +27,7 @@ import sys
 import numpy as np
 import pytest
 
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.runs.simulate import run_well_mixed
 
 from conftest import make_scene
 

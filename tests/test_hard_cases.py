@@ -13,17 +13,18 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from pbe_cfd import integrate, model
-from pbe_cfd.couple import run_coupled
-from pbe_cfd.domain import Domain
-from pbe_cfd.cfd.openfoam import load_snapshot
+from pbe_cfd import integrate
+from pbe_cfd.runs import model
+from pbe_cfd.runs.couple import run_coupled
+from pbe_cfd.runs.domain import Domain
+from pbe_cfd.io.openfoam import load_snapshot
 from pbe_cfd.methods.dispatch import WORK_SIZE
-from pbe_cfd.methods.qmom import qmom_project, qmom_realizable, quadrature_of
-from pbe_cfd.methods.quadrature import wheeler_nodes
+from pbe_cfd.methods.qmom.qmom import qmom_project, qmom_realizable, quadrature_of
+from pbe_cfd.methods.quadrature.gauss import wheeler_nodes
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.injection import droplet_mass
-from pbe_cfd.scene import SceneError, load_scene
-from pbe_cfd.simulate import SimulationError, run_well_mixed
+from pbe_cfd.scene.scene import SceneError, load_scene
+from pbe_cfd.runs.simulate import SimulationError, run_well_mixed
 
 from conftest import AVICEL, make_scene
 from error_bounds import (aggregation_moments, assert_close_to_reference, error_bound,
@@ -543,7 +544,7 @@ def test_laguerre_population_leaving_its_support_is_reported(tmp_path):
     records it in summary.json."""
     import json
     from pbe_cfd.cli import main
-    from pbe_cfd.scene import resolve_scene_path
+    from pbe_cfd.scene.scene import resolve_scene_path
     text = resolve_scene_path("seed-wurster-laguerre").read_text()
     text = text.replace("support_mass = 1e-8", "support_mass = 1.2e-9")
     text = text.replace("end_time = 600.0", "end_time = 120.0")

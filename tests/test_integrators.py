@@ -17,8 +17,9 @@ import numba
 import numpy as np
 import pytest
 
-from pbe_cfd import integrate, model
-from pbe_cfd.batch import CellBatch
+from pbe_cfd import integrate
+from pbe_cfd.runs import model
+from pbe_cfd.runs.batch import CellBatch
 from pbe_cfd.integrate import codes
 from pbe_cfd.integrate.explicit import bs3_attempt
 from pbe_cfd.integrate.exponential import capture_column, exp_bs3_attempt
@@ -26,9 +27,9 @@ from pbe_cfd.integrate.rosenbrock import jacobian, rodas3_attempt
 from pbe_cfd.methods.dispatch import WORK_SIZE, conserved, rhs
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.injection import droplet_mass
-from pbe_cfd.scene import load_scene
+from pbe_cfd.scene.scene import load_scene
 from pbe_cfd.methods.registry import method_of
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.runs.simulate import run_well_mixed
 
 from conftest import make_scene
 from error_bounds import error_bound
@@ -372,8 +373,8 @@ def test_a_scene_compiles_only_its_method_and_scheme(tmp_path):
     code = """
 import json, dataclasses
 from pbe_cfd import integrate, model
-from pbe_cfd.batch import CellBatch
-from pbe_cfd.scene import load_scene
+from pbe_cfd.runs.batch import CellBatch
+from pbe_cfd.scene.scene import load_scene
 from pbe_cfd.methods.registry import method_of
 scene = load_scene("seed-wurster")
 scene = dataclasses.replace(scene, method=dataclasses.replace(scene.method, integrator="explicit"))

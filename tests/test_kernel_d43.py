@@ -13,10 +13,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from pbe_cfd import model
+from pbe_cfd.runs import model
 from pbe_cfd.methods.dispatch import WORK_SIZE, method_rhs
 from pbe_cfd.methods.registry import method_of
-from pbe_cfd.scene import load_scene
+from pbe_cfd.scene.scene import load_scene
 
 from conftest import make_scene
 

@@ -26,8 +26,8 @@ from scipy.integrate import solve_ivp
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.injection import droplet_mass
 from pbe_cfd.physics.kernels import radial_distribution
-from pbe_cfd.methods import laguerre as L
-from pbe_cfd.methods import laguerre_tensor as LT
+from pbe_cfd.methods.laguerre import rhs as L
+from pbe_cfd.methods.laguerre import tensor as LT
 
 EPS = np.finfo(float).eps
 COARSE = dict(p_max=1e-8, b_max=4e-9, n_p=10, n_b=10)
@@ -454,8 +454,8 @@ def test_escaped_mass_share(cache):
 
 def test_scene_helpers(tmp_path):
     """aux_for_scene / population_for_output / escaped_share_report on the bundled seed scene."""
-    from pbe_cfd import model
-    from pbe_cfd.scene import load_scene, resolve_scene_path
+    from pbe_cfd.runs import model
+    from pbe_cfd.scene.scene import load_scene, resolve_scene_path
     scene = load_scene(resolve_scene_path("seed-wurster")).with_method(name="laguerre", order=3)
     arrays = model.pack(scene)
     aux = LT.aux_for_scene(scene, arrays, cache_dir=str(tmp_path))

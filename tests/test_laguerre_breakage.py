@@ -21,13 +21,13 @@ import math
 import numpy as np
 import pytest
 
-from pbe_cfd import model
-from pbe_cfd.methods import laguerre as L
-from pbe_cfd.methods import laguerre_tensor as LT
-from pbe_cfd.methods.laguerre_layout import (AUX_COND_DRY, AUX_COND_G, AUX_NWC, AUX_NWD,
+from pbe_cfd.runs import model
+from pbe_cfd.methods.laguerre import rhs as L
+from pbe_cfd.methods.laguerre import tensor as LT
+from pbe_cfd.methods.laguerre.layout import (AUX_COND_DRY, AUX_COND_G, AUX_NWC, AUX_NWD,
                                              AUX_OFF_BREAK)
 from pbe_cfd.physics import parameters as P
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.runs.simulate import run_well_mixed
 
 from conftest import make_scene
 from test_breakage import (EXACT, N0, P0, TOL, Y0, aggregation_breakage,

@@ -21,13 +21,13 @@ from math import comb
 import numpy as np
 import pytest
 
-from pbe_cfd import model
-from pbe_cfd.methods import laguerre as L
-from pbe_cfd.methods import laguerre_layout as LL
-from pbe_cfd.methods import laguerre_tensor as LT
+from pbe_cfd.runs import model
+from pbe_cfd.methods.laguerre import rhs as L
+from pbe_cfd.methods.laguerre import layout as LL
+from pbe_cfd.methods.laguerre import tensor as LT
 from pbe_cfd.physics import parameters as P
-from pbe_cfd.scene import load_scene
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.scene.scene import load_scene
+from pbe_cfd.runs.simulate import run_well_mixed
 
 from conftest import make_scene
 from test_laguerre import (EPS, FRACTION, W3, gamma_moment, product_gamma_moments, rhs,

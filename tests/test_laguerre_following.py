@@ -21,11 +21,11 @@ import sys
 import numpy as np
 import pytest
 
-from pbe_cfd import model
-from pbe_cfd.methods import laguerre as L
-from pbe_cfd.methods import laguerre_tensor as LT
-from pbe_cfd.methods.laguerre_layout import AUX_FOLLOWING, weight_corners
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.runs import model
+from pbe_cfd.methods.laguerre import rhs as L
+from pbe_cfd.methods.laguerre import tensor as LT
+from pbe_cfd.methods.laguerre.layout import AUX_FOLLOWING, weight_corners
+from pbe_cfd.runs.simulate import run_well_mixed
 
 from test_breakage import N0, P0, Y0, breakage_scene
 
@@ -193,7 +193,7 @@ def test_d43_of_a_broad_population_stays_within_the_bounds_of_its_moments():
     for a broad population (90% of the granules exponential of mean 0.5 P0, 10% of mean 10 P0)
     that integral is positive but falls outside what any positive measure with the carried M0, M1, M2 allows (ln M_s is
     convex in s: M1 (M1/M0)^(1/3) <= M_(4/3) <= M1^(2/3) M2^(1/3)); the ROM keeps it inside."""
-    from pbe_cfd.methods.laguerre_layout import AUX_OFF_F43
+    from pbe_cfd.methods.laguerre.layout import AUX_OFF_F43
     from pbe_cfd.physics import parameters as P
     sc = scene(True)
     arrays = model.pack(sc)

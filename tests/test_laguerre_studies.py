@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pbe_cfd import model
-from pbe_cfd.couple import run_coupled
-from pbe_cfd.domain import load_domain
-from pbe_cfd.methods import cnmc
-from pbe_cfd.methods.cnmc_box import MAX_TRIALS, N_QUANTITIES, run_box
-from pbe_cfd.scene import load_scene
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.runs import model
+from pbe_cfd.runs.couple import run_coupled
+from pbe_cfd.runs.domain import load_domain
+from pbe_cfd.methods.cnmc import ensemble as cnmc
+from pbe_cfd.methods.cnmc.box import MAX_TRIALS, N_QUANTITIES, run_box
+from pbe_cfd.scene.scene import load_scene
+from pbe_cfd.runs.simulate import run_well_mixed
 
 TIMES = (60.0, 300.0, 600.0)
 PARTICLES, REPLICAS, SEED = 30_000, 8, 2024

@@ -7,20 +7,16 @@ from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent.parent / "pbe_cfd"
 
-#: layers from the bottom up; a module may import its own layer and the ones below
+#: the package's folders (and top-level modules) from the bottom layer up; a module may import
+#: its own layer and the ones below. A module's layer is the one of its top-level folder.
 LAYERS = [
-    ("utilities", ("pbe_cfd", "pbe_cfd.progress", "pbe_cfd.output", "pbe_cfd.plotting",
-                   "pbe_cfd.population", "pbe_cfd.cfd", "pbe_cfd.results",
-                   "pbe_cfd.psd_figure")),
-    ("physics", ("pbe_cfd.physics",)),
-    ("methods", ("pbe_cfd.methods", "pbe_cfd.integrate")),
-    ("scene", ("pbe_cfd.scene",)),
-    ("domain", ("pbe_cfd.model", "pbe_cfd.domain", "pbe_cfd.distribution")),
-    ("orchestration", ("pbe_cfd.batch", "pbe_cfd.simulate", "pbe_cfd.couple",
-                       "pbe_cfd.executor", "pbe_cfd.distributed", "pbe_cfd.transport",
-                       "pbe_cfd.solids_flux", "pbe_cfd.plan")),
-    ("studies", ("pbe_cfd.bench",)),
-    ("cli", ("pbe_cfd.cli",)),
+    ("utilities", ("__init__.py", "util/", "io/", "viz/")),
+    ("physics", ("physics/",)),
+    ("methods", ("methods/", "integrate/")),
+    ("scene", ("scene/",)),
+    ("runs", ("distribution/", "runs/", "transport/")),
+    ("studies", ("bench/",)),
+    ("cli", ("cli.py",)),
 ]
 
 #: imports exempt from the checks (none: the Laguerre ROM's cycle and upward import are gone)
@@ -92,13 +88,14 @@ def strongly_connected(graph):
 
 
 def layer_of(module):
-    best = None
-    for rank, (_, prefixes) in enumerate(LAYERS):
-        for p in prefixes:
-            if module == p or module.startswith(p + "."):
-                if best is None or len(p) > best[1]:
-                    best = (rank, len(p))
-    return None if best is None else best[0]
+    """Rank in LAYERS of a dotted module name (None if its top-level folder has no layer)."""
+    parts = module.split(".")[1:]
+    top = "__init__.py" if not parts else (parts[0] + "/" if len(parts) > 1 or
+                                           (PACKAGE / parts[0]).is_dir() else parts[0] + ".py")
+    for rank, (_, places) in enumerate(LAYERS):
+        if top in places:
+            return rank
+    return None
 
 
 def without_pending(graph):
@@ -107,6 +104,10 @@ def without_pending(graph):
 
 def test_every_module_has_a_layer():
     assert [m for m in modules() if layer_of(m) is None] == []
+    listed = {p for _, places in LAYERS for p in places}
+    present = {p.name + ("/" if p.is_dir() else "") for p in PACKAGE.iterdir()
+               if p.suffix == ".py" or (p / "__init__.py").is_file()}
+    assert listed == present            # every folder has a layer, every layer entry exists
 
 
 def test_no_import_cycle():
@@ -139,8 +140,8 @@ def reached_by_compiled_code(mods, graph):
 
 
 def test_files_left_out_of_the_kernel_cache_key_hold_nothing_compiled_code_reads():
-    """The numba cache directory is keyed by a hash of all sources but pbe_cfd.UNCOMPILED; a
-    file there that compiled code reads would let a stale kernel run."""
+    """The numba cache directory is keyed by a hash of the sources under pbe_cfd.COMPILED; a
+    file outside them that compiled code reads would let a stale kernel run."""
     import pbe_cfd
     mods = modules()
     reached = reached_by_compiled_code(mods, import_graph(mods))
@@ -148,8 +149,8 @@ def test_files_left_out_of_the_kernel_cache_key_hold_nothing_compiled_code_reads
     wrong = sorted(m for m in reached if mods[m] not in hashed)
     assert wrong == []
     assert len(hashed) < len(mods)                 # the exemption does exempt something
-    for u in pbe_cfd.UNCOMPILED:                   # every entry names a file or directory
-        assert (PACKAGE / u).exists(), u
+    for c in pbe_cfd.COMPILED:                     # every entry names a file or directory
+        assert (PACKAGE / c).exists(), c
 
 
 def test_the_cache_key_check_sees_compiled_code_behind_an_import(tmp_path):

@@ -12,7 +12,7 @@ import meshio
 import numpy as np
 import pytest
 
-from pbe_cfd.cfd import openfoam as of
+from pbe_cfd.io import openfoam as of
 
 BED_WIDTH, BED_HEIGHT, BED_DEPTH = 0.15, 0.6, 0.02  # m
 ALPHA_MAX = 0.62  # packing limit of the case (constant/phaseProperties)
@@ -381,9 +381,9 @@ def test_real_case_coupled_end_to_end(real_case, tmp_path):
     moment fields back in the case, all through the command line."""
     import pyvista as pv
 
-    from pbe_cfd.cfd.render import image_stats
+    from pbe_cfd.viz.render import image_stats
     from pbe_cfd.cli import main
-    from pbe_cfd.scene import resolve_scene_path
+    from pbe_cfd.scene.scene import resolve_scene_path
 
     case, _, _ = real_case
     text = resolve_scene_path("fluid-bed").read_text()

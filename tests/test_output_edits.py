@@ -9,7 +9,7 @@ import os
 
 import pytest
 
-from pbe_cfd import output
+from pbe_cfd.io import output
 
 
 def _same_size_edit(path):

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-from pbe_cfd import output
+from pbe_cfd.io import output
 from pbe_cfd.cli import main
 from test_data_safety import (TINY_RUN, box, fake_openfoam, refused,  # noqa: F401 (fixtures)
                               tiny_couple_text, tree)
@@ -78,7 +78,7 @@ def test_case_run_never_replaces_a_run_output_and_no_output_holds_its_scene(
 
 
 def test_a_snapshot_and_its_flux_are_inputs(tmp_path, monkeypatch, capsys):
-    from pbe_cfd.cfd import openfoam as of
+    from pbe_cfd.io import openfoam as of
     monkeypatch.chdir(tmp_path)
     snap = tmp_path / "snap"
     snap.mkdir()
@@ -148,7 +148,7 @@ def test_an_edited_file_is_refused_before_the_computation(box, capsys, monkeypat
 
     def computation(*a, **kw):
         raise AssertionError("the run started before the refusal")
-    monkeypatch.setattr("pbe_cfd.simulate.run_well_mixed", computation)
+    monkeypatch.setattr("pbe_cfd.runs.simulate.run_well_mixed", computation)
     refused(["run", "tiny.toml", "--out", "r", "--overwrite"], capsys, "summary.json",
             "changed since")
     assert tree(box) == before and siblings(box / "r") == []
@@ -396,8 +396,8 @@ def test_a_directory_without_write_permission_is_refused_before_the_computation(
 # ---------------------------------------------------------------------------- U5: signals
 SLOW_RUN = textwrap.dedent("""
     import sys, time
-    import pbe_cfd.output as output
-    import pbe_cfd.simulate as sim
+    import pbe_cfd.io.output as output
+    import pbe_cfd.runs.simulate as sim
     def slow(*a, **kw):                   # a long computation
         print("busy", file=sys.stderr, flush=True)
         time.sleep(60)

@@ -6,7 +6,7 @@ import os
 
 from test_data_safety import _fake_case, tiny_couple_text, tree
 
-from pbe_cfd import output
+from pbe_cfd.io import output
 from pbe_cfd.cli import main
 
 
@@ -37,8 +37,8 @@ def test_relative_case_is_read_and_written_next_to_the_scene(tmp_path, monkeypat
 
 def test_time_as_a_string_is_a_written_time(tmp_path, monkeypatch):
     """``time = "1.5"`` (OpenFOAM's directory name) reads that time like ``time = 1.5``."""
-    from pbe_cfd.domain import load_domain
-    from pbe_cfd.scene import load_scene
+    from pbe_cfd.runs.domain import load_domain
+    from pbe_cfd.scene.scene import load_scene
     _fake_case(tmp_path)
     for value in ('"1.5"', "1.5"):
         text = tiny_couple_text("case").replace('time = "latest"', f"time = {value}")

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pbe_cfd.cfd import openfoam as of
+from pbe_cfd.io import openfoam as of
 
 TUTORIAL = Path("/usr/share/doc/openfoam-examples/examples/multiphase/twoPhaseEulerFoam/"
                 "RAS/fluidisedBed")
@@ -176,7 +176,7 @@ def _renamed(src: Path, dest: Path, phase: str) -> Path:
 def _scene(path: Path, case: str, extra: str = "", transport: bool = False):
     """The bundled fluid-bed scene over ``case``, 2 s of granulation; the tutorial's material
     (300 um, 2500 kg/m3) differs from the scene's, accepted knowingly."""
-    from pbe_cfd.scene import resolve_scene_path
+    from pbe_cfd.scene.scene import resolve_scene_path
     text = resolve_scene_path("fluid-bed").read_text()
     text = text.replace("end_time = 60.0", "end_time = 2.0").replace(
         "output_interval = 5.0", "output_interval = 1.0")
@@ -215,7 +215,7 @@ def _foam_values(case: Path, name: str, decomposed: bool) -> np.ndarray:
 
 
 def _final_vtk(out: Path, field: str) -> np.ndarray:
-    from pbe_cfd.cfd.vtk import read_series
+    from pbe_cfd.io.vtk import read_series
     t, mesh = read_series(out / "vtk" / "pbe.pvd")[-1]
     return np.asarray(mesh.cell_data[field][0], dtype=float)
 
@@ -284,8 +284,8 @@ def _section_drawn_from_the_run(out: Path):
     """`render --section z=0` over the 3-D run: the plane cuts the middle layer of cells (the
     tutorial's depth is -0.01 to 0.01 m in 3 layers), its polygons carry those cells' values
     from the run's last VTK file, and the picture is drawn."""
-    from pbe_cfd.cfd.section import read_section
-    from pbe_cfd.cfd.vtk import read_pvd, read_series
+    from pbe_cfd.viz.section import read_section
+    from pbe_cfd.io.vtk import read_pvd, read_series
     from pbe_cfd.cli import main
     t, mesh = read_series(out / "vtk" / "pbe.pvd")[-1]
     polys, data, axes, note = read_section(read_pvd(out / "vtk" / "pbe.pvd")[-1][1], ("z", 0.0))
@@ -321,7 +321,7 @@ def test_a_material_mismatch_is_refused_in_one_line(tutorial, tmp_path, capsys):
 def test_a_failing_openfoam_tool_is_one_line_and_leaves_no_copy(tutorial, tmp_path):
     """A case whose mesh points file is truncated: the conversion fails in one line naming the
     tool, nothing is written into the case, and no partial copy is left in the cache."""
-    from pbe_cfd.cfd.openfoam.readable import SOURCE_FILE, cache_root
+    from pbe_cfd.io.openfoam.readable import SOURCE_FILE, cache_root
     case = tmp_path / "case"
     shutil.copytree(tutorial["plain"], case)
     points = case / "constant" / "polyMesh" / "points"

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from test_data_safety import _fake_case, tiny_couple_text
 
-from pbe_cfd.cfd import openfoam as of
-from pbe_cfd.cfd.vtk import read_pvd, read_series, time_values
+from pbe_cfd.io import openfoam as of
+from pbe_cfd.io.vtk import read_pvd, read_series, time_values
 from pbe_cfd.cli import main
 
 ALPHA_MIN = 0.05        # the fluid-bed scene's [domain] alpha_min

@@ -22,7 +22,7 @@ import math
 import numpy as np
 import pytest
 
-from pbe_cfd import model
+from pbe_cfd.runs import model
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.efficiency import success_probability
 from pbe_cfd.physics.kernels import KERNELS, collision_frequency, kernel_cell_factor
@@ -241,11 +241,11 @@ def test_collision_velocity_from_granular_temperature(theta):
 
 def test_collision_velocity_of_every_mesh_cell():
     """The coupled run's cell rows and the Laguerre tensor's Theta grid use the same u0(Theta)."""
-    from pbe_cfd.cfd.openfoam import load_snapshot
-    from pbe_cfd.domain import build_cells
-    from pbe_cfd.methods.laguerre_tensor import theta_to_u0
+    from pbe_cfd.io.openfoam import load_snapshot
+    from pbe_cfd.runs.domain import build_cells
+    from pbe_cfd.methods.laguerre.tensor import theta_to_u0
     from pbe_cfd.physics.kernels import collision_velocity as kernel_u0
-    from pbe_cfd.scene import load_scene
+    from pbe_cfd.scene.scene import load_scene
     cells = load_snapshot()
     rows = build_cells(load_scene("fluid-bed"), cells)[0]
     theta = np.maximum(np.asarray(cells.theta, dtype=float), 0.0)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from test_data_safety import box, coupled, refused, tree  # noqa: F401 - fixtures
 
-from pbe_cfd.cfd import render
-from pbe_cfd.cfd.section import read_section
-from pbe_cfd.cfd.vtk import VtkSeries
+from pbe_cfd.viz import render
+from pbe_cfd.viz.section import read_section
+from pbe_cfd.io.vtk import VtkSeries
 from pbe_cfd.cli import main
 
 
@@ -90,7 +90,7 @@ def test_a_flag_gets_two_colours_and_two_labels(block_series, field):
 
 
 def test_cfd_fields_are_titled_with_their_cfd_time(monkeypatch, tmp_path):
-    from pbe_cfd.cfd import openfoam as of
+    from pbe_cfd.io import openfoam as of
 
     assert render.panel_title("alpha", 60.0, 0.5) == "alpha (CFD, t = 0.5 s)"
     assert render.panel_title("Theta", 60.0, None) == "Theta (CFD input)"

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from pbe_cfd.methods.dispatch import WORK_SIZE
-from pbe_cfd.methods.qmom import qmom_realizable
-from pbe_cfd.model import pack
-from pbe_cfd.scene import SceneError
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.methods.qmom.qmom import qmom_realizable
+from pbe_cfd.runs.model import pack
+from pbe_cfd.scene.scene import SceneError
+from pbe_cfd.runs.simulate import run_well_mixed
 
 from conftest import make_scene
 

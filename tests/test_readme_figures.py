@@ -33,8 +33,8 @@ import numpy as np
 import pytest
 
 from pbe_cfd import bench
-from pbe_cfd.scene import load_scene
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.scene.scene import load_scene
+from pbe_cfd.runs.simulate import run_well_mixed
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 NUMBER = re.compile(r"([+-]?\d+(?:\.\d+)?)(?:-(\d+(?:\.\d+)?))?%")

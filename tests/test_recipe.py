@@ -79,7 +79,7 @@ PUBLIC_PATH = textwrap.dedent('''
     assert abs(got - expected) <= 1e-14 * expected, (got, expected)
     print("public path ok", got)
     from pbe_cfd.physics.breakage import daughter_moment_factor, selection_rate
-    from pbe_cfd.simulate import run_well_mixed
+    from pbe_cfd.runs.simulate import run_well_mixed
     scene = make_scene(aggregation=None, breakage={"selection": "exponential", "rate": 0.1,
                                                    "reference_mass": 2e-9,
                                                    "daughters": "parabolic"})

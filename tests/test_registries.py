@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from pbe_cfd import scene as S
+from pbe_cfd.scene import scene as S
 from pbe_cfd.methods import registry as M
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.efficiency import (EFFICIENCY_REGISTRY, pair_success_probability,
@@ -182,7 +182,7 @@ def test_method_registry_agrees_with_the_scene_and_dispatch():
 def test_a_moment_method_packs_its_code_order_and_state(name):
     from conftest import make_scene
 
-    from pbe_cfd import model
+    from pbe_cfd.runs import model
     entry = M.METHODS[name]
     scene = make_scene(method={"name": name, "_replace": True},
                        initial={"binder_fraction": 0.1})

@@ -6,10 +6,10 @@ import os
 import numpy as np
 import pytest
 
-from pbe_cfd.cfd import figure_pool
-from pbe_cfd.cfd import openfoam as of
-from pbe_cfd.cfd.section import read_section, section, thin_section
-from pbe_cfd.cfd.vtk import VtkSeries, read_pvd
+from pbe_cfd.viz import figure_pool
+from pbe_cfd.io import openfoam as of
+from pbe_cfd.viz.section import read_section, section, thin_section
+from pbe_cfd.io.vtk import VtkSeries, read_pvd
 
 
 @pytest.fixture(scope="module")

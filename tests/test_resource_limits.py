@@ -7,12 +7,12 @@ import math
 
 import pytest
 
-from pbe_cfd import limits
-from pbe_cfd.batch import output_times
+from pbe_cfd.scene import limits
+from pbe_cfd.runs.batch import output_times
 from pbe_cfd.cli import main
-from pbe_cfd.limits import MAX_OUTPUT_TIMES, output_count
-from pbe_cfd.methods import laguerre_tensor
-from pbe_cfd.scene import SceneError, load_scene
+from pbe_cfd.scene.limits import MAX_OUTPUT_TIMES, output_count
+from pbe_cfd.methods.laguerre import tensor as laguerre_tensor
+from pbe_cfd.scene.scene import SceneError, load_scene
 
 from conftest import make_scene
 from test_data_safety import TINY_RUN
@@ -110,7 +110,7 @@ def test_laguerre_table_bytes_bound_the_pair_rate_matrix_and_the_limit_is_the_sh
 def test_laguerre_stop_inside_its_support_does_not_blame_the_support():
     """A ROM cell that stops with none of its mass beyond the support: the hint says the
     support is not the cause instead of "widen the support" (0.0% had left it)."""
-    from pbe_cfd import model
+    from pbe_cfd.runs import model
     from pbe_cfd.methods.registry import method_of
     scene = load_scene("seed-wurster-laguerre")
     arrays = model.pack(scene)
@@ -168,7 +168,7 @@ def test_atol_at_its_limit_keeps_the_free_droplets():
     with the default atol (1e-14). Band: each accepted step adds at most atol + rtol |y| to
     the scaled state (y the droplets, ~0.01 of the number scale), so the difference is below
     accepted steps x (atol / y + rtol)."""
-    from pbe_cfd.simulate import run_well_mixed
+    from pbe_cfd.runs.simulate import run_well_mixed
     scene = load_scene("seed-wurster")
     ref = run_well_mixed(scene)
     loose = run_well_mixed(scene.with_method(atol=scene.method.rtol))

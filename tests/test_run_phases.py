@@ -7,10 +7,10 @@ import time
 import numpy as np
 import pytest
 
-from pbe_cfd import model
-from pbe_cfd.couple import run_coupled, write_coupled
-from pbe_cfd.domain import load_domain
-from pbe_cfd.scene import load_scene
+from pbe_cfd.runs import model
+from pbe_cfd.runs.couple import run_coupled, write_coupled
+from pbe_cfd.runs.domain import load_domain
+from pbe_cfd.scene.scene import load_scene
 
 
 def short_fluid_bed(end=10.0, interval=5.0, **method):

@@ -10,10 +10,10 @@ import re
 import numpy as np
 import pytest
 
-from pbe_cfd.batch import STOKES_FALLBACK_WIDTH
+from pbe_cfd.runs.batch import STOKES_FALLBACK_WIDTH
 from pbe_cfd.physics.injection import droplet_mass
-from pbe_cfd.scene import load_scene
-from pbe_cfd.simulate import run_well_mixed
+from pbe_cfd.scene.scene import load_scene
+from pbe_cfd.runs.simulate import run_well_mixed
 
 SEED_RATE = 1.485e8          # droplets/(m3 s), seed 000
 INJECTION = 1e4 * SEED_RATE

@@ -13,16 +13,16 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from pbe_cfd import model
-from pbe_cfd.cfd.openfoam import FaceFlux, load_snapshot
-from pbe_cfd.couple import run_coupled
-from pbe_cfd.domain import Domain, build_cells, coupled_scales, load_domain
+from pbe_cfd.runs import model
+from pbe_cfd.io.openfoam import FaceFlux, load_snapshot
+from pbe_cfd.runs.couple import run_coupled
+from pbe_cfd.runs.domain import Domain, build_cells, coupled_scales, load_domain
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.kernels import radial_distribution
-from pbe_cfd.scene import SceneError, load_scene
-from pbe_cfd.simulate import run_well_mixed
-from pbe_cfd.solids_flux import divergence_free, pair_weighted_average
-from pbe_cfd.transport import build_transport, unrealizable_cells
+from pbe_cfd.scene.scene import SceneError, load_scene
+from pbe_cfd.runs.simulate import run_well_mixed
+from pbe_cfd.transport.solids_flux import divergence_free, pair_weighted_average
+from pbe_cfd.transport.operator import build_transport, unrealizable_cells
 
 from conftest import AVICEL, make_scene
 
@@ -359,7 +359,7 @@ def test_transport_scene_keys_are_validated(tmp_path):
 
 
 def test_plan_reports_cfl_split_step_and_mixing_time():
-    from pbe_cfd.plan import describe_plan
+    from pbe_cfd.runs.plan import describe_plan
 
     text = describe_plan(load_scene("fluid-bed-transport"))
     assert "transport CFL" in text and "split step" in text and "bed mixing time" in text

@@ -9,9 +9,9 @@ import meshio
 import numpy as np
 import pytest
 
-from pbe_cfd.cfd import openfoam as of
-from pbe_cfd.cfd.render import image_stats, plot_bed_moments, render_series
-from pbe_cfd.cfd.vtk import VtkSeries, read_pvd
+from pbe_cfd.io import openfoam as of
+from pbe_cfd.viz.render import image_stats, plot_bed_moments, render_series
+from pbe_cfd.io.vtk import VtkSeries, read_pvd
 
 TIMES = [0.0, 300.0, 600.0]  # s
 
@@ -156,7 +156,7 @@ def test_empty_cells_look_the_same_in_every_field(series_dir, cells, tmp_path):
     in the colour of zero (which would make an empty freeboard look like a dry bed)."""
     from matplotlib.colors import to_rgb
 
-    from pbe_cfd.cfd.render import EMPTY_COLOUR
+    from pbe_cfd.viz.render import EMPTY_COLOUR
     grey = np.array(to_rgb(EMPTY_COLOUR)) * 255
     pngs = render_series(series_dir, times=[0.0], png_dir=tmp_path)
     counts = {p.stem: _count(p, grey) for p in pngs}
@@ -173,8 +173,8 @@ def test_empty_cells_look_the_same_in_every_field(series_dir, cells, tmp_path):
 def test_field_figure_axes_in_metres_log_bar_named_and_no_empty_canvas(series_dir, tmp_path):
     import pyvista as pv
 
-    from pbe_cfd.cfd.render import field_figure, section
-    from pbe_cfd.cfd.vtk import read_pvd
+    from pbe_cfd.viz.render import field_figure, section
+    from pbe_cfd.io.vtk import read_pvd
     polys, data, axes, note = section(pv.read(read_pvd(series_dir / "pbe.pvd")[-1][1]))
     assert note == ""                              # one cell thick: the section is the mesh
     spread = dict(data)                            # M20 over four decades in the bed
@@ -218,7 +218,7 @@ def test_plot_bed_moments(tmp_path):
     var, colours = image_stats(png)
     assert var > 0 and colours > 10
     # a real title; each panel in the units of the VTK cell field of the same name
-    from pbe_cfd.cfd.render import bed_moments_figure, picture_scale
+    from pbe_cfd.viz.render import bed_moments_figure, picture_scale
     fig = bed_moments_figure(csv, title="my-bed")
     assert fig._suptitle.get_text().startswith("my-bed: bed averages")
     assert "per m3 of bed" in fig._suptitle.get_text()

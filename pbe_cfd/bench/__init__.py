@@ -46,7 +46,7 @@ plain NumPy/SciPy QMOM), ``cnmc``, ``laguerre``, ``couple``, ``cluster`` (the Da
 Every study accepts ``quick`` (a tiny configuration for tests: well under a minute once numba's
 cache is warm). Numbers are measured, never asserted.
 """
-from .. import model  # noqa: F401 - bench.model: the domain layer the studies build on
+from ..runs import model  # noqa: F401 - bench.model: the domain layer the studies build on
 from .accuracy import (DEFAULT_ACCURACY_SCENE, QUANTITIES, TIME_FRACTIONS, Variant,
                        accuracy_study, accuracy_variants, chosen_times, cnmc_reference,
                        laguerre_build_time, run_variant)

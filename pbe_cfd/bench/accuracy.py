@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import model
-from ..batch import output_times
+from ..runs import model
+from ..runs.batch import output_times
 from ..physics import parameters as P
-from ..methods import laguerre_tensor as LT
-from ..scene import SceneError, load_scene
-from ..simulate import run_well_mixed
+from ..methods.laguerre import tensor as LT
+from ..scene.scene import SceneError, load_scene
+from ..runs.simulate import run_well_mixed
 from .analytic import analytic_applicable, analytic_reference
 from .accuracy_report import write_accuracy
 from .common import _git_describe, _say, machine_info
@@ -40,8 +40,8 @@ def _reference_cache_dir():
 def _cnmc_source_digest():
     root = Path(__file__).resolve().parent.parent
     h = hashlib.sha256()
-    for rel in ("methods/cnmc.py", "physics/kernels.py", "physics/efficiency.py",
-                "physics/rates.py", "physics/properties.py", "model.py"):
+    for rel in ("methods/cnmc/ensemble.py", "physics/kernels.py", "physics/efficiency.py",
+                "physics/rates.py", "physics/properties.py", "runs/model.py"):
         h.update((root / rel).read_bytes())
     return h.hexdigest()[:16]
 

@@ -113,7 +113,7 @@ def _row_error(row, quantities):
 def plot_pareto(path, result):
     """Error against wall time, log-log, one marker per method and knob, the Pareto front
     drawn; left: all six quantities, right: the size distribution only (M00, M20, d43)."""
-    from .. import plotting  # noqa: F401 - selects the Agg backend
+    from ..viz import plotting  # noqa: F401 - selects the Agg backend
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
@@ -158,7 +158,7 @@ def plot_pareto(path, result):
 
 def write_accuracy(out_dir, result):
     """Write accuracy.csv, accuracy.md, pareto.png and accuracy.json into out_dir."""
-    from .. import output
+    from ..io import output
     with output.add_to_directory(out_dir, kind="bench") as d:
         _write_csv(d / "accuracy.csv", _accuracy_csv_rows(result))
         (d / "accuracy.md").write_text(accuracy_markdown(result))

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from .. import model
+from ..runs import model
 
 
 # ============================================================================ analytic reference

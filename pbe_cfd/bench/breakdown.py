@@ -20,10 +20,10 @@ import numba as nb
 import numpy as np
 
 from ..methods.dispatch import WORK_SIZE
-from ..methods.laguerre import _slice_position, _weight_position, laguerre_d43
-from ..methods.laguerre_layout import AUX_NSLICE, AUX_NWC, AUX_NWD
-from ..methods.qmom import invert as qmom_invert
-from ..methods.quadrature import wheeler_nodes
+from ..methods.laguerre.rhs import _slice_position, _weight_position, laguerre_d43
+from ..methods.laguerre.layout import AUX_NSLICE, AUX_NWC, AUX_NWD
+from ..methods.qmom.qmom import invert as qmom_invert
+from ..methods.quadrature.gauss import wheeler_nodes
 from ..physics import parameters as P
 from ..physics.properties import N_PROPS
 from .sweeps import (laguerre_contraction_sweep, node_property_rows, qmom_kernel_sweep,

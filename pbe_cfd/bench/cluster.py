@@ -10,14 +10,14 @@ import time as _time
 
 import numpy as np
 
-from .. import model
-from ..batch import CellBatch, output_times
-from ..distributed import block_partition, host_cores, numba_thread_table, start_local_cluster
-from ..distributed.tasks import _identity, _noop, _set_threads, chunk_history
-from ..domain import build_cells, coupled_scales, initial_states, load_domain
+from ..runs import model
+from ..runs.batch import CellBatch, output_times
+from ..runs.distributed import block_partition, host_cores, numba_thread_table, start_local_cluster
+from ..runs.distributed.tasks import _identity, _noop, _set_threads, chunk_history
+from ..runs.domain import build_cells, coupled_scales, initial_states, load_domain
 from ..methods.registry import method_of
 from ..physics import parameters as P
-from ..scene import load_scene
+from ..scene.scene import load_scene
 from .. import integrate
 
 

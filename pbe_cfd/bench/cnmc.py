@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import model
-from ..methods.cnmc import simulate_ensemble
-from ..scene import load_scene
+from ..runs import model
+from ..methods.cnmc.ensemble import simulate_ensemble
+from ..scene.scene import load_scene
 from .common import _git_describe, _machine_line, _say, _write_simple, machine_info
 
 

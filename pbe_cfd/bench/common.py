@@ -77,7 +77,7 @@ def _write_csv(path, lines):
 
 
 def _write_simple(out_dir, name, rows, markdown, result):
-    from .. import output
+    from ..io import output
     keys = list(rows[0]) if rows else []
     lines = [keys] + [[r.get(k) for k in keys] for r in rows]
     with output.add_to_directory(out_dir, kind="bench") as d:

@@ -9,9 +9,9 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
-from ..couple import run_coupled
-from ..domain import Domain, load_domain
-from ..scene import load_scene
+from ..runs.couple import run_coupled
+from ..runs.domain import Domain, load_domain
+from ..scene.scene import load_scene
 from .common import (_git_describe, _machine_line, _say, _write_simple, failure_status,
                      machine_info)
 

@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scene import load_scene
-from ..simulate import run_well_mixed
+from ..scene.scene import load_scene
+from ..runs.simulate import run_well_mixed
 from .common import _git_describe, _machine_line, _say, _write_simple, failure_status, \
     machine_info
 
@@ -135,8 +135,8 @@ def transport_rows(repeats, quiet, quick=False) -> list:
     the solve phase is ``phases['solve_s']`` of the run (first step to last, no compile, no
     output). The whole process (``python -m pbe_cfd.cli couple``, outputs and renders
     written) alternates the same way."""
-    from ..couple import run_coupled
-    from ..domain import load_domain
+    from ..runs.couple import run_coupled
+    from ..runs.domain import load_domain
     with_transport = load_scene("fluid-bed-transport")
     text = Path(with_transport.source).read_text()
     rows = []

@@ -9,8 +9,8 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
-from .. import model
-from ..methods import laguerre_tensor as LT
+from ..runs import model
+from ..methods.laguerre import tensor as LT
 from ..physics import parameters as P
 from .common import _git_describe, _machine_line, _say, _write_simple, machine_info
 from .throughput import measure_rhs_rate, throughput_case

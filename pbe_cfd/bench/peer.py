@@ -131,7 +131,7 @@ def run_class(case, work_dir, name) -> dict:
 def pbe_scene(problem):
     """The pbe-cfd well-mixed scene of a problem (p = rho x, the conversions of the module
     doc), method QMOM N = 3."""
-    from ..scene import scene_from_dict
+    from ..scene.scene import scene_from_dict
     title, rate, power, t_end, _, _ = PROBLEMS[problem]
     data = {"scene": {"name": f"peer-{problem}", "end_time": t_end, "output_interval": t_end},
             "domain": {"type": "well-mixed"}, "material": {"density": RHO},
@@ -151,7 +151,7 @@ def pbe_scene(problem):
 def run_pbe(scene, changes, repeats) -> dict:
     """One pbe-cfd method through the well-mixed run path: volume moments at the end, the
     median wall and process time of ``repeats`` runs after a first (compiling) one."""
-    from ..simulate import run_well_mixed
+    from ..runs.simulate import run_well_mixed
     sc = scene.with_method(**changes)
     t0 = time.perf_counter()
     res = run_well_mixed(sc)

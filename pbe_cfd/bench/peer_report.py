@@ -107,7 +107,7 @@ def plot_peer(result, path):
 def write_peer(out_dir, result):
     """peer.csv, peer.md, peer.png and peer.json into ``out_dir`` (added to the directory
     safely: files pbe-cfd did not write are never replaced)."""
-    from .. import output
+    from ..io import output
     lines = [list(_COLUMNS)] + [[r.get(k) for k in _COLUMNS] for r in result["rows"]]
     with output.add_to_directory(Path(out_dir), kind="bench") as d:
         _write_csv(d / "peer.csv", lines)

@@ -4,9 +4,9 @@ ROM (the bare quadratic form)."""
 import numba as nb
 import numpy as np
 
-from ..methods import cqmom as _cqmom
+from ..methods.cqmom import cqmom as _cqmom
 from ..methods.dispatch import WORK_SIZE, method_rhs
-from ..methods.qmom import invert as _qmom_invert
+from ..methods.qmom.qmom import invert as _qmom_invert
 from ..physics import parameters as P
 from ..physics.kernels import kernel_cell_factor
 from ..physics.properties import DIAMETER

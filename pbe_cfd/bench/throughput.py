@@ -12,13 +12,13 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
-from .. import model
-from ..batch import CellBatch, output_times
+from ..runs import model
+from ..runs.batch import CellBatch, output_times
 from ..methods.registry import METHODS
 from ..physics import parameters as P
 from ..physics.kernels import collision_velocity
 from ..physics.properties import N_PROPS
-from ..scene import load_scene
+from ..scene.scene import load_scene
 from .breakdown import breakdown_markdown, rhs_breakdown
 from .common import _git_describe, _machine_line, _say, _write_csv, machine_info
 from .numpy_baseline import NumpyQMOM
@@ -444,7 +444,7 @@ def throughput_markdown(result) -> str:
 
 
 def plot_throughput(path, result):
-    from .. import plotting  # noqa: F401 - selects the Agg backend
+    from ..viz import plotting  # noqa: F401 - selects the Agg backend
     import matplotlib.pyplot as plt
 
     rows = result["rows"]
@@ -481,7 +481,7 @@ def plot_throughput(path, result):
 
 
 def _write_throughput(out_dir, result):
-    from .. import output
+    from ..io import output
     lines = [["method", "order", "cells", "threads", "rhs_per_s", "rhs_per_s_median",
               "cell_steps_per_s", "rhs_per_step", "rejected_share", "failed_cells",
               "ceiling_per_s", "share_of_ceiling", "aux_build_s"]]

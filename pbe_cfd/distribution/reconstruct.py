@@ -19,9 +19,9 @@ import math
 
 import numpy as np
 
-from ..methods import cnmc_box
-from ..methods.laguerre import reconstruct, reconstruct_dry
-from ..methods.laguerre_layout import AUX_B_MAX, AUX_ORDER, AUX_P_MAX
+from ..methods.cnmc import box as cnmc_box
+from ..methods.laguerre.rhs import reconstruct, reconstruct_dry
+from ..methods.laguerre.layout import AUX_B_MAX, AUX_ORDER, AUX_P_MAX
 from ..physics import parameters as P
 from .quantiles import bisect_quantiles, check_fractions, interpolated_cdf
 

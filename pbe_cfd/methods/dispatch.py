@@ -22,12 +22,12 @@ from numba.core import types
 from numba.extending import overload
 
 from ..physics import parameters as P
-from .cqmom import cqmom_conserved, cqmom_project, cqmom_realizable
-from .cqmom_sources import cqmom_rhs
-from .laguerre import (laguerre_conserved, laguerre_project, laguerre_realizable,
-                       laguerre_rhs)
+from .cqmom.cqmom import cqmom_conserved, cqmom_project, cqmom_realizable
+from .cqmom.sources import cqmom_rhs
+from .laguerre.rhs import (laguerre_conserved, laguerre_project, laguerre_realizable,
+                           laguerre_rhs)
 from .eqmom.sources import eqmom_conserved, eqmom_project, eqmom_realizable, eqmom_rhs
-from .qmom import qmom_conserved, qmom_project, qmom_realizable, qmom_rhs
+from .qmom.qmom import qmom_conserved, qmom_project, qmom_realizable, qmom_rhs
 
 #: method codes (config[P.METHOD]); the registry of methods is ``pbe_cfd.methods.registry``
 QMOM = 0

@@ -22,7 +22,9 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ..physics import parameters as P
-from . import cqmom, laguerre_tensor, qmom
+from .cqmom import cqmom
+from .laguerre import tensor as laguerre_tensor
+from .qmom import qmom
 from .dispatch import CQMOM, EQMOM, LAGUERRE, QMOM
 from .eqmom import entry as eqmom_entry
 
@@ -189,7 +191,7 @@ def _cnmc_plan(scene):
 def _cnmc_ensemble(scene, arrays, cell, times, progress=None):
     import dataclasses
 
-    from . import cnmc
+    from .cnmc import ensemble as cnmc
     m = scene.method
     initial = dataclasses.asdict(scene.initial)     # the keys simulate_ensemble reads
     return cnmc.simulate_ensemble(arrays.params, arrays.config, cell, initial, times,

@@ -1,7 +1,7 @@
 """Layout of the flat parameter arrays handed to the numba physics and methods.
 
-numba kernels take plain arrays and floats. The orchestration layer (``pbe_cfd.model``) packs a
-scene into three arrays whose slots are named here:
+numba kernels take plain arrays and floats. The orchestration layer (``pbe_cfd.runs.model``)
+packs a scene into three arrays whose slots are named here:
 
 ``params`` (float64, SI units unless stated)
     material, kernel and efficiency constants and the scales used to non-dimensionalise.

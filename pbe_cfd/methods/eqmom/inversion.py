@@ -39,7 +39,7 @@ import math
 import numba as nb
 import numpy as np
 
-from ..quadrature import tridiagonal_eigen, wheeler_nodes
+from ..quadrature.gauss import tridiagonal_eigen, wheeler_nodes
 
 #: the most kernels a scene may ask for (Stirling tables below go to order 2 MAX_KERNELS)
 MAX_KERNELS = 5

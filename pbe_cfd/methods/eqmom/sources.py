@@ -18,7 +18,7 @@ from ...physics.breakage import cell_selection_factor, daughter_moment_factor
 from ...physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ...physics.properties import DIAMETER, N_PROPS
 from ...physics.rates import pair_rate, particle_properties
-from ..breakage_sources import node_selection_rate
+from ..quadrature.breakage_sources import node_selection_rate
 from . import inversion as I
 from . import state as S
 

@@ -1,0 +1,1 @@
+"""Result files, their manifest and guard, OpenFOAM case I/O, VTK series."""

@@ -1,0 +1,1 @@
+"""Constant-number Monte Carlo reference."""

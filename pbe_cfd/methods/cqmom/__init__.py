@@ -1,0 +1,1 @@
+"""Conditional quadrature method of moments for granule mass and binder."""

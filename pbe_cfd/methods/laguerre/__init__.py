@@ -1,0 +1,1 @@
+"""Bivariate Laguerre reduced-order model."""

@@ -1,0 +1,200 @@
+"""Laguerre ROM: the state layout and the layout of the flat ``aux`` array.
+
+State of one cell (scaled by N_ref [1/m3] and p_ref [kg]):
+``[W_ij (i, j < m, i-major), D_k (k < m), n_d (if droplets are separate)]`` -- the wet
+granules' mixed moments, the dry granules' moments in p, free droplets.
+
+The aux array is a float64 header (slots below) followed by blocks at the offsets the header
+holds. Tensors depend on the collision velocity u0 (``slice`` s, NSLICE values of ln u0) and,
+with adaptive weights, on the wet weight means (``weight`` w = ic * NWD + id on a log grid of
+NWC means c and NWD means d; with the following support, NWC mass-weighted means c_m and NWD
+binder fractions y, and each weight slice integrates over its own support p <= span c_m,
+b <= p: docs/physics.md section 9.2);
+the dry-only blocks depend on the slice alone. Block shapes:
+
+    Q[w, s, pair(k <= l < K), a < K]     wet + wet -> wet
+    Cd[w, s, k, a], Cd0[w, s, k]         droplets captured by wet granules
+    X[w, s, k < m, l < K, a < K]         dry k + wet l -> wet moment a
+    XL[w, s, k < m, l < K, e < m]        the same pair's loss of dry moment e
+    Qdd[s, pair(k <= l < m), a < m]      dry + dry -> dry
+    Cdd[s, k < m, e < m]                 droplets captured by dry granules
+    F43[w, k], SUPPORT[w, 2K], BASIS[w, BASIS_SIZE]   wet functionals and reconstruction
+    WET_SUPPORT[w, 2]                    p_max, b_max [kg] of each weight slice's support
+    CAPMAP[e < m, a < K], F43D[k], DRY_BASIS           dry-class data
+    BREAK: Lwet[w, k < K, a < K], then Ldry[k < m, e < m]   breakage (if any)
+"""
+import math
+
+import numpy as np
+
+from ...physics import parameters as P
+
+AUX_VERSION = 0          # layout version (AUX_LAYOUT_VERSION)
+AUX_ORDER = 1            # m
+AUX_NMOM = 2             # K = m * m
+AUX_NPAIR = 3            # K (K + 1) / 2
+AUX_NSLICE = 4           # number of collision-velocity slices (1 = fixed u0 or no dependence)
+AUX_CONSISTENT = 5       # 1 = moment-consistent reconstruction, 0 = plain seed projection
+AUX_OFF_LOGU = 6         # offset of ln(u0 [m/s]) per slice (NSLICE values)
+AUX_OFF_Q = 7            # offset of Q  (w = 0, s = 0 first: pair-major, a fastest)
+AUX_OFF_CD = 8           # offset of Cd
+AUX_OFF_CD0 = 9          # offset of Cd0
+AUX_OFF_F43 = 10         # offset of F43[w, k]: int_S (p/p_ref)^(4/3) phi~_k
+AUX_OFF_BASIS = 11       # offset of the wet reconstruction blocks (BASIS_SIZE per weight)
+AUX_MASS_SCALE = 12      # p_ref [kg] the aux was built for
+AUX_P_MAX = 13           # p_max [kg]
+AUX_B_MAX = 14           # b_max [kg]
+AUX_N_P = 15             # n_p
+AUX_N_B = 16             # n_b
+AUX_N_NODES = 17         # quadrature nodes kept on the support
+AUX_DROPLET_MASS = 18    # p_d [kg] the aux was built for
+AUX_SEPARATE = 19        # 1 if droplet capture matrices were built
+AUX_COND_G = 20          # largest condition number of the equilibrated G (1 if plain)
+AUX_U0_FIXED = 21        # u0 [m/s] of a single slice (0 if none was needed or a grid is used)
+AUX_OFF_SUPPORT = 22     # offset of the on-support functionals SUPPORT[w, 2K]
+AUX_CHECK_LEVEL = 23     # realizability check level of laguerre_realizable (0, 1, 2)
+AUX_SPACING = 24         # quadrature spacing code (SPACINGS: 0 uniform in (p, b), 1 in (p, b/p))
+AUX_OFF_QDD = 25         # offset of Qdd
+AUX_OFF_X = 26           # offset of X
+AUX_OFF_XL = 27          # offset of XL
+AUX_OFF_CDD = 28         # offset of Cdd
+AUX_OFF_CAPMAP = 29      # offset of CAPMAP
+AUX_OFF_F43D = 30        # offset of F43D[k]: int (p/p_ref)^(4/3) psi~_k  (m)
+AUX_OFF_DRY_BASIS = 31   # n_dry, c_dry [kg], lam_dry, Ginv_dry (m*m), r_dry (m), support (2m)
+AUX_COND_DRY = 32        # condition number of the equilibrated G_dry (1 if plain)
+AUX_N_DRY = 33           # nodes of the dry quadrature in p
+AUX_NWC = 34             # weight means c on the adaptive grid (1: fixed weights)
+AUX_NWD = 35             # weight means d on the adaptive grid (1: fixed weights)
+AUX_OFF_LOGW = 36        # offset of ln c [kg] (NWC values), then ln d [kg] (NWD values)
+AUX_OFF_CONDW = 37       # offset of cond(G) of each weight slice (NWC * NWD values)
+AUX_OFF_BREAK = 38       # offset of the breakage block (laguerre_breakage; 0: no breakage)
+AUX_FOLLOWING = 39       # 1: following support (weight grid in (ln c, ln d/c), a support per slice)
+AUX_OFF_WET_SUPPORT = 40  # offset of (p_max, b_max) [kg] of each weight slice (NWC * NWD pairs)
+AUX_HEADER = 42
+AUX_LAYOUT_VERSION = 5.0
+
+TABLE_III = dict(weights=dict(c=1e-9, d=1e-9, lam=1.0, gam=0.2),
+                 support=dict(p_max=1e-8, b_max=4e-9, n_p=20, n_b=20))
+
+
+def state_offsets(m):
+    """(first dry entry, droplet entry) of the state of order m: K = m*m and K + m."""
+    return m * m, m * m + m
+
+
+def state_size(order, separate_droplets):
+    """Length of one cell's state: m*m wet moments, m dry moments (+1 for free droplets)."""
+    return order * order + order + (1 if separate_droplets else 0)
+
+
+def state_names(order, separate_droplets):
+    """Names of the state entries: wet granules' M_ij ("wet_M{i}{j}", i-major, i, j < order),
+    dry granules' M_k0 ("dry_M{k}0"), then "droplet_number_density" if droplets are separate."""
+    names = [f"wet_M{i}{j}" for i in range(order) for j in range(order)]
+    names += [f"dry_M{k}0" for k in range(order)]
+    if separate_droplets:
+        names.append("droplet_number_density")
+    return names
+
+
+def basis_size(m):
+    """Length of one weight's wet reconstruction block: c, d, lambda, gamma, Cp, Cb, Ginv, r."""
+    return 4 + 2 * m * m + m ** 4 + m * m
+
+
+def n_weights(aux):
+    """Number of weight slices (NWC * NWD)."""
+    return int(aux[AUX_NWC]) * int(aux[AUX_NWD])
+
+
+def unpack_basis(aux, w=0):
+    """Reconstruction data of weight slice w: dict(c, d [kg], lam, gam, Cp, Cb, Ginv, r, m) of
+    the wet class, and Ginv_dry, r_dry, n_dry, c_dry [kg], lam_dry of the dry class."""
+    m = int(aux[AUX_ORDER])
+    K = m * m
+    o = int(aux[AUX_OFF_BASIS]) + w * basis_size(m)
+    c, d, lam, gam = aux[o:o + 4]
+    o += 4
+    Cp = aux[o:o + m * m].reshape(m, m)
+    o += m * m
+    Cb = aux[o:o + m * m].reshape(m, m)
+    o += m * m
+    Ginv = aux[o:o + K * K].reshape(K, K)
+    o += K * K
+    r = aux[o:o + K]
+    o = int(aux[AUX_OFF_DRY_BASIS])
+    n_dry, c_dry, lam_dry = int(aux[o]), aux[o + 1], aux[o + 2]
+    Ginv_dry = aux[o + 3:o + 3 + m * m].reshape(m, m)
+    r_dry = aux[o + 3 + m * m:o + 3 + m * m + m]
+    return dict(c=c, d=d, lam=lam, gam=gam, Cp=Cp, Cb=Cb, Ginv=Ginv, r=r, m=m,
+                Ginv_dry=Ginv_dry, r_dry=r_dry, n_dry=n_dry, c_dry=c_dry, lam_dry=lam_dry)
+
+
+def corner_condition(state, aux):
+    """Largest condition number of the equilibrated G among the weight slices the state's
+    RHS blends (``weight_corners``): what bounds its round-off, 100 eps cond."""
+    o = int(aux[AUX_OFF_CONDW])
+    return max(float(aux[o + w]) for w, _ in weight_corners(state, aux))
+
+
+def dry_support_functionals(aux):
+    """(number, mass) functionals of the dry class on [0, p_max] in state units (2 x m)."""
+    m = int(aux[AUX_ORDER])
+    o = int(aux[AUX_OFF_DRY_BASIS]) + 3 + m * m + m
+    return aux[o:o + m], aux[o + m:o + 2 * m]
+
+
+def _log_position(x, grid):
+    """(lower index, weight of the upper point) of x on a sorted log grid, clamped."""
+    n = len(grid)
+    if n <= 1 or not (x > 0.0):
+        return 0, 0.0
+    lx = math.log(x)
+    if lx <= grid[0]:
+        return 0, 0.0
+    if lx >= grid[-1]:
+        return n - 2, 1.0
+    i = int(np.searchsorted(grid, lx) - 1)
+    return i, (lx - grid[i]) / (grid[i + 1] - grid[i])
+
+
+def weight_corners(state, aux):
+    """[(weight slice w, blend weight)] of a scaled state: the wet weight means follow the wet
+    class's mean mass W10/W00 and mean binder W01/W00 on the adaptive grid (bilinear in
+    ln c, ln d, as the RHS blends; with the following support in the mass-weighted mean mass
+    W20/W10 and the binder fraction W01/W10, both in logs); [(0, 1.0)] for fixed weights."""
+    nwc, nwd = int(aux[AUX_NWC]), int(aux[AUX_NWD])
+    if nwc * nwd <= 1:
+        return [(0, 1.0)]
+    m = int(aux[AUX_ORDER])
+    o = int(aux[AUX_OFF_LOGW])
+    pref = aux[AUX_MASS_SCALE]
+    w00 = float(state[0])
+    c = state[m] / w00 * pref if w00 > 0 else 0.0
+    d = state[1] / w00 * pref if w00 > 0 else 0.0
+    if aux[AUX_FOLLOWING] == 1.0:
+        ok = w00 > 0 and state[m] > 0
+        c = state[2 * m] / state[m] * pref if ok else 0.0
+        d = state[1] / state[m] if ok else 0.0
+    ic, tc = _log_position(c, aux[o:o + nwc])
+    jd, td = _log_position(d, aux[o + nwc:o + nwc + nwd])
+    out = []
+    for a, wa in ((0, 1.0 - tc), (1, tc)):
+        for b, wb in ((0, 1.0 - td), (1, td)):
+            if wa * wb > 0.0:
+                out.append(((ic + a) * nwd + jd + b, wa * wb))
+    return out
+
+
+def separate_droplets(config):
+    """True if free droplets are a state entry of their own."""
+    return int(config[P.SEPARATE_DROPLETS]) == 1
+
+
+def wet_support(aux, w=0):
+    """(p_max, b_max) [kg] of weight slice w's support: its own with the following support,
+    the one fixed support otherwise."""
+    if aux[AUX_FOLLOWING] == 1.0:
+        o = int(aux[AUX_OFF_WET_SUPPORT]) + 2 * w
+        return float(aux[o]), float(aux[o + 1])
+    return float(aux[AUX_P_MAX]), float(aux[AUX_B_MAX])

@@ -1,0 +1,1 @@
+"""Quadrature method of moments with node-wise binder."""

@@ -1,0 +1,1 @@
+"""Gaussian quadrature from moments shared by the quadrature methods."""

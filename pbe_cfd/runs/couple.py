@@ -1,0 +1,311 @@
+"""The coupled run: the population balance in every cell of an OpenFOAM fluid bed.
+
+Orchestration only: the domain (``pbe_cfd.runs.domain``: CFD fields, cell rows, initial
+states) is solved cell by cell with the same per-cell integrator as well-mixed runs (a
+``CellBatch`` of the active cells), by an executor (``pbe_cfd.runs.executor``: serial, or
+``pbe_cfd.runs.distributed`` on a Dask cluster) that carries granules between cells with the
+transport operator when the scene has ``[transport]``; then the per-cell and bed-integrated
+SI outputs are assembled and written (VTK series, ``bed_moments.csv``, ``summary.json``, PNG
+renders).
+"""
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import model
+from .batch import CellBatch, SimulationError, check_physics, output_times
+from .domain import (PACKING_MARGIN, Domain, build_cells, coupled_scales, initial_states,
+                     spray_zone_cut, theta_grid)
+from .executor import SerialExecutor
+from ..methods.registry import MOMENT_METHODS, method_of
+from ..physics import parameters as P
+from ..util.population import mean_diameters
+from ..util.progress import notice_if_slow
+from ..scene.scene import SceneError
+
+__all__ = ["CoupledResult", "run_coupled", "write_coupled", "check_foam_fields",
+           "write_foam_fields"]
+
+
+@dataclass
+class CoupledResult:
+    """Per-output-time cell fields and bed-integrated columns of a coupled run."""
+    times: np.ndarray
+    cell_fields: list              # one dict name -> (n_cells,) per output time
+    bed_columns: dict
+    stats: dict
+    wall_time_s: float
+    warnings: list = field(default_factory=list)
+    compile_time_s: float = 0.0     # compiling (or loading) the kernels, not in wall_time_s
+    kernels_compiled: bool = False  # True: numba compiled them (a first run), else loaded
+    phases: dict = field(default_factory=dict)  # wall seconds of setup, compile, solve, assemble
+    psd: dict | None = None         # psd.csv columns of the bed (distribution.tables)
+    labels: dict = field(default_factory=dict)   # columns.json: file -> column -> meaning
+
+
+def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None,
+                executor=None) -> CoupledResult:
+    """Solve the population balance in every active cell of ``domain`` to the scene's end
+    time. ``progress(fraction, text)`` is called after each output interval. ``executor``
+    integrates the per-cell sources (``pbe_cfd.runs.executor``; default serial in this process,
+    ``pbe_cfd.runs.distributed.ClusterExecutor`` on a Dask cluster, with the same results)."""
+    import numba
+
+    method = method_of(scene)
+    if not method.integrated:
+        raise SceneError(scene.source, "method.name", "a coupled run needs a moment method: "
+                         f"expected {' or '.join(MOMENT_METHODS)}")
+    check_physics(scene)
+    if threads is not None:
+        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    executor = executor if executor is not None else SerialExecutor()
+    start = _time.perf_counter()
+    cells = domain.cells
+    rows, active, spray, notes = build_cells(scene, cells)
+    idx = np.flatnonzero(active)
+    if idx.size == 0:
+        raise SimulationError(f"{scene.source}: no cell has alpha >= alpha_min = "
+                              f"{scene.domain.alpha_min:g} (max alpha "
+                              f"{float(np.max(cells.alpha)):.3g})")
+    scaled_scene = coupled_scales(scene, rows[idx, P.ALPHA])
+    arrays = model.pack(scaled_scene)
+    grid = theta_grid(rows[idx, P.THETA]) if method.tabulates_theta else None
+    aux = method.aux(scaled_scene, arrays, grid)
+    warnings = []
+    batch = CellBatch.for_scene(scene, arrays, aux, np.ascontiguousarray(rows[idx]),
+                                initial_states(scene, arrays, rows[idx, P.ALPHA]),
+                                cell_ids=idx)
+    times = output_times(scene)
+    transport = None
+    if scene.transport is not None:
+        from ..transport.operator import build_transport
+        transport = build_transport(scene, domain, active, rows, arrays=arrays, aux=aux)
+        warnings.extend(transport.warnings)
+    with notice_if_slow(progress):
+            compile_s = batch.compile()
+    solve_start = _time.perf_counter()
+    setup_s = solve_start - start - compile_s
+    start += compile_s                      # the run time excludes the compile
+    history = executor.run(batch, times, transport, progress=progress)
+    solve_end = _time.perf_counter()
+    wall = solve_end - start
+    cell_fields, bed, mixtures = _outputs(scene, arrays, aux, cells, active, spray, idx, times,
+                                          history, warnings)
+    st = batch.stats()
+    run_stats = {"cells": int(cells.n_cells), "active_cells": int(idx.size),
+                 "spray_cells": int(np.count_nonzero(spray)), **st,
+                 "cell_steps_per_second": float(st["accepted_steps"] / wall) if wall > 0 else 0,
+                 "threads": int(numba.get_num_threads()), **notes}
+    if transport is not None:
+        run_stats["transport"] = transport.report()
+    report = executor.report()
+    if report is not None:
+        run_stats["cluster"] = report
+    extra, notes_method = method.diagnostics(history[-1], aux, arrays)
+    run_stats.update(extra)
+    warnings.extend(notes_method)
+    warnings.extend(batch.notes)
+    run_stats["smooth_stokes_cells"] = int(np.count_nonzero(batch.smoothed))
+    warnings.extend(_domain_warnings(scene, spray, notes, cells, active))
+    warnings[:0] = list(getattr(domain, "warnings", None) or [])
+    phases = {"setup_s": setup_s, "compile_s": compile_s, "solve_s": solve_end - solve_start,
+              "assemble_s": _time.perf_counter() - solve_end}
+    psd, labels = _bed_distribution(scene, arrays, times, bed, mixtures, cell_fields, warnings)
+    phases["assemble_s"] = _time.perf_counter() - solve_end
+    return CoupledResult(times=times, cell_fields=cell_fields, bed_columns=bed, stats=run_stats,
+                         wall_time_s=wall, warnings=warnings, compile_time_s=compile_s,
+                         kernels_compiled=batch.compiled_now, phases=phases, psd=psd,
+                         labels=labels)
+
+
+def _cell_distribution(scene, arrays, aux, states, populations, idx, n, t, fields, notes):
+    """d10/d50/d90/span cell fields (inactive cells 0) of one output time; returns the
+    bed's distribution there (the cells' mixture weighted by their granule mass)."""
+    from ..distribution import tables
+    label = lambda r: f"cell {int(idx[r])} at t = {t:.6g} s"     # noqa: E731 (a row's name)
+    recon = tables.reconstruction_of(scene, arrays, states, aux, populations, label)
+    size, found = tables.size_columns(recon, label)
+    notes.extend(x for x in found if x not in notes)
+    for name, values in size.items():
+        full = np.zeros(n)
+        full[idx] = values
+        fields[name] = full
+    return recon
+
+
+def _bed_distribution(scene, arrays, times, bed, mixtures, cell_fields, warnings):
+    """Bed d10/d50/d90/span columns (added after the others), the bed's psd.csv columns
+    and the columns.json labels."""
+    from ..distribution import reconstruct, tables
+    stack = reconstruct.Stack(mixtures)
+    size, notes = tables.size_columns(stack, lambda r: f"the bed at t = {times[r]:.6g} s")
+    bed.update(size)
+    psd, grid_notes = tables.psd_columns(times, stack)
+    warnings.extend(x for x in notes + grid_notes if x not in warnings)
+    names = arrays.state_names
+    return psd, {"bed_moments.csv": tables.column_labels(scene, names, bed, bed=True),
+                 "vtk cell fields": tables.column_labels(scene, names, cell_fields[0]),
+                 "psd.csv": tables.psd_labels(scene, psd)}
+
+
+def _domain_warnings(scene, spray, notes, cells, active) -> list:
+    out = []
+    if scene.binder_injection is not None and not np.any(spray):
+        out.append(f"the spray zone of [binder_injection] holds no cell: "
+                   f"{spray_zone_cut(scene, cells, active)}; "
+                   "no binder is injected (change [binder_injection] zone)")
+    if notes["cells_capped_below_alpha_max"]:
+        out.append(f"{notes['cells_capped_below_alpha_max']} cells had alpha at or above "
+                   f"alpha_max = {scene.domain.alpha_max:g}; kept {PACKING_MARGIN:g} "
+                   "below it so that g0 stays finite")
+    return out
+
+
+def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history, warnings):
+    """Per output time: the cell fields (every mesh cell; inactive cells 0) and the bed
+    columns (volume averages of the moments [per m3 of bed], d32, d43 [m] of the whole bed's
+    population, binder fraction, bed mass [kg]), the cells' d10/d50/d90/span, and per output
+    time the bed's size distribution (``distribution.reconstruct.Mixture``)."""
+    from ..distribution.reconstruct import Mixture
+    mixtures = []
+    n = cells.n_cells
+    volumes = np.asarray(cells.cell_volume, dtype=float)
+    v_active = volumes[idx]
+    bed_volume = float(volumes.sum())
+    cell_fields = []
+    bed = {"time_s": times}
+    rho = scene.material.density
+    pd = arrays.droplet_mass
+    for k, states in enumerate(history):
+        populations = []
+        cols = model.moment_outputs(scene, arrays, states, aux, populations=populations)
+        fields = {"alpha": np.asarray(cells.alpha, dtype=float),
+                  "Theta": np.asarray(cells.theta, dtype=float),
+                  "active": active.astype(float), "spray_zone": spray.astype(float)}
+        for name, values in cols.items():
+            full = np.zeros(n)
+            full[idx] = values
+            fields[name] = full
+        recon = _cell_distribution(scene, arrays, aux, states, populations, idx, n, times[k],
+                                   fields, warnings)
+        mixtures.append(Mixture(recon, recon.mass * v_active))
+        cell_fields.append(fields)
+        for name, values in cols.items():
+            if name.startswith("M") or name == "droplet_number_density":
+                bed.setdefault(name, np.zeros(len(times)))[k] = float(
+                    np.sum(values * v_active) / bed_volume)
+        # bed d32/d43 from every cell's population, weighted by cell volume
+        ws = [np.asarray(w) * v_active[c] for c, (w, _, _) in enumerate(populations)]
+        ps = [np.asarray(p) for _, p, _ in populations]
+        if scene.separate_droplets and "droplet_number_density" in cols:
+            ws.append(np.array([np.sum(cols["droplet_number_density"] * v_active)]))
+            ps.append(np.array([pd]))
+        d32, d43 = mean_diameters(np.concatenate(ws), np.concatenate(ps), rho)
+        bed.setdefault("d32_m", np.zeros(len(times)))[k] = d32
+        bed.setdefault("d43_m", np.zeros(len(times)))[k] = d43
+        m10 = bed["M10"][k]
+        bed.setdefault("binder_fraction", np.zeros(len(times)))[k] = (
+            bed["M01"][k] / m10 if scene.bivariate and m10 > 0 else 0.0)
+        bed.setdefault("bed_mass_kg", np.zeros(len(times)))[k] = m10 * bed_volume
+        if scene.bivariate:
+            bed.setdefault("bed_binder_mass_kg", np.zeros(len(times)))[k] = (
+                bed["M01"][k] * bed_volume)
+    return cell_fields, bed, mixtures
+
+
+# ---------------------------------------------------------------------------- writing
+def write_coupled(out_dir: Path, scene, domain: Domain, result: CoupledResult,
+                  render: bool = True, phases: dict | None = None) -> dict:
+    """Write fields.pvd + .vtu, bed_moments.csv, PNG renders and summary.json into out_dir.
+
+    ``phases``: wall seconds [s] of the phases before the run (start-up, read), merged with
+    the run's (``result.phases``) and this function's (write, render) into summary.json's
+    ``phases``; returns that dict."""
+    from ..io import output
+    from ..io.vtk import VtkSeries
+    from ..scene.scene import describe
+
+    t0 = _time.perf_counter()
+    phases = {**(phases or {}), **result.phases}
+    with VtkSeries(out_dir / "vtk", domain.cells, name="pbe") as series:
+        for t, fields in zip(result.times, result.cell_fields):
+            series.write(t, fields)
+    output.write_columns_csv(out_dir / "bed_moments.csv", result.bed_columns)
+    if result.psd is not None:
+        output.write_columns_csv(out_dir / "psd.csv", result.psd)
+        output.write_json(out_dir / "columns.json", result.labels)
+    phases["write_s"] = _time.perf_counter() - t0
+    if render:
+        from ..viz.render import BED_MOMENTS_COST, plot_bed_moments, render_series
+        t1 = _time.perf_counter()
+        png = out_dir / "png"
+        bed = (plot_bed_moments, (out_dir / "bed_moments.csv", png / "bed_moments.png"),
+               {"title": scene.name}, BED_MOMENTS_COST)
+        extra = [bed]
+        if result.psd is not None:
+            from ..viz.psd_figure import PSD_COST, plot_psd
+            extra.append((plot_psd, (png / "psd.png", out_dir / "psd.csv"),
+                          {"title": f"{scene.name}: the bed's granules"}, PSD_COST))
+        render_series(out_dir / "vtk", times=[result.times[0], result.times[-1]], png_dir=png,
+                      info={"name": scene.name, "alpha_min": scene.domain.alpha_min},
+                      extra_tasks=extra)
+        phases["render_s"] = _time.perf_counter() - t1
+    t2 = _time.perf_counter()
+    summary = {"scene": describe(scene), "method": scene.method.name,
+               "domain": domain.description, "wall_time_s": result.wall_time_s,
+               "compile_time_s": result.compile_time_s,
+               "kernels_compiled": result.kernels_compiled, "stats": result.stats,
+               "phases": phases, "warnings": result.warnings}
+    output.write_json(out_dir / "summary.json", summary)
+    phases["write_s"] += _time.perf_counter() - t2
+    return phases
+
+
+#: OpenFOAM dimensions of the fields written back into a case
+FOAM_UNITS = {"M00": "[0 -3 0 0 0 0 0]", "M10": "[1 -3 0 0 0 0 0]", "M01": "[1 -3 0 0 0 0 0]",
+              "M20": "[2 -3 0 0 0 0 0]", "M11": "[2 -3 0 0 0 0 0]", "M02": "[2 -3 0 0 0 0 0]",
+              "d32_m": "[0 1 0 0 0 0 0]", "d43_m": "[0 1 0 0 0 0 0]",
+              "droplet_number_density": "[0 -3 0 0 0 0 0]",
+              "active": "[0 0 0 0 0 0 0]"}     # 1 in a cell holding granules, 0 elsewhere
+
+
+def check_foam_fields(scene, domain: Domain, overwrite: bool = False):
+    """Before a run with --foam-fields: refuse (SceneError or output.OutputRefused, exit 2)
+    when the domain has no case time directory to write into (a snapshot), or when that
+    directory holds ``pbe.*`` fields pbe-cfd may not replace."""
+    from ..io import openfoam as of
+    from .domain import case_path, is_case_directory
+    if not is_case_directory(scene):
+        raise SceneError(scene.source, "domain.case",
+                         f"--foam-fields: {scene.domain.case!r} is a snapshot, which has no "
+                         "OpenFOAM case time directory to write fields into; point [domain] "
+                         "case at a case directory (`pbe-cfd case run --dir DIR`) or drop "
+                         "--foam-fields")
+    case = case_path(scene)
+    names = [f"pbe.{k}" for k in (*FOAM_UNITS, "binder_fraction")]
+    of.check_foam_fields(case, of.time_name(case, domain.cells.time), names, overwrite)
+
+
+def write_foam_fields(scene, domain: Domain, result: CoupledResult,
+                      overwrite: bool = False) -> list:
+    """Write the final moment fields as volScalarFields ``pbe.<name>`` (SI) into the case's
+    time directory of the CFD fields they were computed from (ParaView's OpenFOAM reader lists
+    numeric times only). Returns the files written ([] for a snapshot domain)."""
+    from ..io import openfoam as of
+    from .domain import case_path, is_case_directory
+    if not is_case_directory(scene):
+        return []
+    case = case_path(scene)
+    fields = {f"pbe.{k}": v for k, v in result.cell_fields[-1].items()
+              if k in FOAM_UNITS or k == "binder_fraction"}
+    dims = {f"pbe.{k}": u for k, u in FOAM_UNITS.items()}
+    name = of.time_name(case, domain.cells.time)
+    if domain.cells.source.get("decomposed"):        # the time only the processors hold
+        from .distributed.decompose import read_decomposition, write_processor_fields
+        return write_processor_fields(case, read_decomposition(case, domain.cells.n_cells),
+                                      name, fields, dimensions=dims, overwrite=overwrite)
+    return of.write_foam_fields(case, name, fields, dimensions=dims, overwrite=overwrite)

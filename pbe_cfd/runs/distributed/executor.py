@@ -1,0 +1,337 @@
+"""``ClusterExecutor``: the per-cell source integration of a coupled run on a Dask cluster
+(see the package docstring)."""
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import time as _time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ... import integrate
+from ..batch import SimulationError
+from .decompose import write_processor_fields
+from .partition import Partition, block_partition, processor_partition
+from .store import STORE_SUFFIX, ChunkStore, fingerprint
+from .cluster import numba_thread_table
+from .tasks import _identity, chunk_history, chunk_source
+
+
+class ChunksFailed(SimulationError):
+    """Some chunks did not finish. ``failed`` maps chunk number -> reason; ``store`` is the
+    chunk store holding the finished chunks (or None)."""
+
+    def __init__(self, message, failed: dict, store: Path | None):
+        super().__init__(message)
+        self.failed = failed
+        self.store = store
+
+
+@dataclass
+class ClusterExecutor:
+    """Runs the per-cell sources of ``couple.run_coupled`` on a Dask client.
+
+    client      distributed.Client
+    chunks      number of blocks (default 4 per worker), or a Partition
+    decomposition  cellProcAddressing per processor (one chunk per processor), or None
+    store_dir   the chunk store (``store_path(out)``) or None for no persistence
+    resume      reuse the stored chunks (the store must match this problem)
+    meta        extra manifest entries (scene, output directory)
+    fault       fault injection (``parse_fault``), for tests
+    cluster     a LocalCluster this executor owns (closed by ``close``)
+    """
+    client: object
+    chunks: object = None
+    decomposition: list | None = None
+    store_dir: Path | None = None
+    resume: bool = False
+    meta: dict = field(default_factory=dict)
+    fault: dict | None = None
+    cluster: object = None
+    case_dir: Path | None = None
+    _report: dict = field(default_factory=dict, repr=False)
+    store: ChunkStore | None = field(default=None, repr=False)
+
+    # -- the executor interface (pbe_cfd.runs.executor) ---------------------------------------
+    def run(self, batch, times, transport=None, progress=None) -> list:
+        """Advance ``batch`` (a ``CellBatch`` of the active cells) over all output ``times``
+        [s] like ``SerialExecutor.run``; update its states and work arrays in place and return
+        the history (one (n_active, n_state) array per output time)."""
+        start = _time.perf_counter()
+        states, rows, idx, steps = batch.states, batch.rows, batch.cell_ids, batch.steps
+        n = states.shape[0]
+        part = self._partition(n, idx)
+        shared = batch.shared()
+        threads = numba_thread_table(self.client)
+        layout = np.concatenate([np.r_[len(c), c] for c in part.chunks])
+        extra = json.dumps({"method": batch.scene.method.name, "rtol": shared["rtol"],
+                            "atol": shared["atol"], "max_steps": shared["max_steps"],
+                            "transport": transport is not None})
+        arrs = [states, rows, shared["aux"], shared["params"], shared["config"], times, idx,
+                steps, layout]
+        if transport is not None:
+            g = transport.generator
+            arrs += [g.data, g.indices, g.indptr, np.array([transport.split_step,
+                     transport.dt_max, float(transport.splitting == "strang")])]
+        fp = fingerprint(*arrs, extra=extra)
+        if self.store_dir is not None:
+            self.store = ChunkStore(self.store_dir).open(
+                fp, {"chunks": part.n_chunks, "partition": part.kind,
+                     "labels": part.labels, "active_cells": int(n),
+                     "times_s": [float(t) for t in times], **self.meta}, self.resume)
+        self._report = {"chunks": part.n_chunks, "partition": part.kind,
+                        "workers": len(threads),
+                        "numba_threads_per_task": sorted(set(threads.values())),
+                        "store": str(self.store.path) if self.store else None,
+                        "resumed": bool(self.resume)}
+        if transport is None:
+            history = self._run_independent(part, batch, times, shared, threads, progress)
+        else:
+            history = self._run_transport(part, batch, times, transport, shared, threads,
+                                          progress)
+        self._report["wall_s"] = _time.perf_counter() - start
+        return history
+
+    def report(self) -> dict:
+        """What the cluster did: chunks, workers, threads, chunks computed and reused, wall
+        and compute times [s], and for transport the data moved per split step [bytes]."""
+        return dict(self._report)
+
+    def close(self):
+        """Close the client and the LocalCluster this executor started."""
+        try:
+            self.client.close()
+        finally:
+            if self.cluster is not None:
+                self.cluster.close()
+
+    def finish(self):
+        """Remove the chunk store; call after the output directory was written."""
+        if self.store is not None:
+            self.store.remove()
+
+    def mirror_to_processors(self, written, overwrite: bool = False) -> list:
+        """For a decomposed case: copy fields written into the case root (paths
+        ``CASE/<time>/<name>``, as ``couple._write_foam`` returns them) into every
+        ``processorN/<time>/<name>`` with the processor's local cells (cellProcAddressing),
+        same dimensions. Returns the files written ([] for an undecomposed case)."""
+        written = [p for p in written or ()       # a decomposed time was written per processor
+                   if self.case_dir is not None
+                   and Path(p).parent.parent.resolve() == Path(self.case_dir).resolve()]
+        if self.decomposition is None or self.case_dir is None or not written:
+            return []
+        from foamlib import FoamFieldFile
+
+        by_time: dict = {}
+        for path in written:
+            path = Path(path)
+            ff = FoamFieldFile(path)
+            values = np.asarray(ff.internal_field, dtype=float)
+            dims = ff.dimensions
+            if not isinstance(dims, str):
+                dims = "[" + " ".join(f"{float(x):g}" for x in np.asarray(dims).ravel()) + "]"
+            fields, units = by_time.setdefault(path.parent.name, ({}, {}))
+            fields[path.name] = values
+            units[path.name] = dims
+        out = []
+        for tname, (fields, units) in by_time.items():
+            out += write_processor_fields(self.case_dir, self.decomposition, tname, fields,
+                                          dimensions=units, overwrite=overwrite)
+        return out
+
+    # -- pieces ------------------------------------------------------------------------
+    def _partition(self, n, idx) -> Partition:
+        if isinstance(self.chunks, Partition):
+            return self.chunks
+        if self.decomposition is not None and self.chunks is None:
+            n_cells = sum(len(a) for a in self.decomposition)
+            return processor_partition(self.decomposition, np.asarray(idx), n_cells)
+        k = self.chunks
+        if k is None:
+            k = 4 * max(1, len(self.client.scheduler_info().get("workers", {})))
+        return block_partition(n, int(k))
+
+    def _run_independent(self, part, batch, times, shared, threads, progress):
+        from distributed import as_completed
+
+        states, rows = batch.states, batch.rows
+        steps, stats, status, reached = (batch.steps, batch.stats_counts, batch.status,
+                                         batch.reached)
+        n_t = len(times)
+        history = np.empty((n_t,) + states.shape)
+        fail_interval = np.full(states.shape[0], -1, dtype=np.int64)
+        done = self.store.finished_chunks() if (self.store and self.resume) else set()
+        done &= set(range(part.n_chunks))
+        total = states.shape[0]
+        cells_done = 0
+
+        def accept(k, res):
+            nonlocal cells_done
+            pos = part.chunks[k]
+            history[:, pos, :] = res["history"]
+            steps[pos] = res["steps"]
+            stats[pos] += res["stats"]
+            status[pos] = res["status"]
+            reached[pos] = res["reached"]
+            fail_interval[pos] = res["fail_interval"]
+            cells_done += pos.size
+
+        for k in sorted(done):
+            accept(k, self.store.load_chunk(k))
+        futures = {}
+        shared_f = self.client.submit(_identity, shared, pure=False)
+        for k, pos in enumerate(part.chunks):
+            if k in done:
+                continue
+            fut = self.client.submit(chunk_history, k, states[pos], rows[pos], steps[pos],
+                                     shared_f, np.asarray(times), threads, self.fault,
+                                     pure=False, key=f"pbe-chunk-{k:05d}-{os.urandom(4).hex()}")
+            futures[fut] = k
+        failed, compute = {}, []
+        if progress is not None:
+            progress(cells_done / total, f"{len(done)} chunk(s) from the store")
+        for fut in as_completed(list(futures)):
+            k = futures[fut]
+            try:
+                res = fut.result()
+            except Exception as exc:  # noqa: BLE001 - any task failure is reported per chunk
+                failed[k] = f"{type(exc).__name__}: {exc}"
+            else:
+                if self.store is not None:
+                    self.store.save_chunk(k, res)
+                accept(k, res)
+                compute.append(float(res["compute_s"]))
+            fut.release()
+            if progress is not None:
+                progress(cells_done / total,
+                         f"chunk {len(compute) + len(done)}/{part.n_chunks}"
+                         + (f", {len(failed)} failed" if failed else ""))
+        shared_f.release()
+        self._report.update({
+            "computed_chunks": sorted(set(futures.values()) - set(failed)),
+            "reused_chunks": sorted(done), "failed_chunks": sorted(failed),
+            "task_compute_s": {"sum": float(sum(compute)),
+                               "median": float(statistics.median(compute)) if compute else 0.0,
+                               "max": float(max(compute)) if compute else 0.0}})
+        if failed:
+            raise self._failure(failed, part)
+        states[...] = history[-1]
+        bad = fail_interval >= 0
+        if bad.any():
+            first = int(fail_interval[bad].min())
+            batch.raise_if_failed(failed=np.flatnonzero(fail_interval == first))
+        return [history[k] for k in range(n_t)]
+
+    def _run_transport(self, part, batch, times, transport, shared, threads, progress):
+        from distributed import as_completed
+
+        states, rows = batch.states, batch.rows
+        steps, stats, status, reached = (batch.steps, batch.stats_counts, batch.status,
+                                         batch.reached)
+        client = self.client
+        history = [states.copy()]
+        k0 = 0
+        if self.store is not None and self.resume:
+            for k in self.store.stored_steps():
+                if k >= len(times):
+                    continue
+                z = self.store.load_step(k)
+                history.append(z["states"].copy())
+                k0 = k
+            if k0 > 0:
+                z = self.store.load_step(k0)
+                states[...] = z["states"]
+                steps[...] = z["steps"]
+                stats[...] = z["stats"]
+                status[...] = z["status"]
+                reached[...] = z["reached"]
+            history = history[:k0 + 1]
+        shared_f = client.submit(_identity, shared, pure=False)
+        rows_f = [client.submit(_identity, np.ascontiguousarray(rows[pos]), pure=False)
+                  for pos in part.chunks]
+        moved = {"out": [], "back": [], "wall": [], "compute_max": [], "wait": []}
+
+        def source_step(s, ta, tb):
+            t_start = _time.perf_counter()
+            futs = {}
+            out_bytes = 0
+            for c, pos in enumerate(part.chunks):
+                sc, st = s[pos], steps[pos]
+                out_bytes += sc.nbytes + st.nbytes
+                f = client.submit(chunk_source, c, sc, rows_f[c], st, shared_f, float(ta),
+                                  float(tb), threads, self.fault, pure=False)
+                futs[f] = c
+            failed, back, cmax = {}, 0, 0.0
+            for f in as_completed(list(futs)):
+                c = futs[f]
+                try:
+                    res = f.result()
+                except Exception as exc:  # noqa: BLE001
+                    failed[c] = f"{type(exc).__name__}: {exc}"
+                    continue
+                pos = part.chunks[c]
+                s[pos] = res["states"]
+                steps[pos] = res["steps"]
+                stats[pos] += res["stats"]
+                status[pos] = res["status"]
+                reached[pos] = res["reached"]
+                back += sum(res[x].nbytes for x in ("states", "steps", "stats", "status",
+                                                    "reached"))
+                cmax = max(cmax, float(res["compute_s"]))
+            wall = _time.perf_counter() - t_start
+            moved["out"].append(out_bytes)
+            moved["back"].append(back)
+            moved["wall"].append(wall)
+            moved["compute_max"].append(cmax)
+            moved["wait"].append(wall - cmax)
+            if failed:
+                raise self._failure(failed, part, at=(ta, tb))
+            bad = np.flatnonzero(status != integrate.OK)
+            if bad.size:
+                batch.raise_if_failed(s, failed=bad)
+
+        try:
+            for k in range(k0 + 1, len(times)):
+                transport.advance(states, times[k - 1], times[k], source_step)
+                history.append(states.copy())
+                if self.store is not None:
+                    self.store.save_step(k, {"states": states, "steps": steps,
+                                             "stats": stats, "status": status,
+                                             "reached": reached})
+                if progress is not None:
+                    progress(times[k] / times[-1], f"t = {times[k]:.4g} s "
+                             f"({part.n_chunks} chunks per source step)")
+        finally:
+            for f in rows_f:
+                f.release()
+            shared_f.release()
+            med = (lambda xs: float(statistics.median(xs)) if xs else 0.0)
+            self._report["transport"] = {
+                "source_steps": len(moved["wall"]),
+                "resumed_from_output": int(k0),
+                "bytes_out_per_step": med(moved["out"]),
+                "bytes_back_per_step": med(moved["back"]),
+                "source_step_wall_s_median": med(moved["wall"]),
+                "slowest_task_compute_s_median": med(moved["compute_max"]),
+                "overhead_s_per_step_median": med(moved["wait"]),
+                "note": "transport on the client (scipy.sparse), per-cell sources per chunk "
+                        "on the workers; states and step memory go out and back every "
+                        "split step, cell rows and method data are sent once"}
+        return history
+
+    def _failure(self, failed: dict, part: Partition, at=None) -> ChunksFailed:
+        names = ", ".join(f"{k} ({part.labels[k]}: {why})" for k, why in sorted(failed.items()))
+        where = f" in the source step {at[0]:.6g}-{at[1]:.6g} s" if at else ""
+        if self.store is not None:
+            out = self.meta.get("out") or str(self.store.path)[:-len(STORE_SUFFIX)]
+            kept = ("the finished chunks are stored" if at is None else
+                    "the states of every finished output time are stored")
+            hint = (f"; {kept} in {self.store.path}; `pbe-cfd couple --resume {out}` "
+                    "computes only what is missing")
+        else:
+            hint = "; no chunk store was given, nothing was kept"
+        msg = (f"{len(failed)} of {part.n_chunks} chunk(s) failed{where}: {names}{hint}")
+        return ChunksFailed(msg, failed, self.store.path if self.store else None)

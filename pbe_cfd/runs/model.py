@@ -1,0 +1,260 @@
+"""From a scene to the arrays the numba physics and methods run on, and back to SI outputs.
+
+The domain layer: it decides which effects are computed (only those whose table is present),
+packs ``params``/``config``/``cell`` (``physics.parameters``) from the scene and the registries
+(``physics.kernels``, ``physics.efficiency``, ``methods.registry``), builds the scaled initial
+states, and turns scaled states back into the SI output columns of docs/physics.md section 11.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..integrate.codes import SCHEMES
+from ..methods.registry import method_of
+from ..physics import parameters as P
+from ..physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
+from ..physics.efficiency import switch_on
+from ..physics.injection import droplet_mass
+from ..physics.kernels import KERNEL_BY_NAME
+from ..physics.kernels import collision_velocity as _collision_velocity
+from ..util.population import (DERIVED, columns_from_particle_rows, columns_from_particles,
+                               mean_diameters, mean_diameters_rows, moment_columns)
+
+__all__ = ["Arrays", "scales", "pack", "well_mixed_cell", "collision_velocity", "size_moment",
+           "initial_moments", "product_gel_time", "moment_outputs", "droplet_mass"]
+
+
+@dataclass
+class Arrays:
+    """Packed inputs of the numba layer for one scene."""
+    params: np.ndarray
+    config: np.ndarray
+    number_scale: float      # N_ref [1/m3]
+    mass_scale: float        # p_ref [kg]
+    droplet_mass: float      # p_d [kg] (0 without injection)
+    state_names: list = field(default_factory=list)
+
+
+def scales(scene) -> tuple[float, float]:
+    """Number-density and mass scales (N_ref [1/m3], p_ref [kg]) used to non-dimensionalise."""
+    n_ref = scene.initial.number_density + scene.initial.droplet_number_density
+    p_ref = scene.initial.mean_mass
+    if n_ref <= 0.0:
+        inj = scene.binder_injection
+        n_ref = max(inj.rate * scene.end_time, 1.0) if inj is not None else 1.0
+    return float(n_ref), float(p_ref)
+
+
+def _material_params(scene, params):
+    mat = scene.material
+    params[P.DENSITY] = mat.density
+    params[P.ALPHA_MAX] = scene.domain.alpha_max
+    params[P.ALPHA_MIN_FRICTION] = scene.domain.alpha_min_friction or 0.0
+    for slot, value in ((P.BINDER_DENSITY, mat.binder_density),
+                        (P.BINDER_VISCOSITY, mat.binder_viscosity),
+                        (P.GEO_SLOPE, mat.accessible_binder_slope),
+                        (P.GEO_CENTRE, mat.accessible_binder_centre),
+                        (P.PHI_SLOPE, mat.binder_layer_slope),
+                        (P.PHI_CENTRE, mat.binder_layer_centre),
+                        (P.ASPERITY, mat.asperity),
+                        (P.GYRATION_RADIUS, mat.gyration_radius),
+                        (P.POROSITY, mat.porosity),
+                        (P.SATURATION_MAX, mat.saturation_max)):
+        params[slot] = value if value is not None else 0.0
+    params[P.STOKES_WIDTH] = mat.stokes_switch_width
+
+
+def _breakage_params(scene, params, config):
+    """Slots of the [breakage] table (physics.breakage); nothing without the table."""
+    brk = scene.breakage
+    if brk is None:
+        return
+    config[P.BREAKAGE] = 1
+    config[P.BREAKAGE_SELECTION] = SELECTION_BY_NAME[brk.selection].code
+    config[P.BREAKAGE_DAUGHTERS] = DAUGHTERS_BY_NAME[brk.daughters].code
+    params[P.BREAKAGE_RATE] = brk.rate
+    params[P.BREAKAGE_EXPONENT] = brk.exponent
+    params[P.BREAKAGE_REFERENCE_MASS] = (brk.reference_mass if brk.reference_mass is not None
+                                         else scene.initial.mean_mass)
+    params[P.BREAKAGE_REFERENCE_THETA] = brk.reference_granular_temperature or 0.0
+    params[P.YIELD_STRENGTH] = brk.yield_strength or 0.0
+    params[P.CRITICAL_DEFORMATION] = brk.critical_deformation_number or 0.0
+
+
+def pack(scene) -> Arrays:
+    """Pack the scene into the params/config arrays (see ``physics.parameters``)."""
+    params = np.zeros(P.N_PARAMS)
+    config = np.zeros(P.N_CONFIG, dtype=np.int64)
+    _material_params(scene, params)
+    agg = scene.aggregation
+    if agg is not None:
+        params[P.RATE] = agg.rate
+        config[P.KERNEL] = KERNEL_BY_NAME[agg.kernel].code
+        switch_on(config, agg.efficiency)
+        ref_d = agg.reference_diameter
+        if ref_d is not None:
+            params[P.REFERENCE_VOLUME] = math.pi / 6.0 * ref_d ** 3
+        else:
+            params[P.REFERENCE_VOLUME] = scene.initial.mean_mass / scene.material.density
+    else:
+        params[P.RATE] = 0.0       # no aggregation table: the kernel is never evaluated
+    pd = 0.0
+    if scene.binder_injection is not None:
+        pd = droplet_mass(scene.binder_injection.droplet_diameter, scene.material.binder_density)
+    params[P.DROPLET_MASS] = pd
+    config[P.SEPARATE_DROPLETS] = int(scene.separate_droplets)
+    params[P.DROPLET_FACTOR] = agg.droplet_factor if scene.separate_droplets else 0.0
+    config[P.BIVARIATE] = int(scene.bivariate)
+    n_ref, p_ref = scales(scene)
+    params[P.NUMBER_SCALE] = n_ref
+    params[P.MASS_SCALE] = p_ref
+    params[P.STEP_FLOOR] = 1.0e-12 * scene.end_time
+    _breakage_params(scene, params, config)
+    method = method_of(scene)
+    config[P.METHOD] = method.code
+    config[P.ORDER] = method.order(scene.method)
+    for slot, value in method.config_slots(scene).items():
+        config[slot] = value
+    names = method.state_names(scene)
+    config[P.N_STATE] = len(names)
+    config[P.INTEGRATOR] = SCHEMES[scene.method.integrator]
+    return Arrays(params=params, config=config, number_scale=n_ref, mass_scale=p_ref,
+                  droplet_mass=pd, state_names=names)
+
+
+def well_mixed_cell(scene) -> np.ndarray:
+    """The single cell row (alpha, theta, u0, injection) of a well-mixed scene (SI)."""
+    cell = np.zeros((1, P.N_CELL))
+    dom = scene.domain
+    cell[0, P.ALPHA] = dom.solids_fraction or 0.0
+    cell[0, P.THETA] = dom.granular_temperature or 0.0
+    cell[0, P.COLLISION_VELOCITY] = collision_velocity(dom.collision_velocity,
+                                                       cell[0, P.THETA])
+    if scene.binder_injection is not None:
+        cell[0, P.INJECTION] = scene.binder_injection.rate
+    return cell
+
+
+def collision_velocity(given, theta):
+    """Collision velocity [m/s]: the scene's value, else 4 sqrt(theta / pi) from theta [m2/s2]."""
+    if given is not None:
+        return float(given)
+    return float(_collision_velocity(float(theta)))
+
+
+def size_moment(scene, k: int, j: int = 0) -> float:
+    """Initial granule moment M_kj [kg^(k+j)/m3] (free droplets excluded)."""
+    init = scene.initial
+    n0, p0, y0 = init.number_density, init.mean_mass, init.binder_fraction
+    if init.distribution == "monodisperse":
+        return n0 * p0 ** k * (y0 * p0) ** j
+    # exponential in p, every granule with the same binder fraction y0: b = y0 p
+    return n0 * p0 ** (k + j) * math.factorial(k + j) * y0 ** j
+
+
+def initial_moments(scene, arrays: Arrays, names) -> np.ndarray:
+    """Scaled initial state for moment methods whose state entries are named ``names`` (a
+    method's own ``initial_state`` in the registry takes precedence)."""
+    own = method_of(scene).initial_state
+    if own is not None:
+        return own(scene, arrays, lambda i, j: size_moment(scene, i, j))
+    state = np.zeros(len(names))
+    nd0 = scene.initial.droplet_number_density
+    pd = arrays.droplet_mass
+    for idx, name in enumerate(names):
+        if name == "droplet_number_density":
+            state[idx] = nd0 / arrays.number_scale
+            continue
+        i, j = int(name[1]), int(name[2])
+        value = size_moment(scene, i, j)
+        if not scene.separate_droplets and nd0 > 0.0:
+            value += nd0 * pd ** (i + j)
+        state[idx] = value / (arrays.number_scale * arrays.mass_scale ** (i + j))
+    return state
+
+
+def product_gel_time(scene) -> float | None:
+    """Gel time [s] of the product kernel from the initial M20 (1/(k0 M20(0))), else None."""
+    agg = scene.aggregation
+    if agg is None or agg.kernel != "product":
+        return None
+    m20 = size_moment(scene, 2)
+    if m20 <= 0.0:
+        return None
+    return 1.0 / (agg.rate * m20)
+
+
+def _outputs_by_row(out, rows, states, names, cols, nd, pd, n_ref, p_ref, rho):
+    """``moment_outputs``'s moments, d32 and d43 row by row (populations of different
+    sizes): see there."""
+    for r, (w, p, b) in enumerate(rows):
+        state = states[r]
+        estimated = columns_from_particles(w, p, b, cols)
+        for c in cols:
+            k = int(c[1]) + int(c[2])
+            value = (state[names.index(c)] * n_ref * p_ref ** k if c in names
+                     else estimated[c])
+            out[c][r] = value + nd[r] * pd ** k
+        ww = np.append(w, nd[r]) if nd[r] > 0 else w
+        pp = np.append(p, pd) if nd[r] > 0 else p
+        out["d32_m"][r], out["d43_m"][r] = mean_diameters(ww, pp, rho)
+
+
+def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
+                   populations: list | None = None) -> dict:
+    """SI output columns (moments, droplets, d32, d43, binder fraction) of scaled states
+    (one row per time or per cell). If a list is passed as ``populations``, each row's
+    weighted particles (w [1/m3], p [kg], b [kg], from the method's ``population``) are
+    appended to it. A method's own ``columns`` in the registry takes precedence."""
+    own = method_of(scene).columns
+    if own is not None:
+        return own(scene, arrays, states, aux, populations)
+    names = arrays.state_names
+    bivariate = scene.bivariate
+    cols = moment_columns(names, bivariate)
+    separate = scene.separate_droplets
+    n_rows = states.shape[0]
+    out = {c: np.zeros(n_rows) for c in cols}
+    if separate:
+        out["droplet_number_density"] = np.zeros(n_rows)
+    for c in DERIVED:
+        out[c] = np.zeros(n_rows)
+    pd = arrays.droplet_mass
+    n_ref, p_ref = arrays.number_scale, arrays.mass_scale
+    rho = scene.material.density
+    population = method_of(scene).population
+    rows = [population(states[r], aux, arrays) for r in range(n_rows)]
+    if populations is not None:
+        populations.extend(rows)
+    if n_rows == 0:
+        return out
+    nd = states[:, -1] * n_ref if separate else np.zeros(n_rows)
+    if len({len(w) for w, _, _ in rows}) > 1:       # populations of different sizes
+        _outputs_by_row(out, rows, states, names, cols, nd, pd, n_ref, p_ref, rho)
+    else:                                            # one (rows, particles) array each
+        w_all, p_all, b_all = (np.array([r[k] for r in rows], dtype=float) for k in range(3))
+        estimated = columns_from_particle_rows(w_all, p_all, b_all,
+                                               [c for c in cols if c not in names])
+        for c in cols:
+            k = int(c[1]) + int(c[2])
+            value = (states[:, names.index(c)] * n_ref * p_ref ** k if c in names
+                     else estimated[c])
+            out[c][:] = value + nd * pd ** k
+        with_droplets = nd > 0
+        for sel in (with_droplets, ~with_droplets):
+            if not np.any(sel):
+                continue
+            ww, pp = w_all[sel], p_all[sel]
+            if sel is with_droplets:
+                ww = np.hstack([ww, nd[sel, None]])
+                pp = np.hstack([pp, np.full((pp.shape[0], 1), pd)])
+            out["d32_m"][sel], out["d43_m"][sel] = mean_diameters_rows(ww, pp, rho)
+    if separate:
+        out["droplet_number_density"][:] = nd
+    m10 = out["M10"]
+    out["binder_fraction"][:] = (np.where(m10 > 0, out["M01"] / np.where(m10 > 0, m10, 1.0),
+                                          0.0) if bivariate else 0.0)
+    return out

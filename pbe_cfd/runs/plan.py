@@ -1,0 +1,222 @@
+"""``pbe-cfd plan``: what a scene will compute, and what it leaves out, without running it.
+
+For a coupled scene it also reads the CFD case: the cells, the active and spray cells and the
+criterion that removed the others, the fields found (time-averaged or instantaneous), the
+averaging window and the CFD time. Read-only: it opens a snapshot or a case whose converted
+fields already exist, and writes nothing anywhere."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from . import model
+from ..methods.registry import method_of
+from ..physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
+from ..physics.efficiency import EFFICIENCY_BY_NAME
+from ..physics.kernels import KERNEL_BY_NAME
+
+
+def describe_plan(scene) -> str:
+    """Human-readable plan of a scene: coordinates, kernel, efficiencies, sources, method,
+    fields needed, and the effects left out."""
+    lines = [f"scene {scene.name!r} from {scene.source}",
+             f"  time: 0 .. {scene.end_time:g} s, output every {scene.output_interval:g} s"]
+    dom = scene.domain
+    if dom.type == "well-mixed":
+        lines.append("  domain: well-mixed (one cell)")
+    else:
+        lines.append(f"  domain: OpenFOAM case {dom.case} at time {dom.time}; cells with "
+                     f"alpha >= {dom.alpha_min:g} solved, the rest left empty")
+        lines.extend(case_lines(scene))
+    coords = "p (granule mass) and b (binder mass)" if scene.bivariate else "p (granule mass) only"
+    lines.append(f"  coordinates: {coords}")
+    left_out = []
+    agg = scene.aggregation
+    fields = set()
+    if agg is None:
+        left_out.append("aggregation (no [aggregation] table)")
+    else:
+        kernel = KERNEL_BY_NAME[agg.kernel]
+        lines.append(f"  aggregation: kernel {agg.kernel}, k0 = {agg.rate:g} {kernel.unit}")
+        fields.update(kernel.cell_fields)
+        if agg.efficiency:
+            lines.append(f"  efficiency: {' x '.join(agg.efficiency)}")
+            if any(EFFICIENCY_BY_NAME[f].uses_collision_velocity for f in agg.efficiency):
+                if dom.type == "openfoam" or dom.collision_velocity is None:
+                    lines.append("    collision velocity u0 = 4 sqrt(Theta/pi) from the "
+                                 "granular temperature")
+                    fields.add("granular_temperature")
+                else:
+                    lines.append(f"    collision velocity u0 = {dom.collision_velocity:g} m/s")
+        else:
+            lines.append("  efficiency: none (psi = 1)")
+        if scene.separate_droplets:
+            lines.append(f"  droplets: a population of their own, captured at "
+                         f"{agg.droplet_factor:g} x the kernel; no droplet-droplet aggregation")
+    inj = scene.binder_injection
+    if inj is None:
+        left_out.append("binder injection (no [binder_injection] table)")
+    else:
+        where = "spray-zone cells" if inj.zone is not None else "every cell"
+        lines.append(f"  binder injection: {inj.rate:g} droplets/(m3 s) of "
+                     f"{inj.droplet_diameter * 1e6:g} um into {where}")
+    brk = scene.breakage
+    if brk is None:
+        left_out.append("breakage (no [breakage] table)")
+    else:
+        lines.extend(_breakage_lines(scene, brk))
+        fields.update(SELECTION_BY_NAME[brk.selection].cell_fields)
+    if scene.transport is None:
+        if dom.type == "openfoam":
+            left_out.append("transport between cells (no [transport] table)")
+    else:
+        lines.append(f"  transport: upwind by the granular face flux, Courant <= "
+                     f"{scene.transport.courant:g}")
+    lines.append(f"  method: {method_of(scene).plan_line(scene)}")
+    if not scene.bivariate:
+        left_out.append("binder coordinate (dry start, no injection)")
+    lines.append(f"  cell fields needed: {', '.join(sorted(fields)) or 'none'}")
+    t_gel = model.product_gel_time(scene)
+    if t_gel is not None:
+        lines.append(f"  product kernel gel time: {t_gel:.4g} s")
+    if dom.type == "openfoam" and scene.transport is not None:
+        try:
+            from ..transport.operator import transport_plan_lines
+            lines.extend(transport_plan_lines(scene))
+        except Exception as exc:  # plan must still print what it can
+            lines.append(f"  transport plan unavailable: {exc}")
+    lines.append("  left out: " + ("; ".join(left_out) if left_out else "nothing"))
+    return "\n".join(lines)
+
+
+def _breakage_lines(scene, brk):
+    """The plan's breakage lines: selection, daughters, the gate, who does not break."""
+    sel = SELECTION_BY_NAME[brk.selection]
+    lines = [f"  breakage: selection {brk.selection}, {sel.formula}, s0 = {brk.rate:g} 1/s"]
+    refs = []
+    if "exponent" in sel.keys:
+        refs.append(f"a = {brk.exponent:g}")
+    if "reference_mass" in sel.keys:
+        p_ref = brk.reference_mass if brk.reference_mass is not None else scene.initial.mean_mass
+        refs.append(f"p_ref = {p_ref:g} kg" + (" (the initial mean granule mass)"
+                                              if brk.reference_mass is None else ""))
+    if refs:
+        lines.append("    " + ", ".join(refs))
+    if brk.reference_granular_temperature is not None:
+        lines.append(f"    Theta_ref = {brk.reference_granular_temperature:g} m2/s2")
+        if brk.yield_strength is not None:
+            lines.append(f"    only where St_def = rho_g u0^2 / (2 Y) > "
+                         f"{brk.critical_deformation_number:g} (Y = {brk.yield_strength:g} Pa, "
+                         "u0 = 4 sqrt(Theta/pi); Tardos, Khan and Mort 1997)")
+    lines.append(f"    daughters: {DAUGHTERS_BY_NAME[brk.daughters].formula}, binder in "
+                 "proportion to mass" + ("; free droplets never break"
+                                         if scene.separate_droplets else ""))
+    return lines
+
+
+
+def _case_dir(scene) -> Path:
+    """The case directory named by ``[domain] case``, relative to the scene file."""
+    path = Path(scene.domain.case)
+    if not path.is_absolute() and scene.source:
+        path = Path(scene.source).parent / path
+    return path
+
+
+def unconverted_reason(scene) -> str | None:
+    """Why the scene's case cannot be opened without writing into it (a case with no mesh
+    whose fields at the chosen time foamToVTK has not converted), or None where it can (a
+    snapshot; a case with its mesh, whose fields are converted in pbe-cfd's own cache as a
+    run does, never in the case; converted fields that exist)."""
+    from ..io import openfoam as of
+    from ..io.openfoam.fields import _vtk_internal_file
+    from ..io.openfoam.readable import has_mesh
+    from .domain import BUNDLED_PREFIX
+
+    case = scene.domain.case
+    if case.startswith(BUNDLED_PREFIX) or case.endswith(".vtu"):
+        return None
+    path = _case_dir(scene)
+    if not path.is_dir():
+        return None                      # load_domain names what is wrong
+    if has_mesh(path):
+        return None                      # converted in pbe-cfd's cache, not in the case
+    try:
+        t = of.pick_time(path, "latest" if scene.domain.time == "latest"
+                         else float(scene.domain.time))
+    except (of.OpenFOAMError, ValueError):
+        return None
+    if _vtk_internal_file(path, t) is None:
+        return (f"its fields at t = {t:g} s are not converted yet; a run converts them with "
+                "foamToVTK first, which plan does not do (it writes nothing)")
+    return None
+
+
+def _control_entry(text: str, key: str) -> str | None:
+    m = re.search(rf"^\s*{key}\s+([^;\s]+)\s*;", text, flags=re.M)
+    return m.group(1) if m else None
+
+
+def averaging_window(scene, cells) -> str:
+    """The fieldAverage window [s] the time-averaged fields cover, as text."""
+    control = cells.source.get("control") or {}
+    if "avgStart" in control:
+        return f"{control['avgStart']:g} to {cells.time:g} s"
+    path = _case_dir(scene) / "system" / "controlDict"
+    try:
+        text = path.read_text()
+    except OSError:
+        return "unknown (no system/controlDict to read it from)"
+    start = _control_entry(text, "timeStart")
+    if start is not None and start.startswith("$"):
+        start = _control_entry(text, start[1:])
+    if start is None:
+        first = _control_entry(text, "startTime") or "0"
+        return (f"{first} to {cells.time:g} s (fieldAverage has no timeStart: the whole run, "
+                "start-up included)")
+    return f"{start} to {cells.time:g} s"
+
+
+def spray_lines(scene, cells, active: np.ndarray) -> list[str]:
+    """The spray zone among the active cells and what removed the other active cells."""
+    inj = scene.binder_injection
+    if inj is None:
+        return []
+    if inj.zone is None:
+        return [f"  spray zone: every active cell ({int(active.sum())})"]
+    z = inj.zone
+    centre = np.asarray(cells.cell_centre)
+    alpha = np.asarray(cells.alpha)
+    inside = np.all((centre >= np.array(z.box_min)) & (centre <= np.array(z.box_max)), axis=1)
+    window = (alpha >= z.alpha_low) & (alpha <= z.alpha_high)
+    spray = active & inside & window
+    return [f"  spray zone: {int(spray.sum())} of the {int(active.sum())} active cells; "
+            f"removed {int((active & ~inside).sum())} outside the box, "
+            f"{int((active & inside & (alpha > z.alpha_high)).sum())} above alpha_high = "
+            f"{z.alpha_high:g}, {int((active & inside & (alpha < z.alpha_low)).sum())} below "
+            f"alpha_low = {z.alpha_low:g}"]
+
+
+def case_lines(scene) -> list[str]:
+    """The plan's lines about the CFD case of an OpenFOAM-domain scene (one read of it)."""
+    from .domain import load_domain
+
+    reason = unconverted_reason(scene)
+    if reason is not None:
+        return [f"  case not opened: {reason}"]
+    domain = load_domain(scene)
+    cells = domain.cells
+    alpha = np.asarray(cells.alpha)
+    active = alpha >= scene.domain.alpha_min
+    kind = ("time-averaged" if cells.averaged
+            else "instantaneous (no fieldAverage output at this time)")
+    src = cells.source
+    return [f"  case read: {domain.description}; CFD time {cells.time:g} s",
+            f"  fields: {src.get('alpha_field')} and {src.get('theta_field')}, {kind}",
+            f"  averaging window: {averaging_window(scene, cells)}" if cells.averaged
+            else "  averaging window: none (instantaneous fields)",
+            f"  cells: {cells.n_cells}; active {int(active.sum())} (alpha >= alpha_min = "
+            f"{scene.domain.alpha_min:g}; {int((~active).sum())} below it hold no granules)",
+            *spray_lines(scene, cells, active)]

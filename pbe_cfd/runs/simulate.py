@@ -1,0 +1,127 @@
+"""Run a well-mixed (one-cell) scene with any method and collect SI output columns."""
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import model
+from .batch import CellBatch, SimulationError, check_physics, output_times
+from ..methods.registry import method_of
+from ..util.progress import notice_if_slow
+
+__all__ = ["RunResult", "SimulationError", "run_well_mixed", "output_times", "check_physics"]
+
+
+@dataclass
+class RunResult:
+    """Time series of SI output columns (``columns['time_s']`` first) and run statistics."""
+    scene: object
+    columns: dict
+    stats: dict
+    wall_time_s: float
+    warnings: list = field(default_factory=list)
+    compile_time_s: float = 0.0     # compiling (or loading) the kernels, not in wall_time_s
+    kernels_compiled: bool = False  # True: numba compiled them (a first run), else loaded
+    psd: dict | None = None         # psd.csv columns (distribution.tables), None if none
+    labels: dict = field(default_factory=dict)   # columns.json: file -> column -> meaning
+
+
+def run_well_mixed(scene, progress=None) -> RunResult:
+    """Run a well-mixed scene to its end time. ``progress(fraction, text)`` is called after each
+    output interval (and told when the kernels compile). ``wall_time_s`` is the run,
+    ``compile_time_s`` compiling or loading the integration kernel [s]. Raises SimulationError
+    on a stall or an unrealizable start."""
+    check_physics(scene)
+    method = method_of(scene)
+    if not method.integrated:
+        return _run_ensemble(scene, progress)
+    start = _time.perf_counter()
+    arrays = model.pack(scene)
+    aux = method.aux(scene, arrays, None)
+    warnings = []
+    times = output_times(scene)
+    state = model.initial_moments(scene, arrays, arrays.state_names)
+    states = np.zeros((len(times), len(state)))
+    states[0] = state
+    batch = CellBatch.for_scene(scene, arrays, aux, model.well_mixed_cell(scene),
+                                state[None, :].copy())
+    with notice_if_slow(progress):
+        compile_s = batch.compile()
+    start += compile_s                      # the run time excludes the compile
+    for k in range(1, len(times)):
+        batch.step(times[k - 1], times[k])
+        states[k] = batch.states[0]
+        if progress is not None:
+            progress(times[k] / scene.end_time, f"t = {times[k]:.4g} s")
+    wall = _time.perf_counter() - start
+    columns = {"time_s": times}
+    populations = []
+    columns.update(model.moment_outputs(scene, arrays, states, aux, populations=populations))
+    run_stats = batch.stats()
+    extra, notes = method.diagnostics(states, aux, arrays)
+    run_stats.update(extra)
+    warnings.extend(notes)
+    warnings.extend(batch.notes)
+    run_stats["smooth_stokes_cells"] = int(np.count_nonzero(batch.smoothed))
+    psd, labels = _size_distribution(scene, arrays, states, aux, populations, columns, warnings)
+    return RunResult(scene=scene, columns=columns, stats=run_stats, wall_time_s=wall,
+                     warnings=warnings, compile_time_s=compile_s,
+                     kernels_compiled=batch.compiled_now, psd=psd, labels=labels)
+
+
+def _size_distribution(scene, arrays, states, aux, populations, columns, warnings):
+    """Add d10/d50/d90/span to ``columns`` and return (psd.csv columns, columns.json)."""
+    from ..distribution import tables
+    times = columns["time_s"]
+    label = lambda r: f"t = {times[r]:.6g} s"         # noqa: E731 (a row's name)
+    recon = tables.reconstruction_of(scene, arrays, states, aux, populations, label)
+    size, notes = tables.size_columns(recon, label)
+    columns.update(size)
+    psd, grid_notes = tables.psd_columns(times, recon)
+    warnings.extend(notes + grid_notes)
+    return psd, {"moments.csv": tables.column_labels(scene, arrays.state_names, columns),
+                 "psd.csv": tables.psd_labels(scene, psd)}
+
+
+def _run_ensemble(scene, progress) -> RunResult:
+    """A method with a run of its own (the cNMC ensemble of a well-mixed scene): mean and 95%
+    band columns per output time."""
+    start = _time.perf_counter()
+    arrays = model.pack(scene)
+    times = output_times(scene)
+    cells = model.well_mixed_cell(scene)
+    cb = (lambda f: progress(f, "")) if progress is not None else None
+    res = method_of(scene).ensemble(scene, arrays, cells[0], times, cb)
+    wall = _time.perf_counter() - start
+    columns = {"time_s": times}
+    stats = {}
+    psd, psd_notes = _cnmc_distribution(scene, times, res)
+    for key, value in res.items():
+        if key == "time_s" or key.startswith("psd_"):
+            continue
+        if np.ndim(value) == 0:
+            stats[key] = value.item() if hasattr(value, "item") else value
+        else:
+            columns[key] = np.asarray(value, dtype=float)
+    if not scene.bivariate:
+        for key in list(columns):
+            base = key.split("_")[0]
+            if base in ("M01", "M11", "M02") or key.startswith("binder_fraction"):
+                columns.pop(key)
+    if not scene.separate_droplets:
+        for key in list(columns):
+            if key.startswith("droplet_number_density"):
+                columns.pop(key)
+    from ..distribution import tables
+    labels = {"moments.csv": tables.column_labels(scene, [], columns),
+              "psd.csv": tables.psd_labels(scene, psd)}
+    return RunResult(scene=scene, columns=columns, stats=stats, wall_time_s=wall,
+                     warnings=psd_notes, psd=psd, labels=labels)
+
+
+def _cnmc_distribution(scene, times, res):
+    """(psd.csv columns, notes) of a cNMC ensemble's histograms."""
+    from ..distribution import tables
+    return tables.cnmc_psd_columns(times, res, scene.bivariate)

@@ -1,0 +1,1 @@
+"""TOML scene files -> validated, frozen dataclasses."""

@@ -1,0 +1,1 @@
+"""The transport operator between CFD cells and the solids face flux."""

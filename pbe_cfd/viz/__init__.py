@@ -1,0 +1,1 @@
+"""Pictures: plots, the PSD figure, rendered fields and sections."""

@@ -1,0 +1,97 @@
+"""Matplotlib figures of granule size distributions (the columns of ``psd.csv``).
+
+``psd.png``: the volume density q3 per unit ln d against d [um] on a log axis, one curve per
+output time (coloured by time); a cNMC's replicas' 95% band is filled around its curve.
+``psd_overlay``: several runs' distributions at their last output time in one panel.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+#: opacity of a cNMC's band
+BAND_ALPHA = 0.3
+#: drawing cost of psd.png relative to one field section (``cfd.figure_pool`` tasks)
+PSD_COST = 2.0
+
+
+def _times(cols):
+    return np.unique(np.asarray(cols["time_s"], float))
+
+
+def _at(cols, t):
+    sel = np.asarray(cols["time_s"], float) == t
+    return {k: np.asarray(v, float)[sel] for k, v in cols.items()}
+
+
+def _draw(ax, part, colour, label, lw=1.4):
+    d_um = part["d_m"] * 1e6
+    if "q3_lo" in part:
+        ax.fill_between(d_um, part["q3_lo"], part["q3_hi"], color=colour, alpha=BAND_ALPHA,
+                        lw=0)
+    ax.plot(d_um, part["q3_per_ln_d"], color=colour, lw=lw, label=label)
+
+
+def _axes(ax, title):
+    from matplotlib.ticker import FuncFormatter
+    ax.set_xscale("log")
+    plain = FuncFormatter(lambda v, _: f"{v:g}")
+    ax.xaxis.set_major_formatter(plain)
+    ax.xaxis.set_minor_formatter(FuncFormatter(
+        lambda v, _: f"{v:g}" if f"{v:.1g}"[0] in "25" else ""))
+    ax.set_xlabel("granule diameter d [um]")
+    ax.set_ylabel("q3 = dQ3/d(ln d) [-]")
+    ax.set_ylim(bottom=0.0)
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, which="both", alpha=0.25)
+
+
+def psd_figure(cols, title=""):
+    """One curve per output time of one run's psd.csv columns; returns the figure."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    times = _times(cols)
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    cmap = plt.get_cmap("viridis")
+    t_max = times.max() if times.size and times.max() > 0 else 1.0
+    for t in times:
+        _draw(ax, _at(cols, t), cmap(t / t_max), None)
+    norm = matplotlib.colors.Normalize(vmin=0.0, vmax=t_max)
+    bar = fig.colorbar(matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax)
+    bar.set_label("time [s]")
+    _axes(ax, title + ("  (shaded: cNMC 95% band)" if "q3_lo" in cols else ""))
+    return fig
+
+
+def plot_psd(path, cols, title="", metadata=None):
+    """Draw ``psd_figure`` of psd.csv columns (a dict, or the path of a psd.csv) to
+    ``path``; ``metadata`` goes into the image file. Returns the path."""
+    from pathlib import Path
+
+    import matplotlib.pyplot as plt
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    if not isinstance(cols, dict):
+        from ..io.output import read_columns_csv
+        cols = read_columns_csv(cols)
+    fig = psd_figure(cols, title)
+    fig.savefig(path, dpi=110, metadata=metadata, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def psd_overlay(path, runs, title="", metadata=None):
+    """Several runs' q3 at each run's last output time in one panel: ``runs`` a list of
+    (label, psd.csv columns); a cNMC's band filled. Returns the path."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for k, (label, cols) in enumerate(runs):
+        t = _times(cols)[-1]
+        _draw(ax, _at(cols, t), colours[k % len(colours)], f"{label} (t = {t:g} s)")
+    _axes(ax, title)
+    ax.legend(fontsize=8)
+    fig.savefig(path, dpi=110, metadata=metadata, bbox_inches="tight")
+    plt.close(fig)
+    return path
