@@ -404,7 +404,7 @@ def _method_list(text):
     for item in (x.strip() for x in text.split(",") if x.strip()):
         name, _, order = item.partition(":")
         try:
-            if name in ("qmom", "laguerre"):
+            if name in ("qmom", "laguerre", "eqmom"):
                 out.append((name, int(order)))
             elif name == "cqmom":
                 n1, _, n2 = order.partition("x")
@@ -413,7 +413,7 @@ def _method_list(text):
                 raise ValueError
         except ValueError:
             raise argparse.ArgumentTypeError(
-                f"{item!r}: expected qmom:N, laguerre:M or cqmom:N1xN2") from None
+                f"{item!r}: expected qmom:N, laguerre:M, eqmom:N or cqmom:N1xN2") from None
     if not out:
         raise argparse.ArgumentTypeError("name at least one method")
     return tuple(out)
