@@ -353,6 +353,12 @@ def bench_command(args):
     refusal = _threads_refusal(args.threads)
     if refusal:
         return _fail(refusal)
+    if args.results_doc:
+        from .bench import results_doc
+        try:
+            results_doc.check(args.results_doc, study)
+        except results_doc.ResultsDocError as exc:
+            return _fail(str(exc))
     output.prepare_directory(out, args.overwrite, names=bench.STUDY_FILES[study],
                              kind="bench")
     start = time.perf_counter()
@@ -384,6 +390,10 @@ def bench_command(args):
         files = f"{study}.csv, {study}.md"
         print((out / f"{study}.md").read_text())
     print(f"bench {study}: {time.perf_counter() - start:.1f} s; wrote {out}/{{{files}}}")
+    if args.results_doc:
+        done = results_doc.refresh(args.results_doc, study, (out / f"{study}.md").read_text(),
+                                   results_doc.command_line(args))
+        print(f"bench {study}: {done} its block in {args.results_doc}")
     return 0
 
 
@@ -513,6 +523,9 @@ def build_parser():
                    help="throughput: cell counts, e.g. 1000,100000")
     p.add_argument("--threads", type=_int_list, default=None, metavar="LIST",
                    help="throughput: thread counts, e.g. 1,2")
+    p.add_argument("--results-doc", default=None, metavar="FILE",
+                   help="write the study's report into FILE (docs/results/STUDY.md) between "
+                        "its marker lines, keeping the rest of FILE as it is")
     _add_overwrite(p, "the files of this study an earlier pbe-cfd bench wrote")
     p.set_defaults(func=bench_command)
     return parser

@@ -4,9 +4,9 @@ the mean size breaks about once (the number falls to 2.58e10 instead of 1.48e10 
 breakage), so breakage shapes the result.
 The moment methods (QMOM N = 2, 3; Laguerre m = 3, 4) against the cNMC (10,000 particles x 8
 replicas, seed fixed when the test was written): the closure within 10% of the truth where the
-issue asks it (docs/physics.md section 8 and the README report what the methods give on every
-moment and time). The cNMC mean is the truth only to its statistical error, so the band at
-each output time is 10% plus t_{0.9995, R-1} standard errors of the reference mean (from its
+issue asks it (docs/physics.md section 8 and docs/results/breakage.md report what the methods
+give on every moment and time). The cNMC mean is the truth only to its statistical error, so
+the band at each output time is 10% plus t_{0.9995, R-1} standard errors of the reference mean (from its
 reported 95% band; a false alarm rate of 1e-3 per comparison), relative to the mean.
 
 These tests are about the closures only: the cNMC and the moment methods evaluate the same
@@ -20,9 +20,9 @@ binder value per node), so M02 is an estimate of its quadrature. With breakage t
 spread in size and share the nodes with the few wet aggregates; the binder fraction of a node
 is then an average, and the steep accessible-binder sigmoid of that average underrates the
 wet-wet aggregation. Measured for N = 2: M11 up to 18% off at 10-30 s, M02 up to 84% at 10 s
-(without breakage: 12% and 36%, README), both within 10.5% at 600 s; with a constant
-selection instead (breakage sources exact for the carried moments) the same 18% and 84%, so
-the deviation is the node-wise binder, not the breakage closure. The issue's 10% holds on
+(without breakage: 12% and 36%, docs/results/seed-scenario.md), both within 10.5% at 600 s;
+with a constant selection instead (breakage sources exact for the carried moments) the same
+18% and 84%, so the deviation is the node-wise binder, not the breakage closure. The issue's 10% holds on
 M00, M20 and d43 at every time: worst measured 5.6%, 9.8% (N = 3, at 130 s: tight) and 2.8%
 against a 10,000 x 32 reference.
 """

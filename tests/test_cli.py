@@ -158,6 +158,7 @@ def coupled_run(tmp_path_factory):
     return root / "c"
 
 
+@pytest.mark.slow
 def test_couple_leaves_no_drawing_process_behind(coupled_run):
     """The drawing processes live as long as the command: a caller that goes on (a test, a
     notebook) must not inherit them."""
@@ -206,6 +207,7 @@ def test_case_run_into_a_non_empty_directory_is_refused(tmp_path, capsys):
     assert [p.name for p in (tmp_path / "mine").iterdir()] == ["notes.txt"]
 
 
+@pytest.mark.slow
 def test_compare_of_a_coupled_run_uses_its_bed_moments(coupled_run, tmp_path, capsys):
     assert main(["run", "--out", str(tmp_path / "r")]) == 0
     assert main(["compare", str(tmp_path / "r"), str(coupled_run),

@@ -212,6 +212,7 @@ def coupled(box):
     return box / "c"
 
 
+@pytest.mark.slow
 def test_couple_replaces_an_earlier_output_only_with_overwrite(box, coupled, capsys):
     user = put_user_files(coupled)
     png = put_user_files(coupled / "png")
@@ -226,6 +227,7 @@ def test_couple_replaces_an_earlier_output_only_with_overwrite(box, coupled, cap
     assert "vtk/pbe.pvd" in output.read_manifest(coupled)["files"]
 
 
+@pytest.mark.slow
 def test_render_adds_new_pictures_and_replaces_its_own_only_with_overwrite(coupled, capsys):
     user = put_user_files(coupled / "png")
     (coupled / "png" / "M01_t2s.png").write_bytes(b"the user's own picture")
@@ -263,6 +265,7 @@ def test_render_of_a_series_pbe_cfd_did_not_write_goes_into_a_new_png_directory(
     assert (foreign / "png" / "mine.txt").read_text() == "mine"
 
 
+@pytest.mark.slow
 def test_compare_writes_a_marked_figure_and_never_replaces_a_users(box, coupled, capsys):
     assert main(["run", "tiny.toml", "--out", "r"]) == 0
     (box / "user.png").write_bytes(b"\x89PNG not ours")
@@ -412,6 +415,7 @@ def _fake_case(root: Path, time: float = 1.5) -> Path:
     return case
 
 
+@pytest.mark.slow
 def test_foam_fields_never_replace_a_field_pbe_cfd_did_not_write(box, capsys):
     refused(["couple", "tiny-couple.toml", "--foam-fields", "--out", "c"], capsys,
             "snapshot", "no OpenFOAM case time directory")

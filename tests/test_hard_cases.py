@@ -213,6 +213,7 @@ def smooth_stokes(scene, width=0.05):
 
 
 @pytest.mark.parametrize("inject", [False, True])
+@pytest.mark.slow
 def test_extreme_cells_next_to_ordinary_ones(inject):
     cells = extreme_mesh()
     domain = Domain(cells=cells, flux=None, description="extreme")
@@ -287,7 +288,7 @@ def test_sharp_stokes_switch_next_to_packing_continues_smoothly_in_that_cell():
 
 
 # near packing, no friction cap: the issue's hard cases (Theta 1e-6..10, up to 1e4 x the seed
-# injection); all stop today (the first takes 3.4e6 explicit steps), see README "Hard cases"
+# injection); all stop today (the first takes 3.4e6 explicit steps), see docs/results/hard-cases.md
 NEAR_PACKING = [(1e-6, 1e4), (1e-4, 1e4), (1e-2, 1.0), (1.0, 1.0), (10.0, 1.0)]
 
 
@@ -474,6 +475,7 @@ def assert_in_cnmc_band(columns, name, exact, replicas=4):
 
 
 @pytest.mark.parametrize("method", [LAGUERRE, CNMC], ids=["laguerre", "cnmc"])
+@pytest.mark.slow
 def test_monodisperse_start_other_methods(method):
     scene = make_scene(scene={"end_time": 5.0, "output_interval": 1.0},
                        initial={"binder_fraction": 0.2},
@@ -539,6 +541,7 @@ def test_injection_into_an_empty_laguerre_cell():
     assert np.all(np.isfinite(c["d43_m"]))
 
 
+@pytest.mark.slow
 def test_laguerre_population_leaving_its_support_is_reported(tmp_path):
     """The seed scenario on a support far too small: the ROM warns with the escaped share and
     records it in summary.json."""
@@ -558,6 +561,7 @@ def test_laguerre_population_leaving_its_support_is_reported(tmp_path):
     assert any("beyond the integration support" in w for w in summary["warnings"])
 
 
+@pytest.mark.slow
 def test_laguerre_binder_arriving_in_a_dry_population():
     """Binder captured by a dry population with no droplets at the start: the ROM keeps the
     granules in its dry class (b = 0 exactly) until they meet binder, and runs with every

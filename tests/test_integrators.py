@@ -135,6 +135,7 @@ def _one_step(which, y, h, buf, jac, lu, piv, pivots, coefs, phis, cell, aux, pa
 
 
 @pytest.mark.parametrize("which", [0, 1, 2], ids=["explicit", "rodas3", "exponential"])
+@pytest.mark.slow
 def test_each_step_is_third_order(which):
     """Local error of one step from an exponential start on the closed-form capture problem
     (capture at 20 /s): order 3 means the one-step error falls as h^4, by 16 when h halves
@@ -178,6 +179,7 @@ def _rodas3_step(y, h, buf, jac, pivots, coefs, cell, aux, params, config, work,
     return out[0], out[1]
 
 
+@pytest.mark.slow
 def test_rodas3_error_norm_is_the_embedded_solutions_local_error_over_the_tolerance():
     """The number RODAS3 compares with 1 is max_i |y_i - yhat_i| / (atol + rtol max(|y0_i|,
     |y_i|)): y the third-order step, yhat the second-order embedded solution (the stage

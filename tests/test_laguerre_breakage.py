@@ -56,6 +56,7 @@ def aux_of(scene):
 # ---------------------------------------------------------------------------- the block
 @pytest.mark.parametrize("order", ORDERS)
 @pytest.mark.parametrize("daughters", ["uniform", "equal"])
+@pytest.mark.slow
 def test_block_mass_and_binder_rows_exactly_zero_and_constant_selection_diagonal(order,
                                                                                 daughters):
     scene = breakage_scene(laguerre(order), {"selection": "constant", "rate": 0.1,
@@ -116,9 +117,10 @@ def test_constant_selection_dry_class(order):
 
 
 @pytest.mark.parametrize("order", ORDERS)
+@pytest.mark.slow
 def test_power_selection(order):
     """S = k p, exponential start: M00, M10, M01 close (module doc); the closure-carrying
-    moments are reported in the README (Laguerre rows of the breakage section)."""
+    moments are reported in docs/results/breakage.md (its Laguerre rows)."""
     s0 = 0.1                         # k v0 t = 1 at 10 s: M00 doubles
     scene = breakage_scene(laguerre(order), {"selection": "power", "rate": s0,
                                              "exponent": 1.0}, 10.0)
@@ -130,6 +132,7 @@ def test_power_selection(order):
 
 
 @pytest.mark.parametrize("order", ORDERS)
+@pytest.mark.slow
 def test_constant_aggregation_with_constant_breakage(order):
     K, s = 1.0e-10, 0.25             # K N0 = 1 /s; M0 -> 2 s / K = N0 / 2
     scene = breakage_scene(laguerre(order), {"selection": "constant", "rate": s}, 20.0,
@@ -170,6 +173,7 @@ def test_power_selection_rows_below_the_top_are_exact(order):
 
 
 @pytest.mark.parametrize("binder_fraction", [Y0, 0.0], ids=["wet", "dry"])
+@pytest.mark.slow
 def test_collisional_selection_per_cell(binder_fraction):
     """Collisional selection with exponent 1: dM00/dt = S_cell M10 / p_ref exactly (F(0) - 1 =
     1; int p phi~_k = delta with the consistent reconstruction), S_cell = s0 g0(alpha)

@@ -295,6 +295,7 @@ def test_a_second_run_into_the_same_out_is_refused_while_the_first_writes(box, c
     assert siblings(box / "r") == []
 
 
+@pytest.mark.slow
 def test_two_concurrent_runs_into_one_new_out_one_wins(box):
     procs = [cli(["run", "tiny.toml", "--out", "r"], cwd=box) for _ in range(2)]
     results = [(p.wait(timeout=300), p.stderr.read()) for p in procs]
@@ -357,6 +358,7 @@ def small_tmpfs(tmp_path):
     subprocess.run(["umount", str(mnt)], capture_output=True)
 
 
+@pytest.mark.slow
 def test_a_full_disk_keeps_the_earlier_output(box, capsys, small_tmpfs):
     assert main(["run", "tiny.toml", "--out", "probe"]) == 0
     pages = sum(-(-p.stat().st_size // 4096) for p in (box / "probe").iterdir())
@@ -417,6 +419,7 @@ SLOW_RUN = textwrap.dedent("""
 @pytest.mark.parametrize("phase", ["computing", "writing"])
 @pytest.mark.parametrize("sig,code,name", [(signal.SIGINT, 130, "Ctrl-C"),
                                            (signal.SIGTERM, 143, "SIGTERM")])
+@pytest.mark.slow
 def test_a_signal_mid_run_ends_quietly_and_says_what_was_kept(box, sig, code, name, phase):
     assert main(["run", "tiny.toml", "--out", "r"]) == 0
     before = tree(box)

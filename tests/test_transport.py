@@ -141,6 +141,7 @@ def test_bundled_flux_is_closed_and_corrected(bundled):
 
 # ---------------------------------------------------------------------------- conservation
 @pytest.mark.parametrize("mesh", ["ring", "bundled"])
+@pytest.mark.slow
 def test_conserved_and_uniform_stays_uniform(mesh, bundled):
     domain = ring(noise=0.2) if mesh == "ring" else bundled
     scene = bed_scene(transport={"courant": 0.9},
@@ -388,6 +389,7 @@ def test_bundled_transport_scene_spreads_binder_and_conserves_it():
     assert np.count_nonzero(wet_outside > 0) > 0           # binder left the spray zone
 
 
+@pytest.mark.slow
 def test_default_split_step_is_second_order_and_within_its_stated_error():
     """Strang splitting on the bundled bed (10 s, QMOM N = 2) against a 1/16 s split: the
     error falls as h^2 (with the reference's own error, e(0.25) / e(0.125) = 4 (15/16) / (3/4)

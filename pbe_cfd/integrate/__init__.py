@@ -78,7 +78,8 @@ def failure_reason(code, stats, params, config) -> str:
         if sharp_stokes_switch(params, config):
             text += (", here where a pair crosses the critical Stokes number (sharp viscous "
                      "Stokes criterion): give material.stokes_switch_width (a smooth "
-                     "switch; README: hard cases says how much its width moves the result)")
+                     "switch; docs/results/hard-cases.md says how much its width moves the "
+                     "result)")
     elif int(config[P.INTEGRATOR]) == EXPLICIT:
         text += "; the rates are stiff for the explicit integrator: use integrator = \"auto\""
     return text

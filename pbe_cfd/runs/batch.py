@@ -22,8 +22,8 @@ from ..physics import parameters as P
 from ..scene.scene import SceneError
 
 #: relative width w of the smooth viscous Stokes switch, 0.5 (1 - tanh((St - St*)/(w St*))),
-#: a cell continues with when its step controller stalls under the sharp step (README, "Hard
-#: cases": how much the width moves the result)
+#: a cell continues with when its step controller stalls under the sharp step (docs/results/
+#: hard-cases.md: how much the width moves the result)
 STOKES_FALLBACK_WIDTH = 0.005
 
 
@@ -207,7 +207,8 @@ class CellBatch:
                 f"cell {cell}: the sharp viscous Stokes criterion held a pair on the critical "
                 f"Stokes number at t = {t_jump:.6g} s (the rates switch with every step); "
                 f"continued from there with the smooth switch of relative width "
-                f"{STOKES_FALLBACK_WIDTH:g} (material.stokes_switch_width; README: hard cases)")
+                f"{STOKES_FALLBACK_WIDTH:g} (material.stokes_switch_width; "
+                "docs/results/hard-cases.md)")
 
     def step(self, t0: float, t1: float, states: np.ndarray | None = None):
         """``advance`` then ``raise_if_failed``: the source step of a run."""

@@ -1,4 +1,4 @@
-"""Scene files: TOML -> validated, frozen dataclasses (the keys: README.md, "Scenes").
+"""Scene files: TOML -> validated, frozen dataclasses (the keys: docs/scene-keys.md).
 
 A table present means that effect runs; an absent table is not computed at all. Every error
 names the file, the key and what was expected, and is raised as ``SceneError``."""
@@ -135,7 +135,7 @@ class BinderInjection:
 
 @dataclass(frozen=True)
 class Method:
-    """Numerical method and its accuracy knobs (README.md, "Scenes")."""
+    """Numerical method and its accuracy knobs (which method reads which: docs/scene-keys.md)."""
     name: str
     nodes: int = 3
     binder_nodes: int = 2
@@ -330,7 +330,7 @@ def load_scene(source) -> Scene:
 
 
 def scene_from_dict(data: dict, path="<scene>") -> Scene:
-    """Validate a parsed TOML document into a ``Scene`` (README.md, "Scenes")."""
+    """Validate a parsed TOML document into a ``Scene`` (the keys: docs/scene-keys.md)."""
     for key in data:
         if key not in _TABLES:
             raise SceneError(path, key, f"unknown table; expected one of: {', '.join(_TABLES)}")

@@ -1,21 +1,20 @@
-"""The README's headline numbers, regenerated and compared with the figures printed there.
+"""The study results' headline numbers, regenerated and compared with the figures printed there.
 
-Two tables are read out of README.md itself (so the README and the code cannot drift apart
-silently): the seed scenario's deviations from the cNMC reference ("The seed scenario: QMOM and
-the Laguerre ROM against the Monte Carlo reference") and the accuracy-vs-cost table ("What
-accuracy costs in time"). Each figure is regenerated and must agree within the resolution the
-README states for it:
+Two tables are read out of the result documents themselves (so the documents and the code
+cannot drift apart silently): the seed scenario's deviations from the cNMC reference
+(docs/results/seed-scenario.md) and the accuracy-vs-cost table (docs/results/accuracy.md).
+Each figure is regenerated and must agree within the resolution the document states for it:
 
 * printing: half a unit of the last printed digit (the accuracy table: of the second
   significant digit, as the bench prints it);
 * seed scenario: the reference is the bundled ``seed-wurster-cnmc`` (10,000 particles x 32
   replicas, seed 2024), regenerated here; a figure may move by the reference's 95% half-band
-  (the README: +-0.4% on M00, +-1% on M20, M11, M02 at 600 s; taken from the regenerated run,
-  at 600 s, or its largest over t >= 10 s for the worst-over-time figures) when the cNMC's
+  (seed-scenario.md: +-0.4% on M00, +-1% on M20, M11, M02 at 600 s; taken from the regenerated
+  run, at 600 s, or its largest over t >= 10 s for the worst-over-time figures) when the cNMC's
   random stream changes;
-* accuracy table: the README's reference is a cNMC of 1e6 x 16 (band 0.05-0.2%), too slow for
+* accuracy table: the document's reference is a cNMC of 1e6 x 16 (band 0.05-0.2%), too slow for
   CI; here the reference is 2e5 x 8 of the same scene, whose own band (measured, per quantity)
-  is added to the README's 0.2% to bound how far the reference may have moved, delta; an error
+  is added to the document's 0.2% to bound how far the reference may have moved, delta; an error
   figure e then moves by at most (1 + e) delta.
 
 Wall times are machine-dependent and not compared.
@@ -36,14 +35,16 @@ from pbe_cfd import bench
 from pbe_cfd.scene.scene import load_scene
 from pbe_cfd.runs.simulate import run_well_mixed
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+RESULTS = Path(__file__).resolve().parents[1] / "docs" / "results"
+SEED_DOC = RESULTS / "seed-scenario.md"
+ACCURACY_DOC = RESULTS / "accuracy.md"
 NUMBER = re.compile(r"([+-]?\d+(?:\.\d+)?)(?:-(\d+(?:\.\d+)?))?%")
 
 
-def table_after(heading_text):
-    """Rows (lists of cell strings) of the first Markdown table after a line containing
-    ``heading_text``."""
-    lines = README.read_text().splitlines()
+def table_after(doc, heading_text):
+    """Rows (lists of cell strings) of the first Markdown table after a line of the Markdown
+    file ``doc`` containing ``heading_text``."""
+    lines = doc.read_text().splitlines()
     start = next(i for i, line in enumerate(lines) if heading_text in line)
     rows = []
     for line in lines[start + 1:]:
@@ -78,7 +79,7 @@ def parse_figure(cell):
 
 
 # ---------------------------------------------------------------------------- seed scenario
-#: the README's footnote: the ROM as it was before the dry class (table III's shapes)
+#: seed-scenario.md's footnote: the ROM as it was before the dry class (table III's shapes)
 BEFORE_DRY = {"consistent": True, "dry_class": False, "adaptive_weights": False,
               "weight_shape_mass": 1.0, "weight_shape_binder": 0.2}
 SEED_ROWS = {
@@ -104,8 +105,8 @@ def seed_reference():
 
 
 @pytest.mark.slow
-def test_seed_scenario_deviations_match_the_readme(seed_reference):
-    header, rows = table_after("Deviation from the cNMC mean at 600 s")
+def test_seed_scenario_deviations_match_the_results_doc(seed_reference):
+    header, rows = table_after(SEED_DOC, "Deviation from the cNMC mean at 600 s")
     assert header[:6] == ["method", "M00", "M20", "M11", "M02", "d43"]
     ref = seed_reference
     t = ref["time_s"]
@@ -113,7 +114,7 @@ def test_seed_scenario_deviations_match_the_readme(seed_reference):
     seen = set()
     for row in rows:
         label = row[0]
-        assert label in SEED_ROWS, f"README row {label!r} has no regeneration recipe here"
+        assert label in SEED_ROWS, f"seed-scenario.md row {label!r} has no regeneration recipe here"
         seen.add(label)
         scene_name, changes = SEED_ROWS[label]
         scene = load_scene(scene_name)
@@ -134,16 +135,16 @@ def test_seed_scenario_deviations_match_the_readme(seed_reference):
 
 
 @pytest.mark.slow
-def test_seed_scenario_reference_figures_match_the_readme(seed_reference):
-    """The cNMC figures the README quotes: M00 at 600 s with its band, and the table of M00
+def test_seed_scenario_reference_figures_match_the_results_doc(seed_reference):
+    """The cNMC figures seed-scenario.md quotes: M00 at 600 s with its band, and the table of M00
     and free droplets at 0, 10, 60, 300, 600 s (printed to 4 and 2 significant digits)."""
     ref = seed_reference
     t = ref["time_s"]
-    text = README.read_text()
+    text = SEED_DOC.read_text()
     m = re.search(r"\+-0\.4% on M00 \((\d\.\d+)e10 \[(\d\.\d+), (\d\.\d+)\]\)", text)
-    assert m, "README's M00 band sentence not found"
+    assert m, "seed-scenario.md's M00 band sentence not found"
     assert abs(ref["M00"][-1] / 1e10 - float(m.group(1))) <= 0.0005 + 0.004 * float(m.group(1))
-    header, rows = table_after("**M00 falls from the start; seed 000 reports a rise first.**")
+    header, rows = table_after(SEED_DOC, "**M00 falls from the start; seed 000 reports a rise first.**")
     times = [float(h) for h in header[1:]]
     for row in rows:
         scale = 1e10 if row[0].startswith("M00") else 1e8
@@ -157,11 +158,11 @@ def test_seed_scenario_reference_figures_match_the_readme(seed_reference):
 
 # ---------------------------------------------------------------------------- accuracy table
 REFERENCE = (200_000, 8)
-README_REFERENCE_BAND = 0.2        # % (1e6 x 16, README)
+DOC_REFERENCE_BAND = 0.2        # % (1e6 x 16, accuracy.md)
 
 
 def variant_for(method, knob):
-    """bench.Variant(s) behind a README row of the accuracy table."""
+    """bench.Variant(s) behind a row of accuracy.md's table."""
     V = bench.Variant
     if method == "QMOM":
         n = int(knob.split("=")[1])
@@ -184,12 +185,12 @@ def variant_for(method, knob):
         particles, replicas = (float(x) for x in knob.split("x"))
         return [V("cnmc", knob, {"name": "cnmc", "particles": int(particles),
                                  "replicas": int(replicas), "seed": 11})]
-    raise AssertionError(f"README accuracy row {method!r} has no recipe here")
+    raise AssertionError(f"accuracy.md row {method!r} has no recipe here")
 
 
 @pytest.mark.slow
-def test_accuracy_table_matches_the_readme(tmp_path):
-    header, rows = table_after("**Accuracy against cost, seed scenario**")
+def test_accuracy_table_matches_the_results_doc(tmp_path):
+    header, rows = table_after(ACCURACY_DOC, "**Accuracy against cost, seed scenario**")
     names = header[2:7]
     assert names == ["M00", "M20", "M11", "M02", "d43"]
     plan = [(row, variant_for(row[0], row[1])) for row in rows]
@@ -207,7 +208,7 @@ def test_accuracy_table_matches_the_readme(tmp_path):
             lo = float(found[0][0])
             hi = float(found[0][1]) if found[0][1] else lo
             # a reference off by delta (relative) moves an error e by (1 + e) delta
-            tol = two_digit_unit(found[0][0]) + (1.0 + hi / 100.0) * (README_REFERENCE_BAND
+            tol = two_digit_unit(found[0][0]) + (1.0 + hi / 100.0) * (DOC_REFERENCE_BAND
                                                                  + 100.0 * band[q])
             for v in vs:
                 r = by_label[(v.method, v.label)]
