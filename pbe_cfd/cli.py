@@ -206,6 +206,9 @@ def couple_command(args):
     refusal = _threads_refusal(args.threads)
     if refusal:
         return _fail(refusal)
+    from .runs import coupling_command
+    if coupling_command.wanted(args, DEFAULT_COUPLED):     # [coupling]: two-way
+        return coupling_command.two_way(args, DEFAULT_COUPLED)
     import time
     if args.resume:
         _apply_resume(args)
@@ -409,21 +412,21 @@ def _int_list(text):
 
 
 def _method_list(text):
-    """'qmom:3,laguerre:3,cqmom:2x2' -> (("qmom", 3), ("laguerre", 3), ("cqmom", (2, 2)))."""
+    """'qmom:3,laguerre:3,cqmom:2x2' -> (("qmom", 3), ("laguerre", 3), ("cqmom", (2, 2))): each
+    method's order as its registry entry's ``bench_orders`` reads it."""
+    from .methods.registry import METHOD_REGISTRY
+    readers = {m.name: m.bench_orders for m in METHOD_REGISTRY if m.bench_orders is not None}
     out = []
     for item in (x.strip() for x in text.split(",") if x.strip()):
         name, _, order = item.partition(":")
         try:
-            if name in ("qmom", "laguerre", "eqmom"):
-                out.append((name, int(order)))
-            elif name == "cqmom":
-                n1, _, n2 = order.partition("x")
-                out.append((name, (int(n1), int(n2))))
-            else:
+            if name not in readers:
                 raise ValueError
+            out.append((name, readers[name](order)))
         except ValueError:
             raise argparse.ArgumentTypeError(
-                f"{item!r}: expected qmom:N, laguerre:M, eqmom:N or cqmom:N1xN2") from None
+                f"{item!r}: expected one of {', '.join(n + ':ORDER' for n in readers)} "
+                "(qmom:N, laguerre:M, cqmom:N1xN2)") from None
     if not out:
         raise argparse.ArgumentTypeError("name at least one method")
     return tuple(out)

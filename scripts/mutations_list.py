@@ -7,11 +7,11 @@ touch). ``note`` explains a mutant that survives because it is equivalent, or na
 added for it.
 """
 
-PHYS = "tests/test_physics_hand_values.py"
-BRK = "tests/test_breakage_hand_values.py"
-INTEG = "tests/test_integrators.py"
-SAFE = "tests/test_data_safety.py"
-TRANS = "tests/test_transport.py"
+PHYS = "tests/physics/test_physics_hand_values.py"
+BRK = "tests/physics/test_breakage_hand_values.py"
+INTEG = "tests/integrate/test_integrators.py"
+SAFE = "tests/io/test_data_safety.py"
+TRANS = "tests/transport/test_transport.py"
 
 
 def M(name, origin, area, file, original, replacement, tests, note=""):
@@ -24,15 +24,15 @@ MUTATIONS = [
     M("laguerre-dry-birth-half", "issue", "methods", "pbe_cfd/methods/laguerre/dry.py",
       "T[a] += 0.5 * comb(a, e) * Z[e, :, a - e, :]",
       "T[a] += comb(a, e) * Z[e, :, a - e, :]",
-      ["tests/test_laguerre_dry.py::test_constant_kernel_dry_and_wet_classes"]),
+      ["tests/methods/laguerre/test_laguerre_dry.py::test_constant_kernel_dry_and_wet_classes"]),
     M("integrator-no-projection", "issue", "integrator", "pbe_cfd/integrate/cell.py",
       "            project(method, state, aux, params, config, work)\n"
       "            _rate_after_step(",
       "            _rate_after_step(",
-      ["tests/test_hard_cases.py::test_monodisperse_start_with_every_node_count",
-       "tests/test_hard_cases.py::test_all_zero_moments_stay_zero_and_an_empty_cell_fills_by_injection",
-       "tests/test_hard_cases.py::test_injection_a_thousand_times_the_seed_rate",
-       "tests/test_qmom_analytic.py::test_injection_adds_mass_at_the_injected_rate"],
+      ["tests/methods/test_hard_cases.py::test_monodisperse_start_with_every_node_count",
+       "tests/methods/test_hard_cases.py::test_all_zero_moments_stay_zero_and_an_empty_cell_fills_by_injection",
+       "tests/methods/test_hard_cases.py::test_injection_a_thousand_times_the_seed_rate",
+       "tests/methods/qmom/test_qmom_analytic.py::test_injection_adds_mass_at_the_injected_rate"],
       note="survived the monodisperse start and the empty cell filled by injection (closed "
            "form, Hankel test on every stored set: the states stay realizable without it); "
            "caught, as in the issue, only by test_qmom_analytic's injection test. A test that "
@@ -42,7 +42,7 @@ MUTATIONS = [
       '        return _stat_entry(path) == {"size": entry.get("size"),\n'
       '                                     "mtime_ns": entry.get("mtime_ns")}',
       '        return _stat_entry(path)["size"] == entry.get("size")',
-      ["tests/test_output_edits.py::test_an_edit_that_keeps_the_size_is_still_an_edit"]),
+      ["tests/io/test_output_edits.py::test_an_edit_that_keeps_the_size_is_still_an_edit"]),
     M("rosenbrock-forward-jacobian", "issue", "integrator", "pbe_cfd/integrate/rosenbrock.py",
       "        if up and down:             # central: second-order accurate",
       "        if False:             # central: second-order accurate",
@@ -50,11 +50,11 @@ MUTATIONS = [
     M("qmom-self-pair-gain-doubled", "issue", "methods", "pbe_cfd/methods/qmom/qmom.py",
       "                    out[k] += pair * g\n",
       "                    out[k] += pair * g * (2.0 if a == c else 1.0)\n",
-      ["tests/test_hard_cases.py::test_monodisperse_start_with_every_node_count"]),
+      ["tests/methods/test_hard_cases.py::test_monodisperse_start_with_every_node_count"]),
     M("cnmc-clock-3pct-fast", "issue", "methods", "pbe_cfd/methods/cnmc/box.py",
       "    return t + 1.0 / r\n",
       "    return t + 0.97 / r\n",
-      ["tests/test_cnmc.py::test_constant_kernel_matches_analytic_moments"]),
+      ["tests/methods/cnmc/test_cnmc.py::test_constant_kernel_matches_analytic_moments"]),
     # ---- physics -------------------------------------------------------------------------------
     M("radial-distribution-exponent", "own", "physics", "pbe_cfd/physics/kernels.py",
       "    return 1.0 / (1.0 - ratio ** (1.0 / 3.0))",
@@ -108,27 +108,27 @@ MUTATIONS = [
     M("qmom-number-loss-doubled", "own", "methods", "pbe_cfd/methods/qmom/qmom.py",
       "                out[0] -= pair\n",
       "                out[0] -= 2.0 * pair\n",
-      ["tests/test_qmom_analytic.py::test_constant_kernel"]),
+      ["tests/methods/qmom/test_qmom_analytic.py::test_constant_kernel"]),
     M("qmom-droplet-capture-gain", "own", "methods", "pbe_cfd/methods/qmom/qmom.py",
       "                    h = s * h + xd * pa\n                    pa *= xa\n"
       "                    out[k] += flux * h\n",
       "                    h = s * h + xd * pa\n                    pa *= xa\n"
       "                    out[k] += 0.5 * flux * h\n",
-      ["tests/test_qmom_analytic.py::test_injection_with_separate_droplets_conserves_total_mass_rate"]),
+      ["tests/methods/qmom/test_qmom_analytic.py::test_injection_with_separate_droplets_conserves_total_mass_rate"]),
     M("wheeler-b-coefficient", "own", "methods", "pbe_cfd/methods/quadrature/gauss.py",
       "        b_new = sig[row + k] / sig[prev + k - 1]",
       "        b_new = 1.01 * sig[row + k] / sig[prev + k - 1]",
-      ["tests/test_hard_cases.py::test_random_realizable_sets_invert_and_reproject"]),
+      ["tests/methods/test_hard_cases.py::test_random_realizable_sets_invert_and_reproject"]),
     M("cqmom-self-pair-not-halved", "own", "methods", "pbe_cfd/methods/cqmom/sources.py",
       "                    if i == j:\n                        rate *= 0.5\n",
       "                    if i == j:\n                        rate *= 1.0\n",
-      ["tests/test_cqmom_inversion.py::test_rhs_equals_the_exact_sources_of_a_represented_population"]),
+      ["tests/methods/cqmom/test_cqmom_inversion.py::test_rhs_equals_the_exact_sources_of_a_represented_population"]),
     M("cqmom-injection-moment", "own", "methods", "pbe_cfd/methods/cqmom/sources.py",
       "        out[n_state - 1] += inj\n",
       "        out[n_state - 1] += 0.5 * inj\n",
-      ["tests/test_cqmom_analytic.py::test_dry_granules_and_pure_binder_droplets_as_ordinary_particles",
-       "tests/test_cqmom_analytic.py::test_two_component_constant_kernel",
-       "tests/test_cqmom_inversion.py::test_rhs_equals_the_exact_sources_of_a_represented_population"],
+      ["tests/methods/cqmom/test_cqmom_analytic.py::test_dry_granules_and_pure_binder_droplets_as_ordinary_particles",
+       "tests/methods/cqmom/test_cqmom_analytic.py::test_two_component_constant_kernel",
+       "tests/methods/cqmom/test_cqmom_inversion.py::test_rhs_equals_the_exact_sources_of_a_represented_population"],
       note="survived the two analytic tests alone (their droplets are ordinary particles, so "
            "the separate-droplet branch never runs); the RHS reference case 'eke droplets "
            "injected' checks the free droplets' source"),
@@ -136,15 +136,15 @@ MUTATIONS = [
       "pbe_cfd/methods/quadrature/breakage_sources.py",
       "            if k != 1:                    # F(1) = 1: the mass moment gets exactly nothing",
       "            if True:                    # F(1) = 1: the mass moment gets exactly nothing",
-      ["tests/test_breakage.py::test_qmom_constant_selection"],
+      ["tests/methods/test_breakage.py::test_qmom_constant_selection"],
       note="equivalent mutant: F(1) - 1 is exactly 0.0 for both daughter rules (2 / (1 + 1) "
            "and 2^0), so the mass source gains exactly nothing either way; the branch only "
            "saves the multiplication"),
     M("cnmc-acceptance", "own", "methods", "pbe_cfd/methods/cnmc/box.py",
       "            if np.random.random() * bound < rate:",
       "            if np.random.random() * bound < 1.05 * rate:",
-      ["tests/test_cnmc.py::test_constant_kernel_matches_analytic_moments",
-       "tests/test_cnmc.py::test_sum_kernel_matches_analytic_moments"],
+      ["tests/methods/cnmc/test_cnmc.py::test_constant_kernel_matches_analytic_moments",
+       "tests/methods/cnmc/test_cnmc.py::test_sum_kernel_matches_analytic_moments"],
       note="equivalent for the constant kernel alone (the majorant equals the rate, every "
            "trial is accepted with or without the 5%); the sum kernel's majorant exceeds the "
            "rate, where the mutant accepts 5% too many"),
@@ -211,7 +211,7 @@ MUTATIONS = [
       "        if not (path.is_file() and _unchanged(path, entry)):",
       "        if not path.is_file():",
       [SAFE + "::test_overwrite_removes_only_unchanged_stale_files_it_wrote",
-       "tests/test_output_edits.py::test_an_edit_that_keeps_the_size_is_still_an_edit"],
+       "tests/io/test_output_edits.py::test_an_edit_that_keeps_the_size_is_still_an_edit"],
       note="survived test_overwrite_removes_only_unchanged_stale_files_it_wrote alone (it "
            "exercises the overwrite path, not remove_written); test_output_edits now calls "
            "remove_written on an edited file and catches it"),

@@ -1,10 +1,21 @@
 """Shared helpers: scenes built from dicts, so each test states the physics it runs."""
 import copy
+import sys
+from pathlib import Path
 
 import pytest
 from hypothesis import settings
 
 from pbe_cfd.scene.scene import scene_from_dict
+
+# tests/ mirrors the package's folders (scripts/test_layout.py); a module anywhere under it
+# imports the shared helpers (conftest, error_bounds, references) and another module's
+# fixtures (test_data_safety, test_breakage, ...) by name: tests/ and its folders are on sys.path
+_TESTS = Path(__file__).resolve().parent
+for _folder in [_TESTS, *sorted(p for p in _TESTS.rglob("*") if p.is_dir()
+                                and p.name not in ("__pycache__", "references"))]:
+    if str(_folder) not in sys.path:
+        sys.path.insert(0, str(_folder))
 
 # property tests draw a fixed sequence of examples (chosen before looking, the same on every
 # run): a red test is a property that fails, never a draw that happened to be unlucky

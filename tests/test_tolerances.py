@@ -67,8 +67,8 @@ def test_the_check_recognises_hidden_tolerances(snippet, hidden):
 
 def test_every_comparison_in_the_suite_states_its_absolute_tolerance():
     offenders = []
-    for path in sorted(TESTS.glob("*.py")):
+    for path in sorted(TESTS.rglob("*.py")):
         for line, text in hidden_tolerances(path.read_text(), str(path)):
-            offenders.append(f"{path.name}:{line}: {text[:100]}")
+            offenders.append(f"{path.relative_to(TESTS)}:{line}: {text[:100]}")
     assert not offenders, ("state abs= (approx) / atol= (isclose, allclose) / abs_tol= "
                            "(math.isclose):\n" + "\n".join(offenders))

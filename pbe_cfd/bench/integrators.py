@@ -15,6 +15,9 @@ outputs excluded; median of ``repeats`` runs alternating between the two scenes 
 process, warm cache), the RHS calls, and the whole-process time of
 ``python -m pbe_cfd.cli couple`` (median of ``repeats``, one process each, alternating), and
 their ratios.
+
+Splitting part (``bench.splitting``): the transport scene at other split steps and with Lie
+splitting, each against a tight Strang reference: cost and bed-moment differences.
 """
 from __future__ import annotations
 
@@ -32,6 +35,7 @@ import numpy as np
 
 from ..scene.scene import load_scene
 from ..runs.simulate import run_well_mixed
+from .splitting import splitting_markdown, splitting_rows
 from .common import _git_describe, _machine_line, _say, _write_simple, failure_status, \
     machine_info
 
@@ -229,6 +233,11 @@ def integrator_markdown(result) -> str:
                       f"{a['solver_cpu_s'] / b['solver_cpu_s']:.2f}, whole process wall "
                       f"{a['process_s'] / b['process_s']:.2f} (CPU "
                       f"{a['process_cpu_s'] / b['process_cpu_s']:.2f})."]
+    if result.get("splitting"):
+        plain = [r for r in rows if r["scene"] == "without [transport]"]
+        lines += splitting_markdown(result["splitting"],
+                                    plain[0]["rhs_calls"] if plain and not result.get("quick")
+                                    else None)
     return "\n".join(lines) + "\n"
 
 
@@ -247,11 +256,14 @@ def integrator_study(out_dir="bench-out", quick=False, quiet=False, repeats=None
               ("stiff: ktgf cell at packing, 1e4 x injection, 2 s", stiff_scene(2.0))]
     well_mixed = well_mixed_rows(scenes, repeats, quiet)
     transport = transport_rows(repeats, quiet, quick=quick)
+    splitting = splitting_rows(quiet, quick=quick)
     result = {"machine": machine, "commit": _git_describe(), "repeats": repeats,
-              "well_mixed": well_mixed, "transport": transport,
+              "quick": bool(quick), "well_mixed": well_mixed, "transport": transport,
+              "splitting": splitting,
               "load_average_at_end": [round(x, 2) for x in os.getloadavg()]}
     rows = [{"part": "well-mixed", **r} for r in well_mixed] + \
-        [{"part": "transport", **r} for r in transport]
+        [{"part": "transport", **r} for r in transport] + \
+        [{"part": "splitting", **r} for r in splitting]
     keys = list(dict.fromkeys(k for r in rows for k in r))
     _write_simple(out_dir, "integrators", [{k: r.get(k) for k in keys} for r in rows],
                   integrator_markdown(result), result)

@@ -32,10 +32,8 @@ DEFAULT_THROUGHPUT_SCENE = "study-ktgf"
 def throughput_scene(method, order, scene_name=DEFAULT_THROUGHPUT_SCENE):
     """The throughput scene (ktgf, geometric + physical efficiency, separate droplets,
     injection) with the method and its order."""
-    scene = load_scene(scene_name)
-    if isinstance(order, tuple):            # CQMOM: (size nodes N1, binder nodes N2)
-        return scene.with_method(name=method, nodes=order[0], binder_nodes=order[1])
-    return scene.with_method(name=method, **{METHODS[method].order_key: order})
+    scene = load_scene(scene_name).with_method(name=method)
+    return METHODS[method].bench_scene(scene, order)
 
 
 def synthetic_cells(n_cells, seed=0, theta_range=(1e-6, 2e-4), alpha_range=(0.05, 0.55),
@@ -167,34 +165,21 @@ def measure_ceiling(case, n_cells, threads, target_evals=400_000, repeats=3, see
         laguerre_contraction_sweep(states, case.aux, 1, out)
         best, median = _time_call(lambda: laguerre_contraction_sweep(states, case.aux, reps,
                                                                      out), repeats)
-    else:
-        props, counts, factors = _point_rows(case, states, cells)
+    elif case.method == "cqmom":
+        n_points = int(config[P.ORDER] * config[P.BINDER_NODES])
+        props = np.zeros((n_cells, n_points + 1, N_PROPS))
+        counts = np.zeros(n_cells, dtype=np.int64)
+        factors = np.zeros(n_cells)
+        cqmom_point_properties(states, cells, params, config, props, counts, factors)
         out = np.zeros(n_cells)
         points_kernel_sweep(props, counts, cells, factors, params, config, 1, out)
         best, median = _time_call(lambda: points_kernel_sweep(props, counts, cells, factors,
                                                               params, config, reps, out),
                                   repeats)
+    else:                       # a method without a kernel-only sweep: no ceiling to quote
+        return math.nan, math.nan
     evals = reps * n_cells
     return evals / best, evals / median
-
-
-def _point_rows(case, states, cells):
-    """(property rows, point counts, cell factors) of the kernel-only sweep over a method's
-    points: CQMOM's conditional points, EQMOM's secondary particles (its bench hook)."""
-    params, config = case.arrays.params, case.arrays.config
-    n_cells = states.shape[0]
-    counts = np.zeros(n_cells, dtype=np.int64)
-    factors = np.zeros(n_cells)
-    if case.method == "eqmom":
-        from ..methods.eqmom import bench as eqmom_bench
-        props = np.zeros((n_cells, eqmom_bench.ceiling_rows(config, case.aux), N_PROPS))
-        eqmom_bench.point_properties(states, cells, case.aux, params, config, props, counts,
-                                     factors)
-        return props, counts, factors
-    n_points = int(config[P.ORDER] * config[P.BINDER_NODES])
-    props = np.zeros((n_cells, n_points + 1, N_PROPS))
-    cqmom_point_properties(states, cells, params, config, props, counts, factors)
-    return props, counts, factors
 
 
 def measure_steps(case, n_cells, threads, interval=1.0, seed=0, rtol=None, atol=None):
@@ -266,11 +251,10 @@ def throughput_study(out_dir="bench-out", quick=False, cells=None, threads=None,
     max_threads = nb.config.NUMBA_NUM_THREADS
     threads = threads or tuple(t for t in (1, 2) if t <= max_threads)
     methods = methods or ((("qmom", 2), ("qmom", 3), ("laguerre", 2), ("laguerre", 3),
-                           ("cqmom", (2, 2)), ("eqmom", 3)) if quick
+                           ("cqmom", (2, 2))) if quick
                           else (("qmom", 2), ("qmom", 3), ("qmom", 4), ("laguerre", 2),
                                 ("laguerre", 3), ("laguerre", 4), ("cqmom", (2, 2)),
-                                ("cqmom", (3, 2)), ("cqmom", (3, 3)), ("eqmom", 2),
-                                ("eqmom", 3)))
+                                ("cqmom", (3, 2)), ("cqmom", (3, 3))))
     interval = interval or (0.05 if quick else 0.1)
     repeats = 1 if quick else 3
     target = 20_000 if quick else 300_000

@@ -15,6 +15,7 @@ import numpy as np
 
 from . import kernel_mixture
 from . import reconstruct as R
+from ..methods.registry import method_of
 from .quantiles import FRACTIONS, DistributionError, check_grid_covers, log_grid
 
 #: the size columns added to moments.csv, bed_moments.csv and the VTK cell fields
@@ -24,35 +25,20 @@ PSD_POINTS = 40
 GRID_FRACTIONS = (1.0e-4, 1.0 - 1.0e-4)
 GRID_MARGIN = 1.25
 
-#: how each moment method's distribution is reconstructed (docs/physics.md section 11.1)
-RECONSTRUCTION_TEXT = {
-    "qmom": "gamma density in granule mass fitted to the carried M00, M10, M20 (one-kernel "
-            "gamma EQMOM); binder fraction per size class interpolated in ln p between the "
-            "nodes' binder values",
-    "cqmom": "gamma density in granule mass fitted to the carried M00, M10, M20 (one-kernel "
-             "gamma EQMOM); binder fraction per size class interpolated in ln p between the "
-             "size nodes' mass-mean binder fractions",
-    "eqmom": "the EQMOM's own density: N gamma kernels in granule mass fitted to the carried "
-             "M00 .. M(2N)0; binder fraction per size class from the kernels' binder fractions",
-    "laguerre": "the Laguerre ROM's own density (wet and dry classes) integrated per size class",
-    "cnmc": "mass histogram of each replica's particle list (50 classes per decade of d), the "
-            "replicas' mean and 95% band; d10/d50/d90 exact per replica",
-}
-
-
 def reconstruction_of(scene, arrays, states, aux, populations, labels=str):
     """The reconstruction of a moment method's scaled states (rows: times or cells);
     ``populations``: the rows' weighted particles from ``model.moment_outputs``."""
-    name = scene.method.name
-    if name == "laguerre":
+    kind = method_of(scene).distribution
+    if kind == "laguerre_density":
         return R.laguerre_table(states, aux, arrays, scene.bivariate, labels)
-    if name == "eqmom":
+    if kind == "kernel_mixture":
         return kernel_mixture.of_states(states, aux, arrays, scene.material.density,
                                         scene.bivariate, labels)
-    if name in ("qmom", "cqmom"):
+    if kind == "gamma":
         return R.gamma_of_populations(populations, scene.material.density, scene.bivariate,
                                       labels)
-    raise DistributionError(f"method {name!r}: no size-distribution reconstruction")
+    raise DistributionError(f"method {scene.method.name!r}: no size-distribution "
+                            "reconstruction")
 
 
 def size_columns(recon, labels=str) -> tuple[dict, list]:
@@ -139,24 +125,20 @@ def cnmc_psd_columns(times, result, bivariate) -> tuple[dict, list]:
 def column_labels(scene, state_names, columns, bed: bool = False) -> dict:
     """name -> what the column is: carried (a moment of the method's state), derived or
     reconstructed (how), for the columns.json sidecar."""
-    method = scene.method.name
-    how = RECONSTRUCTION_TEXT.get(method, "")
+    entry = method_of(scene)
+    how = entry.distribution_text
     out = {}
     for name in columns:
         base = name[:-3] if name.endswith(("_lo", "_hi")) else name
         if name == "time_s":
             text = "time [s]"
-        elif method == "cnmc":
+        elif not entry.integrated:
             text = ("estimated from the particle lists: mean of the replicas"
                     + ("; _lo/_hi the 95% band of that mean" if base != name else ""))
         elif base in state_names:
             text = "carried: an entry of the method's state"
         elif base.startswith("M"):
-            text = ("reconstructed, not carried: " + (
-                "from the quadrature nodes (one binder value per size node)"
-                if method in ("qmom", "cqmom") else
-                "from the EQMOM kernels' secondary Gauss nodes (binder fraction per kernel)"
-                if method == "eqmom" else "integral of the Laguerre density over its support"))
+            text = "reconstructed, not carried: " + entry.moments_text
         elif base in ("d32_m", "d43_m"):
             text = "derived from the method's population (nodes or reconstruction) [m]"
         elif base == "binder_fraction":
@@ -175,7 +157,7 @@ def column_labels(scene, state_names, columns, bed: bool = False) -> dict:
 
 def psd_labels(scene, columns) -> dict:
     """name -> meaning of the psd.csv columns."""
-    how = RECONSTRUCTION_TEXT.get(scene.method.name, "")
+    how = method_of(scene).distribution_text
     texts = {"time_s": "time [s]", "d_m": "diameter [m], log-spaced",
              "Q3": "reconstructed: mass fraction of the granules below d [-]; " + how,
              "q3_per_ln_d": "reconstructed: mean of dQ3/d(ln d) over the class [d e^(-h/2), "

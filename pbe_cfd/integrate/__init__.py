@@ -27,7 +27,7 @@ from .cell import integrate_cell, integrate_cells_kernel  # noqa: F401
 from .codes import (ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, IMPLICIT,  # noqa: F401
                     IMPLICIT_STEPS, JACOBIANS,
                     MAX_STEPS_PER_INTERVAL, N_STATS, NOT_FINITE, OK, REJECTED_ERROR,
-                    REJECTED_REALIZABILITY, RHS_CALLS, SCHEMES, STATUS_TEXT, STEP_FLOOR,
+                    REJECTED_REALIZABILITY, RHS_CALLS, SCHEMES, STATUS_TEXT, STEP_BELOW_FLOOR,
                     SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START)
 
 
@@ -69,7 +69,7 @@ def failure_reason(code, stats, params, config) -> str:
     """Why a cell stopped: STATUS_TEXT of its status code and, for a stalled step controller,
     what the cell's counters (stats row) say about the cause."""
     text = STATUS_TEXT[int(code)]
-    if code not in (STEP_FLOOR, TOO_MANY_STEPS):
+    if code not in (STEP_BELOW_FLOOR, TOO_MANY_STEPS):
         return text
     if stalled_on_a_jump(code, stats):
         # a step controller that rejects as often as it accepts sits on a jump of the rates
@@ -89,7 +89,7 @@ def stalled_on_a_jump(code, stats) -> bool:
     """True if a cell that stopped (status ``code``) had its steps rejected by the error test
     as often as accepted (counters ``stats``): the step controller sits on a jump of the rates
     (a discontinuous right-hand side)."""
-    if int(code) not in (STEP_FLOOR, TOO_MANY_STEPS):
+    if int(code) not in (STEP_BELOW_FLOOR, TOO_MANY_STEPS):
         return False
     return int(stats[REJECTED_ERROR]) >= 0.5 * max(int(stats[ACCEPTED]), 1)
 

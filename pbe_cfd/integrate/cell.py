@@ -34,7 +34,7 @@ from .codes import (ACCEPT, ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, F0, FTM
                     IMPLICIT, IMPLICIT_STEPS, JACOBIANS, KC, N_BUF, NOT_FINITE, OK,
                     REJECT_ERROR, REJECT_NOT_FINITE,
                     REJECT_REALIZABILITY, REJECTED_ERROR, REJECTED_REALIZABILITY, RHS_CALLS,
-                    STEP_FLOOR, SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START, YNEW, YTMP)
+                    STEP_BELOW_FLOOR, SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START, YNEW, YTMP)
 from .explicit import bs3_attempt
 from .exponential import capture_column, exp_bs3_attempt
 from .rosenbrock import jacobian, rodas3_attempt, spectral_radius
@@ -418,7 +418,7 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
         h_try = t_end - t if last else h
         if h_try < floor and not last:
             step[0] = _memory(scheme, mode, h)
-            return STEP_FLOOR, t
+            return STEP_BELOW_FLOOR, t
         taken += 1
         h_rho, expo = 0.0, False
         if mode == 0:

@@ -3,7 +3,9 @@
 * One pbe-cfd process at a time writes DIR: it holds an exclusive ``flock`` on the lock file
   ``.DIR.pbe-cfd-lock`` beside DIR from the check before the computation to the end of the
   write (the kernel releases it when the process dies, even by kill -9). A second run into the
-  same DIR is refused at once (``Busy``).
+  same DIR is refused at once (``Busy``). A lock file that still names a pid when its lock is
+  free was left by a run killed before it released it (kill -9, a crash): it is taken over
+  and ``recover`` says so in one line.
 * A run fills ``.DIR.partial-*`` (marked by ``manifest.PARTIAL_MARKER``, later by its
   manifest) and swaps it with DIR in one rename; a run killed before the swap leaves that
   directory behind, one killed after it leaves the earlier output there, and (on a file system
@@ -23,6 +25,7 @@ from pathlib import Path
 from . import manifest as mf
 
 _held: dict[Path, int] = {}
+_stale: dict[Path, str] = {}
 
 
 class Busy(Exception):
@@ -60,14 +63,30 @@ def claim(target: Path):
         if same:
             break
         os.close(fd)
+    previous = os.read(fd, 32).decode(errors="replace").strip()
+    if previous.isdigit() and int(previous) != os.getpid():
+        _stale[target] = previous
     os.ftruncate(fd, 0)
+    os.lseek(fd, 0, os.SEEK_SET)
     os.write(fd, f"{os.getpid()}\n".encode())
     _held[target] = fd
+
+
+def _stale_state(pid: str) -> str:
+    """What became of ``pid``, the holder named by a lock file whose lock was free."""
+    try:
+        os.kill(int(pid), 0)
+        return f"pid {pid} is now another process"
+    except ProcessLookupError:
+        return f"pid {pid} no longer runs"
+    except (OSError, OverflowError):
+        return f"pid {pid} does not hold it"
 
 
 def release(target: Path):
     """Give up the lock of ``target`` (and remove the lock file) if this process holds it."""
     fd = _held.pop(target, None)
+    _stale.pop(target, None)
     if fd is None:
         return
     try:
@@ -147,8 +166,10 @@ def remove_leftover(path: Path, target: Path) -> list[str]:
 def recover(target: Path) -> list[str]:
     """Deal with the leftovers of interrupted runs into ``target`` (call with its lock held):
     a missing ``target`` is restored from its ``.old-*``, the rest removed. Returns one
-    sentence per leftover for the user."""
+    sentence per leftover for the user; a lock taken over from a killed run (``claim``) is
+    said in the first of them, or in a sentence of its own."""
     notes = []
+    pid = _stale.pop(target, None)
     for path in leftovers(target):
         if not os.path.lexists(target) and path.name.startswith(f".{target.name}.old-"):
             os.rename(path, target)
@@ -162,6 +183,14 @@ def recover(target: Path) -> list[str]:
                          "pbe-cfd did not write")
         else:
             notes.append(f"removed {path.name} left by an interrupted run")
+    if pid is not None:
+        lock = lock_path(target).name
+        if notes:             # the killed run's leftovers and its lock: one line
+            notes[0] += (f" (killed before it finished; took over its lock {lock}: "
+                         f"{_stale_state(pid)})")
+        else:
+            notes.append(f"took over the lock {lock} left by a run that was killed before it "
+                         f"finished ({_stale_state(pid)})")
     return notes
 
 

@@ -1,9 +1,9 @@
-"""One entry point per operation for every moment method.
+"""One entry point per operation for every moment method, built from the method registry.
 
-Each method module provides ``*_rhs``, ``*_realizable``, ``*_project`` and ``*_conserved`` with
-the signatures ``(state, [out, cell,] aux, params, config, work)`` and ``(config, params,
-pivots, coefs)``; ``work`` is a float scratch array of ``WORK_SIZE`` allocated once per cell so
-that no call allocates.
+Each method's entry (``methods.registry``) provides ``rhs``, ``realizable``, ``project`` and
+``conserved`` with the signatures ``(state, [out, cell,] aux, params, config, work)`` and
+``(config, params, pivots, coefs)``; ``work`` is a float scratch array of ``WORK_SIZE``
+allocated once per cell so that no call allocates.
 
 Two ways in:
 
@@ -11,10 +11,12 @@ Two ways in:
   ``conserved(method, ...)`` take the method code as their first argument. Called with a
   compile-time constant code (an ``IntegerLiteral``, see ``numba.literally``) they compile into
   the caller as that method's function alone, so a scene compiles only the method it uses
-  (numba prunes no branch on literal integers; the choice is made at typing time here).
+  (numba prunes no branch on literal integers; the choice is made at typing time here, from
+  the registry as it is then: a method registered at run time is seen).
 * ``method_rhs``, ``method_realizable``, ``method_project`` choose by ``config[METHOD]`` at run
-  time (an if-chain: every method is compiled); for callers that do not know the method at
-  compile time (benchmarks, the transport's repair pass).
+  time (a chain of inlined branches, one per method registered at import, as
+  ``physics.registry`` builds the kernels' dispatch; every method is compiled); for callers
+  that do not know the method at compile time (benchmarks, the transport's repair pass).
 """
 import numba as nb
 import numpy as np
@@ -22,27 +24,14 @@ from numba.core import types
 from numba.extending import overload
 
 from ..physics import parameters as P
-from .cqmom.cqmom import cqmom_conserved, cqmom_project, cqmom_realizable
-from .cqmom.sources import cqmom_rhs
-from .laguerre.rhs import (laguerre_conserved, laguerre_project, laguerre_realizable,
-                           laguerre_rhs)
-from .eqmom.sources import eqmom_conserved, eqmom_project, eqmom_realizable, eqmom_rhs
-from .qmom.qmom import qmom_conserved, qmom_project, qmom_realizable, qmom_rhs
-
-#: method codes (config[P.METHOD]); the registry of methods is ``pbe_cfd.methods.registry``
-QMOM = 0
-LAGUERRE = 1
-CQMOM = 2
-EQMOM = 3
-
-#: length of the per-cell float work array handed to every method function
-WORK_SIZE = 2048
+from .entry import WORK_SIZE  # noqa: F401 - the per-cell work array's length
+from .registry import METHOD_REGISTRY, entry_of_code
 
 
-def _code(method):
-    """The literal method code of a numba type, or None if not a literal."""
+def _entry(method):
+    """The registry entry of a literal method code (a numba type), or None."""
     if isinstance(method, types.IntegerLiteral):
-        return method.literal_value
+        return entry_of_code(method.literal_value)
     return None
 
 
@@ -69,115 +58,103 @@ def conserved(method, config, params, pivots, coefs):
 
 @overload(rhs, prefer_literal=True)
 def _rhs(method, state, out, cell, aux, params, config, work):
-    code = _code(method)
-    if code == EQMOM:
-        return lambda method, state, out, cell, aux, params, config, work: eqmom_rhs(
-            state, out, cell, aux, params, config, work)
-    if code == LAGUERRE:
-        return lambda method, state, out, cell, aux, params, config, work: laguerre_rhs(
-            state, out, cell, aux, params, config, work)
-    if code == QMOM:
-        return lambda method, state, out, cell, aux, params, config, work: qmom_rhs(
-            state, out, cell, aux, params, config, work)
-    if code == CQMOM:
-        return lambda method, state, out, cell, aux, params, config, work: cqmom_rhs(
-            state, out, cell, aux, params, config, work)
-    return None
+    entry = _entry(method)
+    if entry is None:
+        return None
+    f = entry.rhs
+    return lambda method, state, out, cell, aux, params, config, work: f(
+        state, out, cell, aux, params, config, work)
 
 
 @overload(realizable, prefer_literal=True)
 def _realizable(method, state, aux, params, config, work):
-    code = _code(method)
-    if code == EQMOM:
-        return lambda method, state, aux, params, config, work: eqmom_realizable(
-            state, aux, params, config, work)
-    if code == LAGUERRE:
-        return lambda method, state, aux, params, config, work: laguerre_realizable(
-            state, aux, params, config, work)
-    if code == QMOM:
-        return lambda method, state, aux, params, config, work: qmom_realizable(
-            state, aux, params, config, work)
-    if code == CQMOM:
-        return lambda method, state, aux, params, config, work: cqmom_realizable(
-            state, aux, params, config, work)
-    return None
+    entry = _entry(method)
+    if entry is None:
+        return None
+    f = entry.realizable
+    return lambda method, state, aux, params, config, work: f(state, aux, params, config, work)
 
 
 @overload(project, prefer_literal=True)
 def _project(method, state, aux, params, config, work):
-    code = _code(method)
-    if code == EQMOM:
-        return lambda method, state, aux, params, config, work: eqmom_project(
-            state, aux, params, config, work)
-    if code == LAGUERRE:
-        return lambda method, state, aux, params, config, work: laguerre_project(
-            state, aux, params, config, work)
-    if code == QMOM:
-        return lambda method, state, aux, params, config, work: qmom_project(
-            state, aux, params, config, work)
-    if code == CQMOM:
-        return lambda method, state, aux, params, config, work: cqmom_project(
-            state, aux, params, config, work)
-    return None
+    entry = _entry(method)
+    if entry is None:
+        return None
+    f = entry.project
+    return lambda method, state, aux, params, config, work: f(state, aux, params, config, work)
 
 
 @overload(conserved, prefer_literal=True)
 def _conserved(method, config, params, pivots, coefs):
-    code = _code(method)
-    if code == EQMOM:
-        return lambda method, config, params, pivots, coefs: eqmom_conserved(
-            config, params, pivots, coefs)
-    if code == LAGUERRE:
-        return lambda method, config, params, pivots, coefs: laguerre_conserved(
-            config, params, pivots, coefs)
-    if code == QMOM:
-        return lambda method, config, params, pivots, coefs: qmom_conserved(
-            config, params, pivots, coefs)
-    if code == CQMOM:
-        return lambda method, config, params, pivots, coefs: cqmom_conserved(
-            config, params, pivots, coefs)
-    return None
+    entry = _entry(method)
+    if entry is None:
+        return None
+    f = entry.conserved
+    return lambda method, config, params, pivots, coefs: f(config, params, pivots, coefs)
 
 
-# ---- run-time dispatch on config[METHOD] -----------------------------------------------------
+# ---- run-time dispatch on config[METHOD]: chains built from the registry ----------------------
+@nb.njit(cache=True, inline="always")
+def _unknown_rhs(state, out, cell, aux, params, config, work):
+    """An unknown code: NaN, which stops the cell, never wrong numbers."""
+    for k in range(out.shape[0]):
+        out[k] = np.nan
+
+
+@nb.njit(cache=True, inline="always")
+def _unknown_realizable(state, aux, params, config, work):
+    return False
+
+
+@nb.njit(cache=True, inline="always")
+def _unknown_project(state, aux, params, config, work):
+    pass
+
+
+def _rhs_link(code, function, rest):
+    @nb.njit(cache=True, inline="always")
+    def link(state, out, cell, aux, params, config, work):
+        if config[P.METHOD] == code:
+            function(state, out, cell, aux, params, config, work)
+        else:
+            rest(state, out, cell, aux, params, config, work)
+    return link
+
+
+def _state_link(code, function, rest):
+    @nb.njit(cache=True, inline="always")
+    def link(state, aux, params, config, work):
+        if config[P.METHOD] == code:
+            return function(state, aux, params, config, work)
+        return rest(state, aux, params, config, work)
+    return link
+
+
+def _chain(field, unknown, link):
+    chain = unknown
+    for entry in reversed([m for m in METHOD_REGISTRY if m.integrated]):
+        chain = link(entry.code, getattr(entry, field), chain)
+    return chain
+
+
+_rhs_chain = _chain("rhs", _unknown_rhs, _rhs_link)
+_realizable_chain = _chain("realizable", _unknown_realizable, _state_link)
+_project_chain = _chain("project", _unknown_project, _state_link)
+
+
 @nb.njit(cache=True)
 def method_rhs(state, out, cell, aux, params, config, work):
     """d(state)/dt [scaled units per s] of one cell for the method config[METHOD]."""
-    if config[P.METHOD] == LAGUERRE:
-        laguerre_rhs(state, out, cell, aux, params, config, work)
-    elif config[P.METHOD] == CQMOM:
-        cqmom_rhs(state, out, cell, aux, params, config, work)
-    elif config[P.METHOD] == QMOM:
-        qmom_rhs(state, out, cell, aux, params, config, work)
-    elif config[P.METHOD] == EQMOM:
-        eqmom_rhs(state, out, cell, aux, params, config, work)
-    else:                       # an unknown code: NaN, which stops the cell, never wrong numbers
-        for k in range(out.shape[0]):
-            out[k] = np.nan
+    _rhs_chain(state, out, cell, aux, params, config, work)
 
 
 @nb.njit(cache=True)
 def method_realizable(state, aux, params, config, work):
     """True if the state is a realizable moment set for the method config[METHOD]."""
-    if config[P.METHOD] == LAGUERRE:
-        return laguerre_realizable(state, aux, params, config, work)
-    if config[P.METHOD] == CQMOM:
-        return cqmom_realizable(state, aux, params, config, work)
-    if config[P.METHOD] == QMOM:
-        return qmom_realizable(state, aux, params, config, work)
-    if config[P.METHOD] == EQMOM:
-        return eqmom_realizable(state, aux, params, config, work)
-    return False
+    return _realizable_chain(state, aux, params, config, work)
 
 
 @nb.njit(cache=True)
 def method_project(state, aux, params, config, work):
     """Re-project an accepted state onto the method's realizable set, in place."""
-    if config[P.METHOD] == LAGUERRE:
-        laguerre_project(state, aux, params, config, work)
-    elif config[P.METHOD] == CQMOM:
-        cqmom_project(state, aux, params, config, work)
-    elif config[P.METHOD] == QMOM:
-        qmom_project(state, aux, params, config, work)
-    elif config[P.METHOD] == EQMOM:
-        eqmom_project(state, aux, params, config, work)
+    _project_chain(state, aux, params, config, work)

@@ -34,7 +34,7 @@ Adding a selection function or a daughter rule (see CONTRIBUTING.md): write its 
 function(s) (``inline="always"``) and add one entry to ``SELECTION_REGISTRY`` or
 ``DAUGHTER_REGISTRY`` with a new code. The scene accepts its name, the dispatchers below get
 its branch (QMOM, Laguerre ROM and cNMC call only these), ``pbe-cfd plan`` prints it, and
-``tests/test_registries.py`` checks it. The cNMC bounds S over a mass interval by its value at
+``tests/physics/test_registries.py`` checks it. The cNMC bounds S over a mass interval by its value at
 the interval's ends, so a selection function must be monotone in p (the registry test checks).
 """
 import math

@@ -20,6 +20,7 @@ from . import model
 from ..methods.registry import method_of
 from ..physics import parameters as P
 from ..scene.scene import SceneError
+from ..util.progress import compile_text, notice_if_slow, record_compile_s
 
 #: relative width w of the smooth viscous Stokes switch, 0.5 (1 - tanh((St - St*)/(w St*))),
 #: a cell continues with when its step controller stalls under the sharp step (docs/results/
@@ -144,6 +145,30 @@ class CellBatch:
         self.compiled_now = sum(integrate.integrate_cells_kernel.stats.cache_misses.values()) > misses
         return seconds
 
+    def kernel_name(self) -> str:
+        """The compiled kernel this batch runs, as a run names it: method and integrator."""
+        scheme = {code: name for name, code in integrate.SCHEMES.items()}.get(
+            int(self.config[P.INTEGRATOR]), "?")
+        method = self.scene.method.name if self.scene is not None else \
+            f"method {int(self.config[P.METHOD])}"
+        return f"the {method} kernel with the {scheme} integrator"
+
+    def compile_announced(self, progress, extra=None) -> float:
+        """``compile`` (and ``extra()``, more kernels of the run, if given), telling
+        ``progress`` what compiles and roughly how long it takes when it is slow (a first
+        run); a compile's CPU time is kept for the next notice (numba compiles on one
+        thread: on an idle core the wall time, and unlike it not stretched by other load).
+        Returns the wall time [s]."""
+        name = self.kernel_name()
+        cpu = _time.process_time()
+        with notice_if_slow(progress, compile_text(name)):
+            seconds = self.compile()
+            if extra is not None:
+                seconds += extra()
+        if self.compiled_now:
+            record_compile_s(name, _time.process_time() - cpu)
+        return seconds
+
     def advance(self, t0: float, t1: float, states: np.ndarray | None = None):
         """Integrate every cell still running from t0 to t1 [s] in place (``states``: the
         batch's own by default, or an array of the same shape). Cells that stop keep their
@@ -191,7 +216,8 @@ class CellBatch:
         floor or step budget; the step is the one discontinuity of the rates): each continues
         alone from the time it reached to t1."""
         params = self.smooth_params()
-        stalled = (self.status == integrate.STEP_FLOOR) | (self.status == integrate.TOO_MANY_STEPS)
+        stalled = ((self.status == integrate.STEP_BELOW_FLOOR)
+                   | (self.status == integrate.TOO_MANY_STEPS))
         for c in np.flatnonzero(~self.smoothed & stalled):
             t_jump = float(self.reached[c])
             self.smoothed[c] = True

@@ -21,10 +21,10 @@ from .batch import CellBatch, SimulationError, check_physics, output_times
 from .domain import (PACKING_MARGIN, Domain, build_cells, coupled_scales, initial_states,
                      spray_zone_cut, theta_grid)
 from .executor import SerialExecutor
-from ..methods.registry import MOMENT_METHODS, method_of
+from ..methods import registry
+from ..methods.registry import method_of
 from ..physics import parameters as P
 from ..util.population import mean_diameters
-from ..util.progress import notice_if_slow
 from ..scene.scene import SceneError
 
 __all__ = ["CoupledResult", "run_coupled", "write_coupled", "check_foam_fields",
@@ -58,7 +58,7 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     method = method_of(scene)
     if not method.integrated:
         raise SceneError(scene.source, "method.name", "a coupled run needs a moment method: "
-                         f"expected {' or '.join(MOMENT_METHODS)}")
+                         f"expected {' or '.join(registry.MOMENT_METHODS)}")
     check_physics(scene)
     if threads is not None:
         numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
@@ -85,8 +85,8 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
         from ..transport.operator import build_transport
         transport = build_transport(scene, domain, active, rows, arrays=arrays, aux=aux)
         warnings.extend(transport.warnings)
-    with notice_if_slow(progress):
-            compile_s = batch.compile()
+    compile_s = batch.compile_announced(
+        progress, None if transport is None else lambda: transport.compile(batch.states.shape[1]))
     solve_start = _time.perf_counter()
     setup_s = solve_start - start - compile_s
     start += compile_s                      # the run time excludes the compile

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..integrate.codes import SCHEMES
+from ..methods.entry import WORK_SIZE
 from ..methods.registry import method_of
 from ..physics import parameters as P
 from ..physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
@@ -121,6 +122,10 @@ def pack(scene) -> Arrays:
     names = method.state_names(scene)
     config[P.N_STATE] = len(names)
     config[P.INTEGRATOR] = SCHEMES[scene.method.integrator]
+    need = int(method.work_size(config))
+    if need > WORK_SIZE:
+        raise ValueError(f"the {method.name} method needs {need} work floats per cell, more "
+                         f"than the {WORK_SIZE} of methods.entry.WORK_SIZE")
     return Arrays(params=params, config=config, number_scale=n_ref, mass_scale=p_ref,
                   droplet_mass=pd, state_names=names)
 

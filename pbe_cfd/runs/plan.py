@@ -87,6 +87,9 @@ def describe_plan(scene) -> str:
             lines.extend(transport_plan_lines(scene))
         except Exception as exc:  # plan must still print what it can
             lines.append(f"  transport plan unavailable: {exc}")
+    if getattr(scene, "coupling", None) is not None:
+        from .coupling_plan import plan_lines
+        lines.extend(plan_lines(scene))
     lines.append("  left out: " + ("; ".join(left_out) if left_out else "nothing"))
     return "\n".join(lines)
 

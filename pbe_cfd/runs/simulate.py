@@ -9,7 +9,6 @@ import numpy as np
 from . import model
 from .batch import CellBatch, SimulationError, check_physics, output_times
 from ..methods.registry import method_of
-from ..util.progress import notice_if_slow
 
 __all__ = ["RunResult", "SimulationError", "run_well_mixed", "output_times", "check_physics"]
 
@@ -47,8 +46,7 @@ def run_well_mixed(scene, progress=None) -> RunResult:
     states[0] = state
     batch = CellBatch.for_scene(scene, arrays, aux, model.well_mixed_cell(scene),
                                 state[None, :].copy())
-    with notice_if_slow(progress):
-        compile_s = batch.compile()
+    compile_s = batch.compile_announced(progress)
     start += compile_s                      # the run time excludes the compile
     for k in range(1, len(times)):
         batch.step(times[k - 1], times[k])
@@ -74,6 +72,8 @@ def run_well_mixed(scene, progress=None) -> RunResult:
 def _size_distribution(scene, arrays, states, aux, populations, columns, warnings):
     """Add d10/d50/d90/span to ``columns`` and return (psd.csv columns, columns.json)."""
     from ..distribution import tables
+    if method_of(scene).distribution is None:       # a method without a reconstruction
+        return None, {"moments.csv": tables.column_labels(scene, arrays.state_names, columns)}
     times = columns["time_s"]
     label = lambda r: f"t = {times[r]:.6g} s"         # noqa: E731 (a row's name)
     recon = tables.reconstruction_of(scene, arrays, states, aux, populations, label)

@@ -12,19 +12,17 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from . import limits
+from . import coupling as scene_coupling, limits
 from ..io.openfoam import case_keys
-from ..methods.registry import METHOD_NAMES, METHODS, MOMENT_METHODS
+from ..methods import registry
 from ..physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
 from ..physics.efficiency import EFFICIENCY_BY_NAME
 from ..physics.kernels import KERNEL_BY_NAME
 
 #: the names the scene accepts, from the registries (physics.kernels, physics.efficiency,
 #: methods.registry)
-KERNEL_NAMES = tuple(KERNEL_BY_NAME)
-EFFICIENCY_NAMES = tuple(EFFICIENCY_BY_NAME)
-SELECTION_NAMES = tuple(SELECTION_BY_NAME)
-DAUGHTER_NAMES = tuple(DAUGHTERS_BY_NAME)
+KERNEL_NAMES, EFFICIENCY_NAMES = tuple(KERNEL_BY_NAME), tuple(EFFICIENCY_BY_NAME)
+SELECTION_NAMES, DAUGHTER_NAMES = tuple(SELECTION_BY_NAME), tuple(DAUGHTERS_BY_NAME)
 
 
 class SceneError(ValueError):
@@ -193,6 +191,7 @@ class Scene:
     binder_injection: BinderInjection | None = None
     transport: Transport | None = None
     breakage: Breakage | None = None
+    coupling: scene_coupling.Coupling | None = None   # two-way coupling; None: one-way
     source: str = ""
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -214,7 +213,7 @@ class Scene:
 
 # ------------------------------------------------------------------------------ validation
 _TABLES = ("scene", "domain", "material", "initial", "aggregation", "binder_injection",
-           "method", "transport", "breakage")
+           "method", "transport", "breakage", "coupling")
 
 
 class _Table:
@@ -366,12 +365,14 @@ def scene_from_dict(data: dict, path="<scene>") -> Scene:
                              "transport needs a domain with cells: expected domain.type = \"openfoam\"")
 
     breakage = _breakage(path, data["breakage"], domain) if "breakage" in data else None
+    coupling = (scene_coupling.parse_coupling(_Table(path, "coupling", data["coupling"]),
+                                              domain, SceneError) if "coupling" in data else None)
     scene = Scene(name=name, end_time=end_time, output_interval=output_interval, domain=domain,
                   material=material, initial=initial, method=method, aggregation=aggregation,
                   binder_injection=injection, transport=transport, breakage=breakage,
-                  source=str(path), raw=data)
+                  coupling=coupling, source=str(path), raw=data)
     _cross_checks(path, scene)
-    for key, refusal in limits.scene_refusals(scene, METHODS[scene.method.name]):
+    for key, refusal in limits.scene_refusals(scene, registry.METHODS[scene.method.name]):
         raise SceneError(path, key, refusal)
     return scene
 
@@ -532,13 +533,13 @@ def _initial(path, data, material, domain):
 
 def _method(path, data):
     t = _Table(path, "method", data)
-    name = t.choice("name", METHOD_NAMES)
+    name = t.choice("name", registry.METHOD_NAMES)
     kw = dict(name=name)
     kw["rtol"] = t.number("rtol", 1.0e-8, positive=True, high=0.1)
     kw["atol"] = t.number("atol", 1.0e-14, positive=True)
     # per-cell time integrator of the moment methods (pbe_cfd.integrate); cnmc ignores it
     kw["integrator"] = t.choice("integrator", ("explicit", "implicit", "auto"), "auto")
-    kw.update(METHODS[name].scene_keys(t, Method))
+    kw.update(registry.METHODS[name].scene_keys(t, Method))
     t.finish()
     return Method(**kw)
 
@@ -568,10 +569,10 @@ def _cross_checks(path, scene: Scene):
             and scene.binder_injection is None):
         raise SceneError(path, "initial.number_density",
                          "expected a positive number density (or a binder injection)")
-    if not METHODS[scene.method.name].integrated and scene.domain.type != "well-mixed":
+    if not registry.METHODS[scene.method.name].integrated and scene.domain.type != "well-mixed":
         raise SceneError(path, "method.name",
                          f"the {scene.method.name} reference runs well-mixed scenes: expected "
-                         f"{' or '.join(MOMENT_METHODS)} for an openfoam domain")
+                         f"{' or '.join(registry.MOMENT_METHODS)} for an openfoam domain")
 
 
 # ------------------------------------------------------------------------------ bundled scenes

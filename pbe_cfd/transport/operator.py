@@ -46,8 +46,10 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 import scipy.sparse as sp
+from numba import typeof
+from numba.core import types
 
-from ..methods.dispatch import method_project, method_realizable
+from ..methods.dispatch import project, realizable
 from .solids_flux import (ActiveFlux, circulation_time, restrict_and_correct, upwind_generator,
                           vertical_axis)
 
@@ -107,6 +109,14 @@ class Transport:
             return (0 if duration <= 0.0 else 1), duration
         k = max(1, int(math.ceil(duration / self.dt_max * (1.0 - 1e-12))))
         return k, duration / k
+
+    def compile(self, n_state: int) -> float:
+        """Compile (or load from numba's disk cache) what the transport runs, on no cells:
+        the mixture repair of the scene's method. Returns the wall time it took [s]."""
+        t0 = _time.perf_counter()
+        if self.repair is not None:
+            self.repair(np.zeros((0, n_state)))
+        return _time.perf_counter() - t0
 
     def transport(self, states: np.ndarray, duration: float) -> int:
         """Carry ``states`` (n, n_state), per m3 of bed, for ``duration`` [s] in place (no
@@ -343,7 +353,7 @@ def _split_step(scene, dt_max):
 
 
 #: Split step used when the scene does not set one [s] (see the module docstring; the
-#: splitting-error study in tests/test_transport.py and the issue note justify it).
+#: splitting-error study in tests/transport/test_transport.py and the issue note justify it).
 DEFAULT_SPLIT_STEP = 0.25
 
 
@@ -373,20 +383,21 @@ def _mixture_repair(scene, alpha_active, arrays=None, aux=None):
 
 
 @nb.njit(cache=True)
-def _repair_cells(states, aux, params, config, changed, work, fix):
-    """Count the cells whose state is not realizable and, if ``fix``, re-project them;
-    ``changed[c]`` the largest relative change of an entry."""
+def _repair_cells(method, states, aux, params, config, changed, work, fix):
+    """Count the cells whose state is not realizable for the method of code ``method`` (a
+    compile-time constant: only that method's check and projection are compiled) and, if
+    ``fix``, re-project them; ``changed[c]`` the largest relative change of an entry."""
     count = 0
     n_state = states.shape[1]
     before = np.empty(n_state)
     for c in range(states.shape[0]):
-        if method_realizable(states[c], aux, params, config, work):
+        if realizable(method, states[c], aux, params, config, work):
             continue
         count += 1
         if not fix:
             continue
         before[:] = states[c]
-        method_project(states[c], aux, params, config, work)
+        project(method, states[c], aux, params, config, work)
         worst = 0.0
         for k in range(n_state):
             scale = abs(before[k])
@@ -396,14 +407,33 @@ def _repair_cells(states, aux, params, config, changed, work, fix):
     return count
 
 
+_REPAIR_KERNELS = {}
+
+
+def _repair_kernel(method: int, args):
+    """The compiled ``_repair_cells`` for the method code as a compile-time constant and the
+    types of ``args`` (compiled, or loaded from numba's disk cache, on first use)."""
+    sig = (types.literal(int(method)),) + tuple(typeof(a) for a in args)
+    entry = _REPAIR_KERNELS.get(sig)
+    if entry is None:
+        _repair_cells.compile(sig)
+        entry = _repair_cells.overloads[sig].entry_point
+        _REPAIR_KERNELS[sig] = entry
+    return entry
+
+
 def unrealizable_cells(states, aux, params, config, fix=False):
     """Number of rows of ``states`` (scaled moment states) that the method's realizability
-    check rejects; with ``fix`` they are re-projected in place by the method's projection.
-    Returns (count, largest relative change of any entry of a re-projected cell)."""
+    check (method config[METHOD]) rejects; with ``fix`` they are re-projected in place by the
+    method's projection. Returns (count, largest relative change of any entry of a
+    re-projected cell)."""
     from ..methods.dispatch import WORK_SIZE
+    from ..physics import parameters as P
     states = np.asarray(states)
     changed = np.zeros(states.shape[0])
-    n = _repair_cells(states, aux, params, config, changed, np.empty(WORK_SIZE), fix)
+    method = int(config[P.METHOD])
+    args = (states, aux, params, config, changed, np.empty(WORK_SIZE), bool(fix))
+    n = _repair_kernel(method, args)(method, *args)
     return int(n), float(changed.max()) if changed.size else 0.0
 
 

@@ -1,97 +1,114 @@
-"""Independent reference for the univariate size moments and distribution under aggregation
-with the constant, sum or EKE kernel and binary breakage with the power-law selection
-S(p) = s0 (p / p_ref)^a and uniform or equal daughters: the fixed-pivot sectional solver of
-``sectional`` (Kumar and Ramkrishna 1996) with a kernel matrix, the equal-halves daughter map
-and an analytic Jacobian for scipy's BDF (the power-law selection makes the top pivots stiff).
+"""Independent reference for the size moments with any aggregation kernel and either daughter
+rule: the fixed-pivot sectional solver of ``sectional.py`` (Kumar and Ramkrishna 1996) with
+the kernel evaluated per pivot pair and equal-halves daughters beside the uniform ones.
 
-Written from the population balance alone, numpy and scipy, sharing no code with pbe_cfd.
+Written from the population balance alone, in numpy and scipy, sharing no code with pbe_cfd.
+Kernels (docs/physics.md section 4, written here again from their formulas):
 
-Kernels [m3/s] of two granules of masses x, y [kg]:
-    constant  k0;   sum  k0 (x + y);
-    eke       k0 (u^(1/3) + w^(1/3))^2 sqrt(1/u + 1/w),  u = x / (rho v_ref), w = y / (rho v_ref)
-(Hounslow 1998, the equipartition-of-kinetic-energy kernel), rho [kg/m3], v_ref [m3].
-Equal daughters: a parent at pivot k gives two granules of x_k / 2, which on a grid of
-``per_octave`` pivots per factor 2 is exactly pivot k - per_octave (below the grid: kept at
-x_0 by mass).
+    constant  beta = k0
+    sum       beta = k0 (p + p')
+    eke       beta = k0 (x^(1/3) + x'^(1/3))^2 sqrt(1/x + 1/x'),  x = p / p_ref
+
+Breakage: S(p) = s0 (p / p_ref)^a, binary; ``uniform`` daughters (density 2 / p' on (0, p')) or
+``equal`` halves (two daughters at p' / 2, shared between the pivots around p' / 2 by the
+tent that conserves their number and mass). Binder: every granule of the cases this serves has
+the same binder fraction y0 at all times (no droplets; aggregation of two granules of fraction
+y0 and a split that keeps the parent's fraction both keep it), so M_ij = y0^j M_(i+j),0.
+
+Units: masses [kg], number densities [1/m3], k0 [m3/s] (sum: [m3/(kg s)]), s0 [1/s].
 """
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from sectional import _aggregation_map, _breakage_map, initial_exponential, moments, pivots
-
-__all__ = ["pivots", "initial_exponential", "moments", "kernel_matrix", "solve",
-           "edge_mass_shares"]
+from sectional import _aggregation_map, _breakage_map
 
 
-def kernel_matrix(x, kernel, k0, rho=None, v_ref=None):
-    """K[j, k] [m3/s] of the pivots x [kg] for kernel 'constant', 'sum' or 'eke'."""
+def kernel_matrix(x, kernel, k0, p_ref):
+    """beta(x_j, x_k) [m3/s] on the pivots."""
+    a, b = x[:, None], x[None, :]
     if kernel == "constant":
         return np.full((len(x), len(x)), float(k0))
     if kernel == "sum":
-        return k0 * (x[:, None] + x[None, :])
+        return k0 * (a + b)
     if kernel == "eke":
-        u = x / (rho * v_ref)
-        c = np.cbrt(u)
-        return k0 * (c[:, None] + c[None, :]) ** 2 * np.sqrt(1.0 / u[:, None] + 1.0 / u[None, :])
+        u, v = a / p_ref, b / p_ref
+        return k0 * (np.cbrt(u) + np.cbrt(v)) ** 2 * np.sqrt(1.0 / u + 1.0 / v)
     raise ValueError(kernel)
 
 
-def _equal_map(x, per_octave):
-    """beta[i, k] of equal halves: 2 granules at pivot k - per_octave; below the grid the
-    parent's mass x_k kept at x_0 (x_k / x_0 granules)."""
+def _tent_share(x, v):
+    """(lower index, its share, upper index, its share) of a particle of mass v [kg] between
+    the pivots (number and mass conserved); v below x_0 is kept at x_0 by mass."""
+    i = int(np.searchsorted(x, v, side="right")) - 1
+    if i < 0:
+        return 0, v / x[0], 0, 0.0
+    if i >= len(x) - 1:
+        return len(x) - 1, v / x[-1], len(x) - 1, 0.0
+    eta = (x[i + 1] - v) / (x[i + 1] - x[i])
+    return i, eta, i + 1, 1.0 - eta
+
+
+def equal_breakage_map(x):
+    """beta[i, k]: the two halves of a parent at pivot k assigned to pivot i."""
     n = len(x)
     beta = np.zeros((n, n))
-    for k in range(n):
-        if k >= per_octave:
-            beta[k - per_octave, k] = 2.0
-        else:
-            beta[0, k] = x[k] / x[0]
+    for k in range(1, n):
+        lo, e_lo, hi, e_hi = _tent_share(x, 0.5 * x[k])
+        beta[lo, k] += 2.0 * e_lo
+        beta[hi, k] += 2.0 * e_hi
     return beta
 
 
-def solve(x, N0, times, K, s0, exponent, p_ref, daughters="uniform", per_octave=None):
-    """Numbers per pivot [1/m3] at ``times`` [s] (array (len(times), len(x))); K the kernel
-    matrix [m3/s], s0 [1/s], p_ref [kg]; per_octave (equal daughters) the grid's pivots per
-    factor 2."""
-    n = len(x)
+def _rhs(x, kernel, k0, s0, exponent, p_ref, daughters):
     lo, eta, hi, eta_hi = _aggregation_map(x)
-    if daughters == "uniform":
-        beta = _breakage_map(x)
-    else:
-        beta = _equal_map(x, per_octave)
+    K = kernel_matrix(x, kernel, k0, p_ref)
+    beta = _breakage_map(x) if daughters == "uniform" else equal_breakage_map(x)
     S = s0 * (x / p_ref) ** exponent
     S[0] = 0.0                                       # the first pivot has no room below
-    B = beta * S[None, :] - np.diag(S)
-    lo_f, hi_f = lo.ravel(), hi.ravel()
-    eta_f, eta_hi_f = eta.ravel(), eta_hi.ravel()
-    col = np.broadcast_to(np.arange(n)[:, None], (n, n)).ravel()     # m of the pair (m, k)
+    n = len(x)
 
     def rhs(_, N):
         NN = 0.5 * K * np.outer(N, N)
-        birth = np.bincount(lo_f, eta_f * NN.ravel(), n)
-        birth += np.bincount(hi_f, eta_hi_f * NN.ravel(), n)
-        return birth - N * (K @ N) + B @ N
+        birth = np.bincount(lo.ravel(), (eta * NN).ravel(), n)
+        birth += np.bincount(hi.ravel(), (eta_hi * NN).ravel(), n)
+        out = birth - N * (K @ N)
+        out += beta @ (S * N) - S * N
+        return out
+    return rhs
 
-    def jac(_, N):
-        KN = (K * N[None, :]).ravel()                # K[m, k] N[k]
-        J = np.bincount(lo_f * n + col, eta_f * KN, n * n)
-        J += np.bincount(hi_f * n + col, eta_hi_f * KN, n * n)
-        J = J.reshape(n, n)
-        J -= np.diag(K @ N) + N[:, None] * K
-        return J + B
 
-    sol = solve_ivp(rhs, (0.0, float(times[-1])), N0, t_eval=times, method="BDF", jac=jac,
-                    rtol=1e-8, atol=1e-12 * N0.max())
+def solve(x, N0, times, kernel, k0, s0, exponent, p_ref, daughters="uniform"):
+    """Numbers per pivot [1/m3] at ``times`` [s] (array (len(times), len(x)))."""
+    rhs = _rhs(x, kernel, k0, s0, exponent, p_ref, daughters)
+    sol = solve_ivp(rhs, (0.0, float(times[-1])), N0, t_eval=times, method="LSODA",
+                    rtol=1e-9, atol=1e-12 * N0.max())
     if not sol.success:
         raise RuntimeError(sol.message)
     return sol.y.T
 
 
-def edge_mass_shares(x, N, fraction=0.01):
-    """(share of the mass on pivots below x_0 / fraction, share above x_last * fraction), the
-    largest over the rows: the grid must hold the population at both ends."""
-    mass = N * x
-    total = mass.sum(axis=-1)
-    low = (mass[..., x <= x[0] / fraction].sum(axis=-1) / total).max()
-    high = (mass[..., x >= x[-1] * fraction].sum(axis=-1) / total).max()
-    return float(low), float(high)
+def time_of_growth(x, N0, kernel, k0, s0, exponent, p_ref, daughters, factor, t_max):
+    """(First time [s] at which the mean mass M1/M0 reaches ``factor`` times its start, the
+    solver's dense output N(t) [1/m3 per pivot]); bisection to 1e-9 relative on the
+    interpolant."""
+    rhs = _rhs(x, kernel, k0, s0, exponent, p_ref, daughters)
+    start = (N0 @ x) / N0.sum()
+
+    def excess(N):
+        return (N @ x) / N.sum() - factor * start
+
+    sol = solve_ivp(rhs, (0.0, float(t_max)), N0, method="LSODA", rtol=1e-9,
+                    atol=1e-12 * N0.max(), dense_output=True)
+    t = np.linspace(0.0, t_max, 2001)
+    f = np.array([excess(sol.sol(tt)) for tt in t])
+    above = np.nonzero(f >= 0.0)[0]
+    if len(above) == 0:
+        raise RuntimeError("the mean mass does not reach %g x within %g s" % (factor, t_max))
+    a, b = t[above[0] - 1], t[above[0]]
+    while b - a > 1e-9 * b:
+        mid = 0.5 * (a + b)
+        if excess(sol.sol(mid)) >= 0.0:
+            b = mid
+        else:
+            a = mid
+    return b, sol.sol

@@ -10,12 +10,13 @@ from .install import OpenFOAMError
 PACKING_OVERSHOOT = 0.01
 
 
-def _bad(where: str, field: str, mask: np.ndarray, values: np.ndarray, expected: str):
+def _bad(where: str, field: str, mask: np.ndarray, values: np.ndarray, expected: str,
+         item: str = "cell"):
     bad = np.flatnonzero(mask)
     if bad.size:
         first = int(bad[0])
-        raise OpenFOAMError(f"{where}: {field} has {bad.size} cells {expected} (first: cell "
-                            f"{first}, value {values[first]:.6g})")
+        raise OpenFOAMError(f"{where}: {field} has {bad.size} {item}s {expected} (first: "
+                            f"{item} {first}, value {values[first]:.6g})")
 
 
 def check_cells(cells, where: str, alpha_max: float, alpha_field: str = "alpha",
@@ -41,15 +42,27 @@ def check_cells(cells, where: str, alpha_max: float, alpha_field: str = "alpha",
 
 
 def check_flux(flux, n_cells: int, where: str):
-    """Refuse a face flux [m3/s] that does not fit the mesh of ``n_cells`` cells or holds
+    """Refuse a face flux [m3/s] that does not fit the mesh of ``n_cells`` cells: another
+    cell count, face lists of unequal length, a face naming a cell outside 0..n_cells-1, or
     non-finite values."""
     if flux.n_cells != n_cells:
         raise OpenFOAMError(f"{where}: the face flux's mesh has {flux.n_cells} cells, the "
                             f"cell fields' {n_cells}; they come from different meshes")
+    for kind, arrays in (("internal", {"owner": flux.owner, "neighbour": flux.neighbour,
+                                       "face flux": flux.flux}),
+                         ("boundary", {"boundary face cell": flux.boundary_face_cell,
+                                       "boundary face flux": flux.boundary_face_flux})):
+        sizes = {name: int(np.size(arr)) for name, arr in arrays.items()}
+        if len(set(sizes.values())) > 1:
+            shown = ", ".join(f"{name} {n}" for name, n in sizes.items())
+            raise OpenFOAMError(f"{where}: the {kind} faces' lists differ in length ({shown}); "
+                                "expected one entry per face")
     for name, arr in (("face flux", flux.flux), ("boundary face flux", flux.boundary_face_flux)):
         arr = np.asarray(arr, dtype=float)
-        _bad(where, name, ~np.isfinite(arr), arr, "not finite")
-    top = max(int(np.max(flux.owner, initial=-1)), int(np.max(flux.neighbour, initial=-1)))
-    if top >= n_cells or np.min(flux.owner, initial=0) < 0:
-        raise OpenFOAMError(f"{where}: the face flux names cell {top}, the mesh has "
-                            f"{n_cells} cells")
+        _bad(where, name, ~np.isfinite(arr), arr, "not finite", item="face")
+    for name, arr in (("owner", flux.owner), ("neighbour", flux.neighbour),
+                      ("boundary face cell", flux.boundary_face_cell)):
+        arr = np.asarray(arr, dtype=np.int64)
+        _bad(where, f"the face flux's {name}", (arr < 0) | (arr >= n_cells), arr,
+             f"naming a cell outside 0..{n_cells - 1} (the mesh has {n_cells} cells)",
+             item="face")

@@ -12,7 +12,7 @@ from ...physics.kernels import collision_frequency
 from ...physics.rates import aggregation_rate, droplet_capture_rate
 from .breakage import breakage_trial, breakage_weights
 from .slots import C_D as _C_D
-from .slots import N_BINS
+from .slots import N_BINS, Particles, Slots
 from .slots import d4 as _d4
 from .slots import insert_slot as _insert
 from .slots import remove_slot as _remove
@@ -237,6 +237,8 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
     bbound, brow = np.zeros(N_BINS), np.zeros(N_BINS)
     m_ref, ptot, s4 = _fill_classes(p, isdrop, sep, rho, bin_of, bpos, members, bcnt, lo, hi,
                                     dirty, dlist, dpos, dcnt)
+    box, slots = Particles(p, b, isdrop, rho, m_ref), Slots(bin_of, bpos, members, bcnt, lo, hi,
+                                                            dirty, dlist, dpos, dcnt)
     conc0 = ptot / volume0
     mass_rate = inj * pd                     # kg/(m3 s) added by injection
     d43_tab = _initial_bounds(rho, dcnt[0], pd, ptot, s4, lo, hi, dirty, table, tabd, alpha,
@@ -276,9 +278,8 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
             changed = True
         elif w_br > 0.0 and (u >= r_inj + r_gg + r_dg or (r_gg <= 0.0 and r_dg <= 0.0)):
             break_trials += 1
-            ptot, s4, done, above = breakage_trial(
-                w_br, n_occ, occ, brow, bbound, brk_factor, p, b, isdrop, rho, m_ref, ptot, s4,
-                bin_of, bpos, members, bcnt, lo, hi, dirty, dlist, dpos, dcnt, params, config)
+            ptot, s4, done, above = breakage_trial(w_br, n_occ, occ, brow, bbound, brk_factor, box,
+                                                   ptot, s4, slots, params, config)
             splits += done
             violations += above
             changed = changed or done == 1

@@ -6,7 +6,7 @@ is sum_i S(p_i) over its granules (free droplets never break). It is realised by
 aggregation: class a (mass interval [lo_a, hi_a]) is proposed at n_a B_a with B_a =
 max(S(lo_a), S(hi_a)) (x (1 + 1e-12)), a member uniformly, and the break accepted with
 S(p_i) / B_a. B_a bounds S on the class because every selection function of the registry is
-monotone in p (constant, or a non-negative power of p; ``tests/test_registries.py`` checks).
+monotone in p (constant, or a non-negative power of p; ``tests/physics/test_registries.py`` checks).
 
 The split (constant number, Smith & Matsoukas 1998; Lin, Lee & Matsoukas 2002): the parent
 (p, b) becomes the first daughter (u p, u b) in its own slot, u from the daughter rule; the
@@ -91,28 +91,28 @@ def daughter_masses(p, b, config):
 
 
 @nb.njit(cache=True, inline="always")
-def breakage_trial(w_br, n_occ, occ, brow, bbound, factor, p, b, isdrop, rho, m_ref, ptot, s4,
-                    bin_of, bpos, members, bcnt, lo, hi, dirty, dlist, dpos, dcnt, params,
-                    config):
+def breakage_trial(w_br, n_occ, occ, brow, bbound, factor, box, ptot, s4, slots, params, config):
     """Propose a breakage (``cnmc_breakage.pick_breakage``), accept it with S(p_i) / B_a and
-    split. Returns (total mass [kg], sum d^4 [m^4], 1 if split, 1 if S exceeded its bound)."""
-    i, a = pick_breakage(w_br, n_occ, occ, brow, bcnt, members)
-    rate = selection_function(config[P.BREAKAGE_SELECTION], p[i], factor, params)
+    split. ``box``: the ``slots.Particles``, ``slots``: the ``slots.Slots`` of the box. Returns
+    (total mass [kg], sum d^4 [m^4], 1 if split, 1 if S exceeded its bound)."""
+    i, a = pick_breakage(w_br, n_occ, occ, brow, slots.bcnt, slots.members)
+    rate = selection_function(config[P.BREAKAGE_SELECTION], box.p[i], factor, params)
     above = 1 if rate > bbound[a] else 0
     if np.random.random() * bbound[a] < rate:
-        ptot, s4 = split(i, p, b, isdrop, rho, m_ref, ptot, s4, bin_of, bpos, members, bcnt,
-                          lo, hi, dirty, dlist, dpos, dcnt, config)
+        ptot, s4 = split(i, box, ptot, s4, slots, config)
         return ptot, s4, 1, above
     return ptot, s4, 0, above
 
 
 @nb.njit(cache=True, inline="always")
-def split(i, p, b, isdrop, rho, m_ref, ptot, s4, bin_of, bpos, members, bcnt, lo, hi, dirty,
-           dlist, dpos, dcnt, config):
+def split(i, box, ptot, s4, slots, config):
     """Accepted breakage of granule i (constant number, ``methods.cnmc_breakage``): the first
     daughter takes slot i, the second replaces a slot chosen uniformly among the N + 1
-    particles after the split (dropped when it chooses itself). Returns the new total mass
-    [kg] and sum d^4 [m^4]."""
+    particles after the split (dropped when it chooses itself). ``box``, ``slots``: the box's
+    ``slots.Particles`` and ``slots.Slots``. Returns the new total mass [kg] and sum d^4
+    [m^4]."""
+    p, b, isdrop, rho, m_ref = box.p, box.b, box.isdrop, box.rho, box.m_ref
+    bin_of, bpos, members, bcnt, lo, hi, dirty, dlist, dpos, dcnt = slots
     n = p.size
     p1, b1, p2, b2 = daughter_masses(p[i], b[i], config)
     remove_slot(i, bin_of, bpos, members, bcnt, dlist, dpos, dcnt)

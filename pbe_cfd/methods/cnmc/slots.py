@@ -2,11 +2,18 @@
 puts a particle into its mass class (or the droplet list) and takes it out again, shared by
 the aggregation, injection and breakage events. Masses in kg, diameters in m."""
 import math
+from collections import namedtuple
 
 import numba as nb
 
 N_BINS = 64                # mass classes of the granules (factor 2 wide)
 C_D = 6.0 / math.pi
+
+#: a box's particles: masses p, b [kg] and droplet flags (arrays), density rho [kg/m3] and
+#: the lower mass of class 0, m_ref [kg]
+Particles = namedtuple("Particles", "p b isdrop rho m_ref")
+#: a box's slot bookkeeping (the arrays of ``insert_slot``/``remove_slot``)
+Slots = namedtuple("Slots", "bin_of bpos members bcnt lo hi dirty dlist dpos dcnt")
 
 
 @nb.njit(cache=True)

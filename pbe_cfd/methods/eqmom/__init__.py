@@ -6,3 +6,4 @@ work layouts, the binder fractions per kernel and the secondary particles; ``sou
 moment sources and the integrator hooks; ``entry``: the method's registry entry and its size
 distribution.
 """
+from .entry import ENTRY  # noqa: F401

@@ -1,7 +1,7 @@
-"""The gamma-EQMOM's registry entry: scene keys, state names, aux, population, plan line,
-failure hint and diagnostics (the callables ``methods.registry.MethodEntry`` names).
+"""The gamma-EQMOM's registry entry (``ENTRY``; ``methods.registry`` lists it): scene keys,
+state names, aux, population, plan line, failure hint, diagnostics and its numba functions.
 
-Units as in ``methods.registry``: SI outside, scaled moments in the state.
+Units as in ``methods.entry``: SI outside, scaled moments in the state.
 """
 from __future__ import annotations
 
@@ -9,8 +9,14 @@ from collections import Counter
 
 import numpy as np
 
+from ...physics import parameters as P
+from ..entry import MethodEntry
 from . import inversion as I
 from . import state as S
+from .sources import eqmom_conserved, eqmom_project, eqmom_realizable, eqmom_rhs
+
+#: config[P.METHOD] of the EQMOM
+CODE = 3
 
 
 def scene_keys(t, defaults):
@@ -73,3 +79,19 @@ def diagnostics(states, aux_, arrays):
             notes.append(f"EQMOM: {counts[code]} of {sum(counts.values())} final states: "
                          f"{I.STATUS_TEXT[code]}")
     return stats, notes
+
+
+ENTRY = MethodEntry(
+    name="eqmom", code=CODE, scene_keys=scene_keys, order_key="nodes", order_label="EQMOM N",
+    state_names=state_names, aux=aux, tabulates_theta=False, population=population,
+    failure_hint=failure_hint, diagnostics=diagnostics, plan_line=plan_line,
+    repairs_mixture=lambda scene: True,
+    rhs=eqmom_rhs, realizable=eqmom_realizable, project=eqmom_project,
+    conserved=eqmom_conserved,
+    work_size=lambda config: S.work_size(int(config[P.ORDER]), int(config[P.N_STATE])),
+    bench_orders=int, bench_scene=lambda scene, order: scene.with_method(nodes=order),
+    distribution="kernel_mixture",
+    distribution_text="the EQMOM's own density: N gamma kernels in granule mass fitted to the "
+                      "carried M00 .. M(2N)0; binder fraction per size class from the kernels' "
+                      "binder fractions",
+    moments_text="from the EQMOM kernels' secondary Gauss nodes (binder fraction per kernel)")

@@ -1,1 +1,5 @@
-"""Bivariate Laguerre reduced-order model."""
+"""Bivariate Laguerre reduced-order model: numba RHS (``rhs``), basis, tensors and their
+build, the scene-level entry points (``tensor``) and the registry entry (``entry``)."""
+from .entry import ENTRY, laguerre_state_names  # noqa: F401
+from .rhs import (laguerre_conserved, laguerre_project, laguerre_realizable,  # noqa: F401
+                  laguerre_rhs)

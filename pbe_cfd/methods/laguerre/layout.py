@@ -28,49 +28,55 @@ import math
 import numpy as np
 
 from ...physics import parameters as P
+from ...physics.parameters import numbered
 
-AUX_VERSION = 0          # layout version (AUX_LAYOUT_VERSION)
-AUX_ORDER = 1            # m
-AUX_NMOM = 2             # K = m * m
-AUX_NPAIR = 3            # K (K + 1) / 2
-AUX_NSLICE = 4           # number of collision-velocity slices (1 = fixed u0 or no dependence)
-AUX_CONSISTENT = 5       # 1 = moment-consistent reconstruction, 0 = plain seed projection
-AUX_OFF_LOGU = 6         # offset of ln(u0 [m/s]) per slice (NSLICE values)
-AUX_OFF_Q = 7            # offset of Q  (w = 0, s = 0 first: pair-major, a fastest)
-AUX_OFF_CD = 8           # offset of Cd
-AUX_OFF_CD0 = 9          # offset of Cd0
-AUX_OFF_F43 = 10         # offset of F43[w, k]: int_S (p/p_ref)^(4/3) phi~_k
-AUX_OFF_BASIS = 11       # offset of the wet reconstruction blocks (BASIS_SIZE per weight)
-AUX_MASS_SCALE = 12      # p_ref [kg] the aux was built for
-AUX_P_MAX = 13           # p_max [kg]
-AUX_B_MAX = 14           # b_max [kg]
-AUX_N_P = 15             # n_p
-AUX_N_B = 16             # n_b
-AUX_N_NODES = 17         # quadrature nodes kept on the support
-AUX_DROPLET_MASS = 18    # p_d [kg] the aux was built for
-AUX_SEPARATE = 19        # 1 if droplet capture matrices were built
-AUX_COND_G = 20          # largest condition number of the equilibrated G (1 if plain)
-AUX_U0_FIXED = 21        # u0 [m/s] of a single slice (0 if none was needed or a grid is used)
-AUX_OFF_SUPPORT = 22     # offset of the on-support functionals SUPPORT[w, 2K]
-AUX_CHECK_LEVEL = 23     # realizability check level of laguerre_realizable (0, 1, 2)
-AUX_SPACING = 24         # quadrature spacing code (SPACINGS: 0 uniform in (p, b), 1 in (p, b/p))
-AUX_OFF_QDD = 25         # offset of Qdd
-AUX_OFF_X = 26           # offset of X
-AUX_OFF_XL = 27          # offset of XL
-AUX_OFF_CDD = 28         # offset of Cdd
-AUX_OFF_CAPMAP = 29      # offset of CAPMAP
-AUX_OFF_F43D = 30        # offset of F43D[k]: int (p/p_ref)^(4/3) psi~_k  (m)
-AUX_OFF_DRY_BASIS = 31   # n_dry, c_dry [kg], lam_dry, Ginv_dry (m*m), r_dry (m), support (2m)
-AUX_COND_DRY = 32        # condition number of the equilibrated G_dry (1 if plain)
-AUX_N_DRY = 33           # nodes of the dry quadrature in p
-AUX_NWC = 34             # weight means c on the adaptive grid (1: fixed weights)
-AUX_NWD = 35             # weight means d on the adaptive grid (1: fixed weights)
-AUX_OFF_LOGW = 36        # offset of ln c [kg] (NWC values), then ln d [kg] (NWD values)
-AUX_OFF_CONDW = 37       # offset of cond(G) of each weight slice (NWC * NWD values)
-AUX_OFF_BREAK = 38       # offset of the breakage block (laguerre_breakage; 0: no breakage)
-AUX_FOLLOWING = 39       # 1: following support (weight grid in (ln c, ln d/c), a support per slice)
-AUX_OFF_WET_SUPPORT = 40  # offset of (p_max, b_max) [kg] of each weight slice (NWC * NWD pairs)
-AUX_HEADER = 42
+#: the header's slots in order (each name's value is its index)
+HEADER = (
+    ("AUX_VERSION", "layout version (AUX_LAYOUT_VERSION)"),
+    ("AUX_ORDER", "m"),
+    ("AUX_NMOM", "K = m * m"),
+    ("AUX_NPAIR", "K (K + 1) / 2"),
+    ("AUX_NSLICE", "number of collision-velocity slices (1 = fixed u0 or no dependence)"),
+    ("AUX_CONSISTENT", "1 = moment-consistent reconstruction, 0 = plain seed projection"),
+    ("AUX_OFF_LOGU", "offset of ln(u0 [m/s]) per slice (NSLICE values)"),
+    ("AUX_OFF_Q", "offset of Q  (w = 0, s = 0 first: pair-major, a fastest)"),
+    ("AUX_OFF_CD", "offset of Cd"),
+    ("AUX_OFF_CD0", "offset of Cd0"),
+    ("AUX_OFF_F43", "offset of F43[w, k]: int_S (p/p_ref)^(4/3) phi~_k"),
+    ("AUX_OFF_BASIS", "offset of the wet reconstruction blocks (BASIS_SIZE per weight)"),
+    ("AUX_MASS_SCALE", "p_ref [kg] the aux was built for"),
+    ("AUX_P_MAX", "p_max [kg]"),
+    ("AUX_B_MAX", "b_max [kg]"),
+    ("AUX_N_P", "n_p"),
+    ("AUX_N_B", "n_b"),
+    ("AUX_N_NODES", "quadrature nodes kept on the support"),
+    ("AUX_DROPLET_MASS", "p_d [kg] the aux was built for"),
+    ("AUX_SEPARATE", "1 if droplet capture matrices were built"),
+    ("AUX_COND_G", "largest condition number of the equilibrated G (1 if plain)"),
+    ("AUX_U0_FIXED", "u0 [m/s] of a single slice (0 if none was needed or a grid is used)"),
+    ("AUX_OFF_SUPPORT", "offset of the on-support functionals SUPPORT[w, 2K]"),
+    ("AUX_CHECK_LEVEL", "realizability check level of laguerre_realizable (0, 1, 2)"),
+    ("AUX_SPACING", "quadrature spacing code (SPACINGS: 0 uniform in (p, b), 1 in (p, b/p))"),
+    ("AUX_OFF_QDD", "offset of Qdd"),
+    ("AUX_OFF_X", "offset of X"),
+    ("AUX_OFF_XL", "offset of XL"),
+    ("AUX_OFF_CDD", "offset of Cdd"),
+    ("AUX_OFF_CAPMAP", "offset of CAPMAP"),
+    ("AUX_OFF_F43D", "offset of F43D[k]: int (p/p_ref)^(4/3) psi~_k  (m)"),
+    ("AUX_OFF_DRY_BASIS", "n_dry, c_dry [kg], lam_dry, Ginv_dry (m*m), r_dry (m), support (2m)"),
+    ("AUX_COND_DRY", "condition number of the equilibrated G_dry (1 if plain)"),
+    ("AUX_N_DRY", "nodes of the dry quadrature in p"),
+    ("AUX_NWC", "weight means c on the adaptive grid (1: fixed weights)"),
+    ("AUX_NWD", "weight means d on the adaptive grid (1: fixed weights)"),
+    ("AUX_OFF_LOGW", "offset of ln c [kg] (NWC values), then ln d [kg] (NWD values)"),
+    ("AUX_OFF_CONDW", "offset of cond(G) of each weight slice (NWC * NWD values)"),
+    ("AUX_OFF_BREAK", "offset of the breakage block (laguerre_breakage; 0: no breakage)"),
+    ("AUX_FOLLOWING", "1: following support (weight grid in (ln c, ln d/c), a support per slice)"),
+    ("AUX_OFF_WET_SUPPORT", "offset of (p_max, b_max) [kg] of each weight slice (NWC * NWD "
+                            "pairs)"),
+    ("AUX_SPARE", "unused (the header keeps its length of layout version 5)"),
+)
+AUX_HEADER = numbered(HEADER, globals())
 AUX_LAYOUT_VERSION = 5.0
 
 TABLE_III = dict(weights=dict(c=1e-9, d=1e-9, lam=1.0, gam=0.2),

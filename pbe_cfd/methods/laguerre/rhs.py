@@ -38,16 +38,15 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.kernels import KTGF, kernel_cell_factor
-from . import tensor as LT
-from .layout import (AUX_CHECK_LEVEL, AUX_FOLLOWING, AUX_MASS_SCALE, AUX_NPAIR,
-                     AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_OFF_CAPMAP, AUX_OFF_CD,
-                     AUX_OFF_CD0, AUX_OFF_CDD, AUX_OFF_F43, AUX_OFF_F43D,
-                     AUX_OFF_LOGU, AUX_OFF_LOGW, AUX_OFF_Q, AUX_OFF_QDD,
-                     AUX_OFF_SUPPORT, AUX_OFF_X, AUX_OFF_XL, AUX_ORDER, AUX_P_MAX,
-                     AUX_SEPARATE, state_names, state_size, weight_corners,
-                     wet_support)
+from .layout import (AUX_CHECK_LEVEL, AUX_FOLLOWING, AUX_MASS_SCALE, AUX_NPAIR, AUX_NSLICE,
+                     AUX_NWC, AUX_NWD, AUX_OFF_CAPMAP, AUX_OFF_CD, AUX_OFF_CD0, AUX_OFF_CDD,
+                     AUX_OFF_F43, AUX_OFF_F43D, AUX_OFF_LOGU, AUX_OFF_LOGW, AUX_OFF_Q,
+                     AUX_OFF_QDD, AUX_OFF_SUPPORT, AUX_OFF_X, AUX_OFF_XL, AUX_ORDER, AUX_P_MAX,
+                     AUX_SEPARATE, state_names, state_size, weight_corners, wet_support)
 from .breakage import add_laguerre_breakage
-from .tensor import build_aux, escaped_mass_share, initial_state, theta_to_u0
+from .tensor import (basis_values, build_aux, dry_particles, dry_support_functionals,
+                     escaped_mass_share, fraction_basis_values, initial_state, projection_matrix,
+                     theta_to_u0, univariate_values, unpack_basis, wet_particles)
 
 __all__ = ["laguerre_rhs", "laguerre_realizable", "laguerre_project", "laguerre_conserved",
            "build_aux",
@@ -543,10 +542,10 @@ def reconstruct(state, aux, params, config, p, b, clip_support=True):
     bb = np.broadcast_to(b, shape).ravel()
     n = np.zeros(pp.shape)
     for w, frac in weight_corners(state, aux):
-        B = LT.unpack_basis(aux, w)
+        B = unpack_basis(aux, w)
         K = B["m"] ** 2
         coef = B["Ginv"] @ (np.asarray(state[:K], float) * B["r"])
-        values = LT.fraction_basis_values if aux[AUX_FOLLOWING] == 1.0 else LT.basis_values
+        values = fraction_basis_values if aux[AUX_FOLLOWING] == 1.0 else basis_values
         phi = values(pp / B["c"], bb / B["d"], B["Cp"], B["Cb"], B["lam"], B["gam"])
         part = frac * (phi @ coef) * params[P.NUMBER_SCALE] / (B["c"] * B["d"])
         if clip_support:
@@ -558,11 +557,11 @@ def reconstruct(state, aux, params, config, p, b, clip_support=True):
 
 def reconstruct_dry(state, aux, params, p, clip_support=True):
     """Reconstructed density n_dry(p) [1/(m3 kg)] of the dry granules at masses p [kg]."""
-    B = LT.unpack_basis(aux)
+    B = unpack_basis(aux)
     m = B["m"]
     p = np.asarray(p, float)
     coef = B["Ginv_dry"] @ (np.asarray(state[m * m:m * m + m], float) * B["r_dry"])
-    psi = LT.univariate_values(p.ravel() / B["c_dry"], LT.projection_matrix(m, B["lam_dry"]),
+    psi = univariate_values(p.ravel() / B["c_dry"], projection_matrix(m, B["lam_dry"]),
                                B["lam_dry"])
     n = psi @ coef * params[P.NUMBER_SCALE] / B["c_dry"]
     if clip_support:
@@ -574,10 +573,10 @@ def reconstructed_moment(state, aux, params, config, i, j):
     """int_S p^i b^j n [kg^(i+j)/m3] of the reconstruction (wet, plus dry for j = 0) over the
     support, with the same quadrature as the tensors (so it returns the carried moments
     exactly when consistent)."""
-    w, p, b = LT.wet_particles(state, aux)
+    w, p, b = wet_particles(state, aux)
     val = np.sum(w * p ** i * b ** j)
     if j == 0:
-        wd, pdry, _ = LT.dry_particles(state, aux)
+        wd, pdry, _ = dry_particles(state, aux)
         val += np.sum(wd * pdry ** i)
     return float(val * params[P.NUMBER_SCALE])
 
@@ -590,7 +589,7 @@ def support_share(state, aux, params, config):
     K = m * m
     s = np.asarray(state[:K], float)
     dry = np.asarray(state[K:K + m], float)
-    dn, dm = LT.dry_support_functionals(aux)
+    dn, dm = dry_support_functionals(aux)
     number = dn @ dry
     mass = dm @ dry
     for w, frac in weight_corners(state, aux):

@@ -1,0 +1,38 @@
+"""The cNMC reference's registry entry: its scene keys, plan line and its ensemble run (it is
+not integrated per cell; ``methods.registry`` lists it)."""
+import dataclasses
+
+from ..entry import NOT_INTEGRATED, MethodEntry, no_aux, no_diagnostics, no_hint
+
+
+def _keys(t, defaults):
+    return {"particles": t.number("particles", 10000, integer=True, low=2, high=10_000_000),
+            "replicas": t.number("replicas", 8, integer=True, low=1, high=100_000),
+            "seed": t.number("seed", 1, integer=True, low=0)}
+
+
+def _plan(scene):
+    m = scene.method
+    return (f"constant-number Monte Carlo, {m.particles} particles x {m.replicas} replicas, "
+            f"seed {m.seed}")
+
+
+def _ensemble(scene, arrays, cell, times, progress=None):
+    from .ensemble import simulate_ensemble
+    m = scene.method
+    initial = dataclasses.asdict(scene.initial)     # the keys simulate_ensemble reads
+    return simulate_ensemble(arrays.params, arrays.config, cell, initial, times,
+                                  m.particles, m.replicas, m.seed, progress=progress)
+
+
+def _population(state, aux, arrays):
+    raise TypeError("the cNMC carries particles, not a moment state")
+
+
+ENTRY = MethodEntry(
+    name="cnmc", code=NOT_INTEGRATED, scene_keys=_keys, order_key=None,
+    order_label="cNMC particles", state_names=lambda s: [], aux=no_aux,
+    tabulates_theta=False, population=_population, failure_hint=no_hint,
+    diagnostics=no_diagnostics, plan_line=_plan, ensemble=_ensemble,
+    distribution_text="mass histogram of each replica's particle list (50 classes per decade "
+                      "of d), the replicas' mean and 95% band; d10/d50/d90 exact per replica")

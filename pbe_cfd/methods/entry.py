@@ -1,0 +1,121 @@
+"""What a method declares to the rest of the program (``MethodEntry``), and the shared
+defaults of its fields. Each method package builds its entry from its own modules; the
+registry (``methods.registry``) lists the entries."""
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+import numpy as np
+
+#: config[P.METHOD] of a method that the per-cell integrator does not run (the cNMC)
+NOT_INTEGRATED = -1
+
+#: length of the per-cell float work array handed to every method function
+WORK_SIZE = 2048
+
+
+class MethodEntry(NamedTuple):
+    """One method of the registry (see the module docstring for who calls what).
+
+    name            the scene's ``[method] name``
+    code            config[P.METHOD] (unique); NOT_INTEGRATED for a method with a run of its
+                    own (cNMC)
+    scene_keys      f(table, defaults) -> dict of its ``scene.Method`` fields, read from the
+                    ``[method]`` table by the scene's table reader (``t.number``,
+                    ``t.boolean``, ...); defaults: the ``Method`` class (its field defaults)
+    order_key       the ``Method`` field of its accuracy order (config[P.ORDER]): "nodes",
+                    "order", or None (0)
+    order_label     how studies name that order ("QMOM N")
+    state_names     f(scene) -> names of the state entries ("M{i}{j}", then
+                    "droplet_number_density")
+    aux             f(scene, arrays, theta_grid) -> float array of method data (theta_grid
+                    [m2/s2]: the cells' granular temperatures to tabulate over, or None)
+    tabulates_theta True if a coupled run hands ``aux`` a grid of the cells' Theta
+    population      f(state, aux, arrays) -> (w [1/m3], p [kg], b [kg]): the granules of one
+                    scaled state as weighted particles (for SI columns and mean diameters)
+    failure_hint    f(scene, arrays, state, aux) -> text appended to a stopped cell's message
+    diagnostics     f(states, aux, arrays) -> (stats dict, warnings list) after a run
+    plan_line       f(scene) -> the method's line of ``pbe-cfd plan``
+    repairs_mixture f(scene) -> True if a mixture of realizable states (transport) may need
+                    the method's projection before the next source step
+    initial_state   f(scene, arrays, granule_moment) -> the scaled initial state, or None for
+                    the generic one (state entries "M{i}{j}" and "droplet_number_density";
+                    granule_moment(i, j) [kg^(i+j)/m3] of the initial granules)
+    columns         f(scene, arrays, states, aux, populations) -> SI output columns, or None
+                    for the generic ones (``model.moment_outputs``)
+    ensemble        a method that is not integrated per cell: f(scene, arrays, cell, times
+                    [s], progress) -> dict of result columns and statistics (cNMC:
+                    ``cnmc.simulate_ensemble``)
+    config_slots    f(scene) -> {config slot: value} of further knobs (CQMOM: BINDER_NODES)
+    table_bytes     f(method) -> peak memory [bytes] its tables take to build (``aux``), from
+                    the scene's ``Method``; table_keys the ``[method]`` keys that set it
+    rhs, realizable, project, conserved
+                    its numba functions (``methods.dispatch`` calls them; None if not
+                    integrated): rhs(state, out, cell, aux, params, config, work),
+                    realizable/project(state, aux, params, config, work),
+                    conserved(config, params, pivots, coefs) -> number of invariants
+    work_size       f(config) -> floats of the per-cell ``work`` array it needs (at most
+                    WORK_SIZE; ``model.pack`` checks)
+    bench_orders    f(text) -> the order of ``pbe-cfd bench throughput --methods name:text``
+                    (QMOM "3" -> 3, CQMOM "2x2" -> (2, 2)); None: not in that study
+    bench_scene     f(scene, order) -> the scene with that order (the throughput study)
+    distribution    how ``distribution.tables`` reconstructs the size distribution: "gamma"
+                    (from the populations), "laguerre_density" (its own), "kernel_mixture"
+                    (EQMOM's gamma kernels, ``distribution.kernel_mixture``), None (none)
+    distribution_text   that reconstruction in words (columns.json, docs/physics.md 11.1)
+    moments_text    how the moments it does not carry are reconstructed (columns.json)
+    """
+    name: str
+    code: int
+    scene_keys: Callable
+    order_key: str | None
+    order_label: str
+    state_names: Callable
+    aux: Callable
+    tabulates_theta: bool
+    population: Callable
+    failure_hint: Callable
+    diagnostics: Callable
+    plan_line: Callable
+
+    repairs_mixture: Callable = lambda scene: False
+    ensemble: Callable | None = None
+    config_slots: Callable = lambda scene: {}
+    initial_state: Callable | None = None
+    columns: Callable | None = None
+    table_bytes: Callable = lambda method: 0
+    table_keys: tuple = ()
+    rhs: Callable | None = None
+    realizable: Callable | None = None
+    project: Callable | None = None
+    conserved: Callable | None = None
+    work_size: Callable = lambda config: 0
+    bench_orders: Callable | None = None
+    bench_scene: Callable | None = None
+    distribution: str | None = None
+    distribution_text: str = ""
+    moments_text: str = ""
+
+    def order(self, method) -> int:
+        """config[P.ORDER] of the scene's ``Method`` (nodes, order; 0)."""
+        return int(getattr(method, self.order_key)) if self.order_key else 0
+
+    @property
+    def integrated(self) -> bool:
+        """True if the per-cell integrator runs it (a moment method)."""
+        return self.code != NOT_INTEGRATED
+
+
+def no_aux(scene, arrays, theta_grid=None):
+    """The ``aux`` of a method without method data: one unused float."""
+    return np.zeros(1)
+
+
+def no_hint(scene, arrays, state, aux):
+    """No method-specific text for a stopped cell."""
+    return ""
+
+
+def no_diagnostics(states, aux, arrays):
+    """No statistics and no warnings after a run."""
+    return {}, []

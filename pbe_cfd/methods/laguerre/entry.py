@@ -1,0 +1,69 @@
+"""The Laguerre ROM's registry entry: its scene keys, state names, tables, populations, plan
+line and its numba functions (``methods.registry`` lists it)."""
+from ..entry import MethodEntry
+from .tensor import (aux_for_scene, escaped_share_report, failure_hint, population_for_output,
+                     scene_columns, scene_initial_state, scene_keys, state_names, table_bytes)
+from .rhs import laguerre_conserved, laguerre_project, laguerre_realizable, laguerre_rhs
+
+#: config[P.METHOD] of the Laguerre ROM
+CODE = 1
+
+
+def laguerre_state_names(order, separate_droplets):
+    """State entry names of the Laguerre ROM (wet moments, dry moments, free droplets)."""
+    return state_names(order, separate_droplets)
+
+
+def _keys(t, defaults):
+    kw = {"order": t.number("order", 3, integer=True, low=2, high=5),
+          "consistent": t.boolean("consistent", True)}
+    for key, unit in (("weight_mean_mass", "kg"), ("weight_mean_binder", "kg"),
+                      ("weight_shape_mass", ""), ("weight_shape_binder", ""),
+                      ("support_mass", "kg"), ("support_binder", "kg")):
+        kw[key] = t.number(key, getattr(defaults, key), positive=True, unit=unit)
+    for key in ("grid_mass", "grid_binder"):
+        kw[key] = t.number(key, getattr(defaults, key), integer=True, low=4, high=400)
+    kw["grid_spacing"] = t.choice("grid_spacing", ("fraction", "uniform"), "fraction")
+    kw.update(scene_keys(t, defaults))
+    return kw
+
+
+def _aux(scene, arrays, theta_grid=None):
+    return aux_for_scene(scene, arrays, theta_grid=theta_grid)
+
+
+def _hint(scene, arrays, state, aux):
+    return failure_hint(state, aux, arrays)
+
+
+def _diagnostics(states, aux, arrays):
+    share, text = escaped_share_report(states, aux, arrays)
+    return {"escaped_mass_share": share}, ([text] if text else [])
+
+
+def _plan(scene):
+    m = scene.method
+    n_state = len(laguerre_state_names(m.order, scene.separate_droplets))
+    return (f"Laguerre ROM of order {m.order} "
+            f"({'moment-consistent' if m.consistent else 'plain projection'}"
+            f"{', dry class' if m.dry_class else ''}"
+            f"{', adaptive weights' if m.adaptive_weights else ''}), "
+            f"support p <= {m.support_mass:g} kg, b <= {m.support_binder:g} kg, grid "
+            f"{m.grid_mass} x {m.grid_binder}; {n_state} states")
+
+
+ENTRY = MethodEntry(
+    name="laguerre", code=CODE, scene_keys=_keys, order_key="order", order_label="Laguerre m",
+    state_names=lambda s: laguerre_state_names(s.method.order, s.separate_droplets),
+    aux=_aux, tabulates_theta=True, population=population_for_output,
+    failure_hint=_hint, diagnostics=_diagnostics, plan_line=_plan,
+    initial_state=scene_initial_state, columns=scene_columns,
+    table_bytes=table_bytes,
+    table_keys=("grid_mass", "grid_binder", "dry_grid_mass"),
+    rhs=laguerre_rhs, realizable=laguerre_realizable, project=laguerre_project,
+    conserved=laguerre_conserved, work_size=lambda config: 0,
+    bench_orders=int, bench_scene=lambda scene, order: scene.with_method(order=order),
+    distribution="laguerre_density",
+    distribution_text="the Laguerre ROM's own density (wet and dry classes) integrated per "
+                      "size class",
+    moments_text="integral of the Laguerre density over its support")

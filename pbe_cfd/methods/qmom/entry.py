@@ -1,0 +1,44 @@
+"""The QMOM's registry entry: its scene keys, state names, populations, plan line and its
+numba functions (``methods.registry`` lists it)."""
+from ...physics import parameters as P
+from ..entry import MethodEntry, no_aux, no_diagnostics, no_hint
+from .qmom import (qmom_conserved, qmom_project, qmom_realizable, qmom_rhs,
+                   quadrature_of as qmom_quadrature_of, state_names as qmom_state_names,
+                   work_size as qmom_work_size)
+
+#: config[P.METHOD] of the QMOM
+CODE = 0
+
+
+def _keys(t, defaults):
+    return {"nodes": t.number("nodes", 3, integer=True, low=1, high=5)}
+
+
+def _state_names(scene):
+    return qmom_state_names(scene.method.nodes, scene.bivariate, scene.separate_droplets)
+
+
+def _population(state, aux, arrays):
+    x, w, beta = qmom_quadrature_of(state, arrays.config)
+    return w * arrays.number_scale, x * arrays.mass_scale, beta * arrays.mass_scale
+
+
+def _plan(scene):
+    m = scene.method
+    return (f"QMOM with {m.nodes} nodes; state {', '.join(_state_names(scene))}"
+            f"; rtol {m.rtol:g}")
+
+
+ENTRY = MethodEntry(
+    name="qmom", code=CODE, scene_keys=_keys, order_key="nodes", order_label="QMOM N",
+    state_names=_state_names, aux=no_aux, tabulates_theta=False, population=_population,
+    failure_hint=no_hint, diagnostics=no_diagnostics, plan_line=_plan,
+    repairs_mixture=lambda scene: scene.bivariate,
+    rhs=qmom_rhs, realizable=qmom_realizable, project=qmom_project,
+    conserved=qmom_conserved, work_size=lambda config: qmom_work_size(config[P.ORDER]),
+    bench_orders=int, bench_scene=lambda scene, order: scene.with_method(nodes=order),
+    distribution="gamma",
+    distribution_text="gamma density in granule mass fitted to the carried M00, M10, M20 "
+                      "(one-kernel gamma EQMOM); binder fraction per size class interpolated "
+                      "in ln p between the nodes' binder values",
+    moments_text="from the quadrature nodes (one binder value per size node)")

@@ -1,0 +1,279 @@
+"""Two-way coupling: the flow follows the granules (``[coupling]``, docs/physics.md section 14).
+
+The granulation is cut into segments. Segment 0 runs on the scene's CFD fields (the user's
+case at ``[domain] time``, or for the bundled snapshot the case template run from its packed
+bed for ``first_flow_time``). A segment ends at the first output time where ``interval`` [s]
+of process time has passed since it began, or where the bed's Sauter mean diameter d32 [m]
+(of the granules, weighted by mass over the bed: seed 001 eq. 5.2.8, d32 = m3/m2) has moved
+by ``d32_change`` relative to the diameter the segment's CFD used. The CFD is then re-run
+from the previous segment's flow state with d = d32 for ``flow_time`` [s] of flow, averaged
+over its last ``flow_time - average_from`` [s] (``io.openfoam.rerun``), and the next segment
+integrates with the new time-averaged alpha, Theta and solids flux.
+
+At a segment boundary the bed's population is carried over to the new solids field: the bed
+total of every state component (per m3 of bed x cell volume, summed over the cells) is spread
+over the new active cells in proportion to their alpha (granules fill the solids fraction, as
+at the start). Every moment of the bed is conserved exactly; the spatial structure within the
+bed is the new flow's (its circulation mixes the bed in seconds, segments last minutes).
+
+Every finished step is kept in the segment store (``runs.coupling_store``) so that a killed
+run continues from its last finished step (``--resume``) with bitwise the same result.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time as _time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import model
+from .batch import CellBatch, SimulationError, check_physics, output_times
+from ..io import openfoam as of
+from .domain import (Domain, build_cells, case_path, coupled_scales, initial_states,
+                      load_domain, theta_grid)
+from .executor import SerialExecutor
+from ..io.openfoam import rerun
+from ..methods.registry import method_of
+from ..physics import parameters as P
+from ..util.population import mean_diameters
+
+
+@dataclass
+class Segment:
+    """One granulation segment and the CFD it ran on (SI): process times [s], the CFD case and
+    its averaged time [s], the particle diameter the CFD used [m], the domain read from it,
+    the output times [s] and the history of states (one (n_active, n_state) array per time),
+    wall seconds of CFD and population balance."""
+    index: int
+    t_start: float
+    t_end: float
+    case: str
+    cfd_time: float
+    cfd_window: tuple
+    diameter: float
+    domain: Domain
+    times: np.ndarray
+    history: list
+    idx: np.ndarray
+    aux: object
+    cfd_wall_s: float
+    pbe_wall_s: float
+    rows: np.ndarray = None
+    active: np.ndarray = None
+    spray: np.ndarray = None
+    d32_end: float = float("nan")
+
+
+@dataclass
+class TwoWayRun:
+    """What ``run_two_way`` returns: the segments, the packed arrays of the run, warnings,
+    compile seconds and the gas and inlet values of the defluidisation check (SI)."""
+    segments: list
+    arrays: object
+    warnings: list = field(default_factory=list)
+    compile_time_s: float = 0.0
+    fluidisation: dict = field(default_factory=dict)
+
+
+def initial_diameter(scene) -> float:
+    """Diameter [m] of a granule of the scene's initial mean mass."""
+    return (6.0 * scene.initial.mean_mass / (math.pi * scene.material.density)) ** (1 / 3)
+
+
+def granule_d32(scene, arrays, aux, states, volumes) -> float:
+    """Sauter mean diameter d32 [m] of the bed's granules (free droplets excluded): every
+    cell's quadrature weighted by its volume [m3] (``states`` per m3 of bed)."""
+    populations = []
+    model.moment_outputs(scene, arrays, states, aux, populations=populations)
+    ws = [np.asarray(w) * volumes[c] for c, (w, _, _) in enumerate(populations)]
+    ps = [np.asarray(p) for _, p, _ in populations]
+    d32, _ = mean_diameters(np.concatenate(ws), np.concatenate(ps), scene.material.density)
+    return float(d32)
+
+
+def carry_over(states, volumes, alpha_new, volumes_new) -> np.ndarray:
+    """The bed's population on a new solids field: the bed totals of ``states`` (per m3 of
+    bed, cells of ``volumes`` [m3]) spread over the new cells in proportion to alpha [-]
+    (``volumes_new`` [m3]); every bed total is conserved."""
+    total = np.sum(states * volumes[:, None], axis=0)
+    share = alpha_new / float(np.sum(alpha_new * volumes_new))
+    return share[:, None] * total[None, :]
+
+
+def segment_domain(scene, case, time, need_flux: bool, first: bool) -> Domain:
+    """The CFD fields of a segment's case at ``time`` (a written time name or "latest"). Later
+    segments' cases hold the population balance's diameter, not the scene's initial one, so
+    the material comparison is the first segment's only."""
+    dom = dataclasses.replace(scene.domain, case=str(case), time=time,
+                              accept_material_mismatch=(scene.domain.accept_material_mismatch
+                                                        or not first))
+    domain = load_domain(dataclasses.replace(scene, domain=dom), need_flux=need_flux)
+    if not first:
+        domain.warnings = [w for w in domain.warnings if "particle diameter" not in w]
+    return domain
+
+
+def _first_cfd(scene, store, log) -> dict:
+    """Segment 0's CFD: the user's case as it is, or the template run from its packed bed."""
+    c = scene.coupling
+    user = case_path(scene)
+    if user is not None:
+        t = of.pick_time(user, scene.domain.time, phase=scene.domain.phase)
+        from ..io.openfoam.material import case_material
+        d = case_material(user, scene.domain.phase)["diameter"][0] or initial_diameter(scene)
+        return {"case": str(user), "time_name": of.time_name(user, t), "diameter": d,
+                "cfd_wall_s": 0.0, "window": None}
+    target = store.case_dir(0)
+    d = initial_diameter(scene)
+    t0 = _time.perf_counter()
+    try:
+        rerun.start_case(target, scene.domain.phase, d, c.first_flow, c.first_window_start,
+                         mesh=c.mesh, log=log)
+    except of.OpenFOAMError as exc:
+        raise _segment_error(0, 0.0, 0.0, exc) from None
+    return {"case": target.name, "time_name": rerun.latest_time_name(target), "diameter": d,
+            "cfd_wall_s": _time.perf_counter() - t0,
+            "window": [c.first_window_start, c.first_flow]}
+
+
+def _next_cfd(scene, store, k, prev_case, prev_time, d, t_process, log) -> dict:
+    """Segment k's CFD: the previous case continued with diameter d [m]."""
+    c = scene.coupling
+    target = store.case_dir(k)
+    t0 = _time.perf_counter()
+    start = float(prev_time)
+    try:
+        rerun.continue_case(prev_case, prev_time, target, scene.domain.phase, d, c.flow_time,
+                            c.window_start, log=log)
+    except of.OpenFOAMError as exc:
+        raise _segment_error(k, t_process, start, exc) from None
+    return {"case": target.name, "time_name": rerun.latest_time_name(target), "diameter": d,
+            "cfd_wall_s": _time.perf_counter() - t0,
+            "window": [start + c.window_start, start + c.flow_time]}
+
+
+def _segment_error(k, t_process, t_cfd, exc) -> SimulationError:
+    where = f" (log {exc.log_path})" if getattr(exc, "log_path", None) else ""
+    first = str(exc).splitlines()[0]
+    return SimulationError(f"two-way segment {k} (process time {t_process:g} s, CFD from "
+                           f"t = {t_cfd:g} s) failed: {first}{where}")
+
+
+def fluidisation_values(scene) -> dict:
+    """Gas density [kg/m3], viscosity [Pa s] and inlet superficial velocity [m/s] of the
+    scene's case (the template for the bundled snapshot); ``[coupling] inlet_velocity``
+    replaces the case's."""
+    case = case_path(scene) or of.default_case_dir()
+    values = rerun.fluidisation_inputs(case, scene.domain.phase)
+    if scene.coupling.inlet_velocity is not None:
+        values["inlet_velocity"] = scene.coupling.inlet_velocity
+    return values
+
+
+def _ends_here(c, t_start, t, d32, d_cfd, t_end) -> bool:
+    """True when a segment begun at t_start [s] ends at output time t [s]."""
+    if t >= t_end - 1e-9 * t_end:
+        return True
+    if c.interval is not None and t - t_start >= c.interval * (1 - 1e-9):
+        return True
+    return (c.d32_change is not None
+            and abs(d32 / d_cfd - 1.0) >= c.d32_change * (1 - 1e-9))
+
+
+def run_two_way(scene, store, progress=None, log=None, warn=None) -> TwoWayRun:
+    """Run the segments of a two-way coupled scene (module docstring), continuing the finished
+    steps the ``store`` holds. ``progress(fraction, text)`` after each output time, ``log``
+    receives the CFD's progress lines, ``warn`` the defluidisation warning of a segment's end
+    (``coupling_output.defluidisation_warning``) before the next CFD runs."""
+    check_physics(scene)
+    method = method_of(scene)
+    times = output_times(scene)
+    cfd = store.cfd(0)
+    if cfd is None:
+        cfd = _first_cfd(scene, store, log)
+        store.save_cfd(0, cfd)
+    need_flux = scene.transport is not None
+    run = TwoWayRun(segments=[], arrays=None, fluidisation=fluidisation_values(scene))
+    states = volumes = None
+    k, t_start = 0, 0.0
+    while True:
+        case = Path(cfd["case"]) if Path(cfd["case"]).is_absolute() else store.case_dir(k)
+        domain = segment_domain(scene, case, cfd["time_name"], need_flux, first=k == 0)
+        run.warnings.extend(w for w in domain.warnings if w not in run.warnings)
+        rows, active, spray, _ = build_cells(scene, domain.cells)
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            raise SimulationError(f"two-way segment {k}: no cell of {domain.description} has "
+                                  f"alpha >= alpha_min = {scene.domain.alpha_min:g}")
+        if run.arrays is None:
+            scaled = coupled_scales(scene, rows[idx, P.ALPHA])
+            run.arrays = model.pack(scaled)
+        arrays = run.arrays
+        grid = theta_grid(rows[idx, P.THETA]) if method.tabulates_theta else None
+        aux = method.aux(scaled, arrays, grid)
+        vol = np.asarray(domain.cells.cell_volume, dtype=float)[idx]
+        seg = Segment(k, t_start, t_start, str(case), float(domain.cells.time),
+                      tuple(cfd["window"] or ()), float(cfd["diameter"]), domain, None, None,
+                      idx, aux, float(cfd["cfd_wall_s"]), 0.0, rows, active, spray)
+        done = store.granulation(k)
+        if done is not None:
+            seg.times, seg.history = done["times"], list(done["history"])
+            seg.pbe_wall_s, seg.t_end, seg.d32_end = (done["pbe_wall_s"], done["t_end"],
+                                                      done["d32_end"])
+        else:
+            first = (initial_states(scene, arrays, rows[idx, P.ALPHA]) if states is None
+                     else carry_over(states, volumes, rows[idx, P.ALPHA], vol))
+            run.compile_time_s += _granulate(scene, seg, arrays, aux, first, times, progress)
+            store.save_granulation(k, {"t_end": seg.t_end, "d32_end": seg.d32_end,
+                                       "pbe_wall_s": seg.pbe_wall_s},
+                                   seg.times, seg.history, idx)
+        run.segments.append(seg)
+        states, volumes = np.asarray(seg.history[-1]), vol
+        if seg.t_end >= scene.end_time * (1 - 1e-12):
+            return run
+        if warn is not None:
+            from .coupling_output import defluidisation_warning
+            text = defluidisation_warning(scene, run.fluidisation, seg.d32_end, seg.t_end)
+            if text:
+                warn(text)
+        k, t_start, prev = k + 1, seg.t_end, cfd
+        cfd = store.cfd(k)
+        if cfd is None:
+            cfd = _next_cfd(scene, store, k, case, prev["time_name"], seg.d32_end, t_start, log)
+            store.save_cfd(k, cfd)
+
+
+def _granulate(scene, seg, arrays, aux, states, times, progress) -> float:
+    """Integrate segment ``seg`` from its start over the scene's output times until it ends
+    (``_ends_here``); fills its times, history, end time, d32 and wall seconds. Returns the
+    compile seconds."""
+    batch = CellBatch.for_scene(scene, arrays, aux, np.ascontiguousarray(seg.rows[seg.idx]),
+                                np.ascontiguousarray(states), cell_ids=seg.idx)
+    compile_s = batch.compile()
+    t0 = _time.perf_counter()
+    transport = None
+    if scene.transport is not None:
+        from ..transport.operator import build_transport
+        transport = build_transport(scene, seg.domain, seg.active, seg.rows, arrays=arrays,
+                                    aux=aux)
+    executor = SerialExecutor()
+    vol = np.asarray(seg.domain.cells.cell_volume, dtype=float)[seg.idx]
+    out_t, history = [seg.t_start], [batch.states.copy()]
+    later = [t for t in times if t > seg.t_start * (1 + 1e-12) + 1e-12]
+    for t in later:
+        executor.run(batch, np.array([out_t[-1], t]), transport)
+        out_t.append(float(t))
+        history.append(batch.states.copy())
+        d32 = granule_d32(scene, arrays, aux, batch.states, vol)
+        if progress is not None:
+            progress(t / scene.end_time, f"segment {seg.index}: t = {t:.4g} s, d32 = "
+                     f"{d32 * 1e6:.1f} um")
+        if _ends_here(scene.coupling, seg.t_start, t, d32, seg.diameter, scene.end_time):
+            seg.d32_end = d32
+            break
+    seg.times, seg.history, seg.t_end = np.array(out_t), history, out_t[-1]
+    seg.pbe_wall_s = _time.perf_counter() - t0
+    return compile_s
