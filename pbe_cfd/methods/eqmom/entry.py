@@ -11,8 +11,8 @@ import numpy as np
 
 from ...physics import parameters as P
 from ..entry import MethodEntry
-from . import inversion as I
-from . import state as S
+import pbe_cfd.methods.eqmom.inversion as I
+import pbe_cfd.methods.eqmom.state as S
 from .sources import eqmom_conserved, eqmom_project, eqmom_realizable, eqmom_rhs
 
 #: config[P.METHOD] of the EQMOM

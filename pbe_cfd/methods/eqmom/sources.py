@@ -19,8 +19,8 @@ from ...physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ...physics.properties import DIAMETER, N_PROPS
 from ...physics.rates import pair_rate, particle_properties
 from ..quadrature.breakage_sources import node_selection_rate
-from . import inversion as I
-from . import state as S
+import pbe_cfd.methods.eqmom.inversion as I
+import pbe_cfd.methods.eqmom.state as S
 
 _as_strided = np.lib.stride_tricks.as_strided
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.properties import N_PROPS
-from . import inversion as I
+import pbe_cfd.methods.eqmom.inversion as I
 
 #: aux slot: secondary Gauss nodes per kernel
 AUX_SECONDARY = 0
