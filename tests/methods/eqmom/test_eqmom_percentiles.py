@@ -77,7 +77,6 @@ def l1_q3(d, q3, ln_d, cum):
     return float(np.trapezoid(np.abs(q3 - ref), np.log(d)))
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("case", CASES, ids=case_id)
 def test_percentiles_against_the_sectional_distribution(case):
     ln_d, cum = reference_q3(case, 16)

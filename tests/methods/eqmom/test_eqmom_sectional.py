@@ -2,7 +2,8 @@
 
 The cases were fixed before any run (issue 27): aggregation kernel constant, sum or EKE;
 selection S = s0 (p / P0)^a with a = 1/3, 1, 2; uniform or equal daughters (18 cases, the full
-set in the ``slow`` test; six of them, each kernel and each exponent twice, in CI). Every case:
+set in the ``slow`` and ``study`` test; six of them, each kernel and each exponent twice, in
+CI: about 30 s warm together). Every case:
 exponential start N0 = 1e10 /m3 of mean P0 = 1e-9 kg, rho = 1000 kg/m3, s0 = 1 /s, t = 5 s;
 the kernels' rates give each pair of mean granules a rate of order 1e-10 m3/s (K N0 ~ 1 /s):
 constant k0 = 1e-10 m3/s, sum k0 = 0.05 m3/(kg s), EKE k0 = 1.77e-11 m3/s with v_ref the
@@ -129,7 +130,6 @@ def marked(cases):
             if c in KNOWN_MISSES else c for c in cases]
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("case", marked(CI_CASES), ids=case_id)
 def test_eqmom_within_3_percent_where_qmom_misses(case):
     check(case)
