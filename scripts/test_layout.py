@@ -37,6 +37,7 @@ RULES = (
     ("test_registries", "physics"),
     ("test_recipe", "physics"),
     ("test_stokes_", "physics"),
+    ("test_drying", "physics"),
     # methods: one folder per method, shared method checks beside them
     ("test_qmom", "methods/qmom"),
     ("test_cqmom", "methods/cqmom"),
@@ -47,6 +48,7 @@ RULES = (
     ("test_breakage", "methods"),
     ("test_hard_cases", "methods"),
     ("test_method", "methods"),
+    ("test_spray", "methods"),
     # the per-cell integrators
     ("test_integrat", "integrate"),
     # scene: TOML -> dataclasses, limits, the key reference

@@ -64,6 +64,10 @@ class MethodEntry(NamedTuple):
                     (EQMOM's gamma kernels, ``distribution.kernel_mixture``), None (none)
     distribution_text   that reconstruction in words (columns.json, docs/physics.md 11.1)
     moments_text    how the moments it does not carry are reconstructed (columns.json)
+    dries           True if it carries the drying drift of a [drying] table (docs/physics.md
+                    section 15) and its evaporated-liquid entry
+    solute_droplets True if its free droplets of their own may carry binder solids
+                    ([binder_injection] solids_fraction > 0: liquid b_d < mass p_d)
     """
     name: str
     code: int
@@ -95,6 +99,8 @@ class MethodEntry(NamedTuple):
     distribution: str | None = None
     distribution_text: str = ""
     moments_text: str = ""
+    dries: bool = False
+    solute_droplets: bool = True
 
     def order(self, method) -> int:
         """config[P.ORDER] of the scene's ``Method`` (nodes, order; 0)."""

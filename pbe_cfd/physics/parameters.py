@@ -54,6 +54,14 @@ PARAMS = (
     ("YIELD_STRENGTH", "granule yield strength Y of the Stokes deformation number [Pa] (0: no "
                        "gate)"),
     ("CRITICAL_DEFORMATION", "critical Stokes deformation number St_def* [-]"),
+    ("DROPLET_SOLIDS", "solids fraction s of the sprayed binder [-]: a droplet holds liquid "
+                       "b_d = (1 - s) p_d (0: pure liquid; physics.injection)"),
+    ("DRY_DRIVING", "D_v rho_g (Y_s(T_wb) - Y) of the drying air [kg/(m s)] (physics.drying)"),
+    ("DRY_RE", "rho_g / mu_g of the air [s/m2]: Re = DRY_RE u_slip d"),
+    ("DRY_SCHMIDT", "Schmidt number mu_g / (rho_g D_v) of water vapour in the air [-]"),
+    ("DRY_CRITICAL", "critical moisture X_cr [kg liquid / kg dry solids]"),
+    ("DRY_EQUILIBRIUM", "equilibrium moisture X_eq [kg liquid / kg dry solids]"),
+    ("DRY_SLIP", "gas-particle slip velocity of the Sherwood number [m/s]"),
 )
 N_PARAMS = numbered(PARAMS, globals())
 
@@ -70,6 +78,7 @@ CONFIG = (
     ("BREAKAGE_SELECTION", "code of the breakage selection function (physics.breakage)"),
     ("BREAKAGE_DAUGHTERS", "code of the breakage daughter rule (physics.breakage)"),
     ("INTEGRATOR", "per-cell time integrator: 0 explicit, 1 implicit, 2 auto (integrate)"),
+    ("DRYING", "1 if a [drying] table is present: the state holds the evaporated liquid"),
 )
 #: a new single slot is one more name in CONFIG; the efficiency switches follow them
 N_SWITCHES_START = numbered(CONFIG, globals())

@@ -12,6 +12,7 @@ import numba as nb
 import numpy as np
 
 from . import parameters as P
+from .injection import droplet_liquid
 from .efficiency import efficiency_property_groups, pair_success_probability
 from .kernels import kernel_cell_factor, kernel_property_groups, pair_collision_frequency
 from .properties import N_PROPS, fill_properties
@@ -50,7 +51,8 @@ def aggregation_rate(p1, b1, p2, b2, alpha, theta, u0, d43, params, config):
 @nb.njit(cache=True)
 def droplet_capture_rate(p, b, alpha, theta, u0, d43, params, config):
     """Rate [m3/s] at which one granule (p, b) [kg] captures one binder droplet:
-    droplet_factor times the pair aggregation rate with the droplet (p_d, b = p_d)."""
+    droplet_factor times the pair aggregation rate with the droplet (p_d, b_d) (b_d = p_d for a
+    pure-liquid binder, (1 - s) p_d for a solution: physics.injection)."""
     pd = params[P.DROPLET_MASS]
-    return params[P.DROPLET_FACTOR] * aggregation_rate(p, b, pd, pd, alpha, theta, u0, d43,
-                                                       params, config)
+    return params[P.DROPLET_FACTOR] * aggregation_rate(p, b, pd, droplet_liquid(params), alpha,
+                                                       theta, u0, d43, params, config)

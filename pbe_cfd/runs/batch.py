@@ -19,6 +19,7 @@ from .. import integrate
 from . import model
 from ..methods.registry import method_of
 from ..physics import parameters as P
+from ..scene import spray
 from ..scene.scene import SceneError
 from ..util.progress import compile_text, notice_if_slow, record_compile_s
 
@@ -98,6 +99,9 @@ class CellBatch:
     compiled_now: bool = False     # set by compile(): the kernel was compiled, not loaded
     smoothed: np.ndarray = None    # (n,) True: the cell runs with the smooth Stokes switch
     notes: list = field(default_factory=list)   # what the batch did that a run reports
+    #: spray schedule [(t0 [s], t1 [s], rate / peak rate [-])] (``spray.factors``): each
+    #: segment runs with the rows' injection scaled by its factor; empty: the rows as given
+    schedule: list = field(default_factory=list)
 
     def __post_init__(self):
         n = self.states.shape[0]
@@ -115,10 +119,12 @@ class CellBatch:
         """A batch of the scene's method and tolerances; the first step of every cell is
         1e-3 of the output interval [s]."""
         n = states.shape[0]
+        inj = scene.binder_injection
         return cls(params=arrays.params, config=arrays.config, aux=aux, rows=rows,
                    states=states, rtol=scene.method.rtol, atol=scene.method.atol,
                    steps=np.full(n, scene.output_interval * 1e-3), scene=scene,
-                   arrays=arrays, cell_ids=cell_ids)
+                   arrays=arrays, cell_ids=cell_ids,
+                   schedule=spray.factors(inj, scene.end_time) if inj is not None else [])
 
     @property
     def n_cells(self) -> int:
@@ -178,8 +184,25 @@ class CellBatch:
         (a pair held on St = St*, where the rates switch on and off with every step) continues
         from the time it reached with the smooth switch of relative width
         ``STOKES_FALLBACK_WIDTH``, and keeps it to the end of the run (``notes`` says which
-        cell, from when)."""
+        cell, from when). With a spray schedule, [t0, t1] is cut at the schedule's switching
+        times and each piece runs with the rows' injection times its segment's factor."""
         states = self.states if states is None else states
+        if not self.schedule:
+            self._advance(states, t0, t1)
+            return
+        rows = self.rows
+        try:
+            for s0, s1, factor in self.schedule:
+                a, b = max(s0, t0), min(s1, t1)
+                if b > a:
+                    self.rows = rows.copy()
+                    self.rows[:, P.INJECTION] *= factor
+                    self._advance(states, a, b)
+        finally:
+            self.rows = rows
+
+    def _advance(self, states, t0, t1):
+        """``advance`` over [t0, t1] [s] with the batch's rows as they are."""
         smoothed = self.smoothed.copy()
         sharp = integrate.sharp_stokes_switch(self.params, self.config)
         self._integrate(states, ~smoothed, self.params, t0, t1)
@@ -286,7 +309,8 @@ class CellBatch:
         budget): the arguments of ``CellBatch.of_chunk``."""
         return {"aux": np.asarray(self.aux), "params": np.asarray(self.params),
                 "config": np.asarray(self.config), "rtol": float(self.rtol),
-                "atol": float(self.atol), "max_steps": int(self.max_steps)}
+                "atol": float(self.atol), "max_steps": int(self.max_steps),
+                "schedule": list(self.schedule)}
 
     @classmethod
     def of_chunk(cls, shared: dict, rows, states, steps) -> "CellBatch":
@@ -297,4 +321,5 @@ class CellBatch:
                    states=np.array(states, dtype=np.float64, order="C", copy=True),
                    rtol=shared["rtol"], atol=shared["atol"],
                    steps=np.array(steps, dtype=np.float64, copy=True),
-                   max_steps=shared["max_steps"], hints=False)
+                   max_steps=shared["max_steps"], hints=False,
+                   schedule=list(shared.get("schedule", ())))

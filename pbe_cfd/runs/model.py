@@ -17,8 +17,9 @@ from ..methods.entry import WORK_SIZE
 from ..methods.registry import method_of
 from ..physics import parameters as P
 from ..physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
+from ..physics.drying import gas_state
 from ..physics.efficiency import switch_on
-from ..physics.injection import droplet_mass
+from ..physics.injection import droplet_liquid, droplet_mass, droplet_moment
 from ..physics.kernels import KERNEL_BY_NAME
 from ..physics.kernels import collision_velocity as _collision_velocity
 from ..util.population import (DERIVED, columns_from_particle_rows, columns_from_particles,
@@ -85,6 +86,22 @@ def _breakage_params(scene, params, config):
     params[P.CRITICAL_DEFORMATION] = brk.critical_deformation_number or 0.0
 
 
+def _drying_params(scene, params, config):
+    """Slots of the [drying] table (physics.drying): the air's state once, the drying curve."""
+    dry = scene.drying
+    if dry is None:
+        return
+    config[P.DRYING] = 1
+    rho, mu, diffusivity, _, driving = gas_state(dry.air_temperature, dry.air_humidity,
+                                                 dry.pressure)
+    params[P.DRY_DRIVING] = diffusivity * rho * driving
+    params[P.DRY_RE] = rho / mu
+    params[P.DRY_SCHMIDT] = mu / (rho * diffusivity)
+    params[P.DRY_CRITICAL] = dry.critical_moisture
+    params[P.DRY_EQUILIBRIUM] = dry.equilibrium_moisture
+    params[P.DRY_SLIP] = dry.slip_velocity
+
+
 def pack(scene) -> Arrays:
     """Pack the scene into the params/config arrays (see ``physics.parameters``)."""
     params = np.zeros(P.N_PARAMS)
@@ -105,6 +122,7 @@ def pack(scene) -> Arrays:
     pd = 0.0
     if scene.binder_injection is not None:
         pd = droplet_mass(scene.binder_injection.droplet_diameter, scene.material.binder_density)
+        params[P.DROPLET_SOLIDS] = scene.binder_injection.solids_fraction
     params[P.DROPLET_MASS] = pd
     config[P.SEPARATE_DROPLETS] = int(scene.separate_droplets)
     params[P.DROPLET_FACTOR] = agg.droplet_factor if scene.separate_droplets else 0.0
@@ -114,6 +132,7 @@ def pack(scene) -> Arrays:
     params[P.MASS_SCALE] = p_ref
     params[P.STEP_FLOOR] = 1.0e-12 * scene.end_time
     _breakage_params(scene, params, config)
+    _drying_params(scene, params, config)
     method = method_of(scene)
     config[P.METHOD] = method.code
     config[P.ORDER] = method.order(scene.method)
@@ -173,10 +192,12 @@ def initial_moments(scene, arrays: Arrays, names) -> np.ndarray:
         if name == "droplet_number_density":
             state[idx] = nd0 / arrays.number_scale
             continue
+        if name == "evaporated_liquid":          # nothing has evaporated at the start
+            continue
         i, j = int(name[1]), int(name[2])
         value = size_moment(scene, i, j)
         if not scene.separate_droplets and nd0 > 0.0:
-            value += nd0 * pd ** (i + j)
+            value += nd0 * droplet_moment(pd, droplet_liquid(arrays.params), i, j)
         state[idx] = value / (arrays.number_scale * arrays.mass_scale ** (i + j))
     return state
 
@@ -192,7 +213,7 @@ def product_gel_time(scene) -> float | None:
     return 1.0 / (agg.rate * m20)
 
 
-def _outputs_by_row(out, rows, states, names, cols, nd, pd, n_ref, p_ref, rho):
+def _outputs_by_row(out, rows, states, names, cols, nd, pd, bd, n_ref, p_ref, rho):
     """``moment_outputs``'s moments, d32 and d43 row by row (populations of different
     sizes): see there."""
     for r, (w, p, b) in enumerate(rows):
@@ -202,10 +223,21 @@ def _outputs_by_row(out, rows, states, names, cols, nd, pd, n_ref, p_ref, rho):
             k = int(c[1]) + int(c[2])
             value = (state[names.index(c)] * n_ref * p_ref ** k if c in names
                      else estimated[c])
-            out[c][r] = value + nd[r] * pd ** k
+            out[c][r] = value + nd[r] * droplet_moment(pd, bd, int(c[1]), int(c[2]))
         ww = np.append(w, nd[r]) if nd[r] > 0 else w
         pp = np.append(p, pd) if nd[r] > 0 else p
         out["d32_m"][r], out["d43_m"][r] = mean_diameters(ww, pp, rho)
+
+
+def _liquid_columns(out, evaporated, in_droplets):
+    """The liquid inventory [kg/m3] and the moisture content [-] of a run with drying:
+    evaporated, held by free droplets, held by granules (M01 less the droplets'), and
+    liquid over dry mass M01 / (M10 - M01) (docs/physics.md section 15)."""
+    out["liquid_evaporated"] = evaporated
+    out["liquid_droplets"] = in_droplets
+    out["liquid_granules"] = out["M01"] - in_droplets
+    dry = out["M10"] - out["M01"]
+    out["moisture_content"] = np.where(dry > 0, out["M01"] / np.where(dry > 0, dry, 1.0), 0.0)
 
 
 def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
@@ -238,7 +270,8 @@ def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
         return out
     nd = states[:, -1] * n_ref if separate else np.zeros(n_rows)
     if len({len(w) for w, _, _ in rows}) > 1:       # populations of different sizes
-        _outputs_by_row(out, rows, states, names, cols, nd, pd, n_ref, p_ref, rho)
+        _outputs_by_row(out, rows, states, names, cols, nd, pd, droplet_liquid(arrays.params),
+                        n_ref, p_ref, rho)
     else:                                            # one (rows, particles) array each
         w_all, p_all, b_all = (np.array([r[k] for r in rows], dtype=float) for k in range(3))
         estimated = columns_from_particle_rows(w_all, p_all, b_all,
@@ -247,7 +280,8 @@ def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
             k = int(c[1]) + int(c[2])
             value = (states[:, names.index(c)] * n_ref * p_ref ** k if c in names
                      else estimated[c])
-            out[c][:] = value + nd * pd ** k
+            out[c][:] = value + nd * droplet_moment(pd, droplet_liquid(arrays.params),
+                                                    int(c[1]), int(c[2]))
         with_droplets = nd > 0
         for sel in (with_droplets, ~with_droplets):
             if not np.any(sel):
@@ -259,6 +293,9 @@ def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
             out["d32_m"][sel], out["d43_m"][sel] = mean_diameters_rows(ww, pp, rho)
     if separate:
         out["droplet_number_density"][:] = nd
+    if "evaporated_liquid" in names:
+        _liquid_columns(out, states[:, names.index("evaporated_liquid")] * n_ref * p_ref,
+                        nd * droplet_liquid(arrays.params))
     m10 = out["M10"]
     out["binder_fraction"][:] = (np.where(m10 > 0, out["M01"] / np.where(m10 > 0, m10, 1.0),
                                           0.0) if bivariate else 0.0)

@@ -13,6 +13,7 @@ import numpy as np
 
 from . import model
 from ..methods.registry import method_of
+from ..scene import spray
 from ..physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
 from ..physics.efficiency import EFFICIENCY_BY_NAME
 from ..physics.kernels import KERNEL_BY_NAME
@@ -62,12 +63,17 @@ def describe_plan(scene) -> str:
         where = "spray-zone cells" if inj.zone is not None else "every cell"
         lines.append(f"  binder injection: {inj.rate:g} droplets/(m3 s) of "
                      f"{inj.droplet_diameter * 1e6:g} um into {where}")
+        lines.extend(_spray_lines(scene, inj))
     brk = scene.breakage
     if brk is None:
         left_out.append("breakage (no [breakage] table)")
     else:
         lines.extend(_breakage_lines(scene, brk))
         fields.update(SELECTION_BY_NAME[brk.selection].cell_fields)
+    if scene.drying is None:
+        left_out.append("drying (no [drying] table)")
+    else:
+        lines.extend(_drying_lines(scene.drying))
     if scene.transport is None:
         if dom.type == "openfoam":
             left_out.append("transport between cells (no [transport] table)")
@@ -180,6 +186,31 @@ def averaging_window(scene, cells) -> str:
         return (f"{first} to {cells.time:g} s (fieldAverage has no timeStart: the whole run, "
                 "start-up included)")
     return f"{start} to {cells.time:g} s"
+
+
+def _drying_lines(dry) -> list[str]:
+    """The plan's lines on the [drying] table: the air, its wet bulb, the drying curve."""
+    from ..physics.drying import gas_state
+    rho, mu, diffusivity, t_wb, driving = gas_state(dry.air_temperature, dry.air_humidity,
+                                                    dry.pressure)
+    return [f"  drying: air at {dry.air_temperature:g} K, humidity {dry.air_humidity:g} kg/kg, "
+            f"{dry.pressure:g} Pa (wet bulb {t_wb:.2f} K, driving force {driving:.4g} kg/kg); "
+            f"Ranz-Marshall Sh at slip {dry.slip_velocity:g} m/s",
+            f"    constant rate above X_cr = {dry.critical_moisture:g}, falling rate to X_eq = "
+            f"{dry.equilibrium_moisture:g} (kg liquid per kg dry solids)"]
+
+
+def _spray_lines(scene, inj) -> list[str]:
+    """The plan's lines on the sprayed binder's solids and the spray schedule."""
+    out = []
+    if inj.solids_fraction > 0.0:
+        out.append(f"    binder solution: solids fraction {inj.solids_fraction:g}; the liquid "
+                   f"{1.0 - inj.solids_fraction:g} p_d wets (b), the solids join the granule")
+    if inj.schedule:
+        parts = [f"{t0:g}-{t1:g} s: {rate:g}"
+                 for t0, t1, rate in spray.segments(inj, scene.end_time)]
+        out.append(f"    spray schedule (droplets/(m3 s)): {'; '.join(parts)}")
+    return out
 
 
 def spray_lines(scene, cells, active: np.ndarray) -> list[str]:

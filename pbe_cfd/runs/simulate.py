@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import model
+from ..physics.injection import droplet_liquid
+from ..scene import spray
 from .batch import CellBatch, SimulationError, check_physics, output_times
 from ..methods.registry import method_of
 
@@ -57,6 +59,11 @@ def run_well_mixed(scene, progress=None) -> RunResult:
     columns = {"time_s": times}
     populations = []
     columns.update(model.moment_outputs(scene, arrays, states, aux, populations=populations))
+    if scene.drying is not None:
+        inj = scene.binder_injection
+        columns["liquid_sprayed"] = (np.array([spray.injected(inj, t) for t in times])
+                                     * float(droplet_liquid(arrays.params))
+                                     if inj is not None else np.zeros(len(times)))
     run_stats = batch.stats()
     extra, notes = method.diagnostics(states, aux, arrays)
     run_stats.update(extra)

@@ -12,7 +12,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from . import coupling as scene_coupling, limits
+from . import coupling as scene_coupling, limits, spray
+from .drying import Drying, drying_refusals, parse_drying
+from .spray import BinderInjection, Zone  # noqa: F401 (part of the scene API)
 from ..io.openfoam import case_keys
 from ..methods import registry
 from ..physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
@@ -37,16 +39,6 @@ class SceneError(ValueError):
 
 
 # ------------------------------------------------------------------------------ dataclasses
-@dataclass(frozen=True)
-class Zone:
-    """Spray zone of an OpenFOAM domain: cells with alpha in [alpha_low, alpha_high] [-] whose
-    centre lies in the box [box_min, box_max] [m]."""
-    alpha_low: float = 0.0
-    alpha_high: float = 1.0
-    box_min: tuple = (-math.inf, -math.inf, -math.inf)
-    box_max: tuple = (math.inf, math.inf, math.inf)
-
-
 @dataclass(frozen=True)
 class Domain:
     """Where the population lives. Well-mixed: one cell (granular_temperature [m2/s2],
@@ -124,14 +116,6 @@ class Breakage:
 
 
 @dataclass(frozen=True)
-class BinderInjection:
-    """Binder droplets: rate [droplets/(m3 s)], droplet_diameter [m], zone (OpenFOAM only)."""
-    rate: float
-    droplet_diameter: float
-    zone: Zone | None = None
-
-
-@dataclass(frozen=True)
 class Method:
     """Numerical method and its accuracy knobs (which method reads which: docs/scene-keys.md)."""
     name: str
@@ -191,6 +175,7 @@ class Scene:
     binder_injection: BinderInjection | None = None
     transport: Transport | None = None
     breakage: Breakage | None = None
+    drying: Drying | None = None
     coupling: scene_coupling.Coupling | None = None   # two-way coupling; None: one-way
     source: str = ""
     raw: dict = field(default_factory=dict, compare=False, repr=False)
@@ -213,7 +198,7 @@ class Scene:
 
 # ------------------------------------------------------------------------------ validation
 _TABLES = ("scene", "domain", "material", "initial", "aggregation", "binder_injection",
-           "method", "transport", "breakage", "coupling")
+           "method", "transport", "breakage", "coupling", "drying")
 
 
 class _Table:
@@ -348,7 +333,8 @@ def scene_from_dict(data: dict, path="<scene>") -> Scene:
 
     domain = _domain(path, data["domain"])
     aggregation = _aggregation(path, data["aggregation"]) if "aggregation" in data else None
-    injection = (_injection(path, data["binder_injection"], domain)
+    injection = (spray.parse_injection(path, data["binder_injection"], domain, _Table,
+                                       _vector3, SceneError)
                  if "binder_injection" in data else None)
     material = _material(path, data["material"], aggregation, injection)
     initial = _initial(path, data["initial"], material, domain)
@@ -365,12 +351,14 @@ def scene_from_dict(data: dict, path="<scene>") -> Scene:
                              "transport needs a domain with cells: expected domain.type = \"openfoam\"")
 
     breakage = _breakage(path, data["breakage"], domain) if "breakage" in data else None
+    drying = (parse_drying(path, data["drying"], _Table, SceneError) if "drying" in data
+              else None)
     coupling = (scene_coupling.parse_coupling(_Table(path, "coupling", data["coupling"]),
                                               domain, SceneError) if "coupling" in data else None)
     scene = Scene(name=name, end_time=end_time, output_interval=output_interval, domain=domain,
                   material=material, initial=initial, method=method, aggregation=aggregation,
                   binder_injection=injection, transport=transport, breakage=breakage,
-                  coupling=coupling, source=str(path), raw=data)
+                  drying=drying, coupling=coupling, source=str(path), raw=data)
     _cross_checks(path, scene)
     for key, refusal in limits.scene_refusals(scene, registry.METHODS[scene.method.name]):
         raise SceneError(path, key, refusal)
@@ -452,25 +440,6 @@ def _breakage(path, data, domain):
                          "(m2/s2) and solids_fraction of the well-mixed domain")
     t.finish()
     return Breakage(**kw)
-
-
-def _injection(path, data, domain):
-    t = _Table(path, "binder_injection", data)
-    rate = t.number("rate", non_negative=True, unit="droplets/(m3 s)")
-    diameter = t.number("droplet_diameter", positive=True, unit="m")
-    zone = None
-    if t.has("zone"):
-        if domain.type != "openfoam":
-            raise SceneError(path, "binder_injection.zone",
-                             "a spray zone needs cells: expected domain.type = \"openfoam\"")
-        z = _Table(path, "binder_injection.zone", t.raw("zone"))
-        zone = Zone(alpha_low=z.number("alpha_low", 0.0, non_negative=True, high=1.0),
-                    alpha_high=z.number("alpha_high", 1.0, non_negative=True, high=1.0),
-                    box_min=_vector3(path, f"{z.name}.box_min", z.raw("box_min", [-1e30] * 3)),
-                    box_max=_vector3(path, f"{z.name}.box_max", z.raw("box_max", [1e30] * 3)))
-        z.finish()
-    t.finish()
-    return BinderInjection(rate=rate, droplet_diameter=diameter, zone=zone)
 
 
 def _material(path, data, aggregation, injection):
@@ -569,7 +538,11 @@ def _cross_checks(path, scene: Scene):
             and scene.binder_injection is None):
         raise SceneError(path, "initial.number_density",
                          "expected a positive number density (or a binder injection)")
-    if not registry.METHODS[scene.method.name].integrated and scene.domain.type != "well-mixed":
+    entry = registry.METHODS[scene.method.name]
+    for key, refusal in (spray.spray_refusals(scene, entry, registry.MOMENT_METHODS)
+                         + drying_refusals(scene, registry.METHOD_REGISTRY)):
+        raise SceneError(path, key, refusal)
+    if not entry.integrated and scene.domain.type != "well-mixed":
         raise SceneError(path, "method.name",
                          f"the {scene.method.name} reference runs well-mixed scenes: expected "
                          f"{' or '.join(registry.MOMENT_METHODS)} for an openfoam domain")

@@ -374,7 +374,8 @@ def test_a_scene_compiles_only_its_method_and_scheme(tmp_path):
     cache directory)."""
     code = """
 import json, dataclasses
-from pbe_cfd import integrate, model
+from pbe_cfd import integrate
+from pbe_cfd.runs import model
 from pbe_cfd.runs.batch import CellBatch
 from pbe_cfd.scene.scene import load_scene
 from pbe_cfd.methods.registry import method_of

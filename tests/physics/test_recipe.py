@@ -64,7 +64,7 @@ DAUGHTER_ENTRY = ('    Daughters("parabolic", 2, parabolic_daughter_moments, '
 PUBLIC_PATH = textwrap.dedent('''
     import math
     from conftest import make_scene
-    from pbe_cfd import model
+    from pbe_cfd.runs import model
     from pbe_cfd.physics import parameters as P
     from pbe_cfd.physics.rates import aggregation_rate
     scene = make_scene(aggregation={"kernel": "shear", "rate": 1e-3,

@@ -283,7 +283,8 @@ def test_the_mixture_repair_compiles_the_scenes_method_alone():
     from numba.core import types
 
     from pbe_cfd.methods.cqmom.cqmom import cqmom_project, cqmom_realizable
-    from pbe_cfd.methods.dispatch import QMOM, method_project, method_realizable
+    from pbe_cfd.methods.dispatch import method_project, method_realizable
+    from pbe_cfd.methods.qmom import ENTRY as QMOM_ENTRY
     from pbe_cfd.methods.laguerre.rhs import laguerre_project, laguerre_realizable
     from pbe_cfd.transport import operator as tmod
     others = (laguerre_realizable, laguerre_project, cqmom_realizable, cqmom_project,
@@ -295,7 +296,7 @@ def test_the_mixture_repair_compiles_the_scenes_method_alone():
     tr.compile(len(arrays.state_names))
     assert [len(f.overloads) for f in others] == before
     assert tmod._repair_cells.signatures
-    assert all(sig[0] == types.literal(QMOM) for sig in tmod._repair_cells.signatures)
+    assert all(sig[0] == types.literal(QMOM_ENTRY.code) for sig in tmod._repair_cells.signatures)
 
 
 # ---------------------------------------------------------------------------- splitting

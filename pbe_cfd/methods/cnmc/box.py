@@ -7,6 +7,7 @@ import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
+from ...physics.injection import droplet_liquid
 from ...physics.breakage import cell_selection_factor
 from ...physics.kernels import collision_frequency
 from ...physics.rates import aggregation_rate, droplet_capture_rate
@@ -228,7 +229,7 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
     sep = config[P.SEPARATE_DROPLETS] == 1
     rho = params[P.DENSITY]
     pd = params[P.DROPLET_MASS]
-    bd = pd if config[P.BIVARIATE] == 1 else 0.0
+    bd = droplet_liquid(params) if config[P.BIVARIATE] == 1 else 0.0
     alpha, theta, u0, inj = cell[P.ALPHA], cell[P.THETA], cell[P.COLLISION_VELOCITY], cell[P.INJECTION]
     brk_factor = cell_selection_factor(cell, params, config)
     cls = _new_classes(n)

@@ -22,8 +22,8 @@ contains the masses of its members. Events, with their proposal rates [1/s]:
 * droplet-granule pairs (only if config[SEPARATE_DROPLETS] == 1): rate = droplet_capture_rate
   of the granule <= B_d[a], proposed at n_a N_d B_d[a] / V; droplet-droplet pairs never
   aggregate;
-* injection of one binder droplet (p_d = params[DROPLET_MASS], b = p_d, or b = 0 in a
-  univariate scene) at  R_inj = cell[INJECTION] * V;
+* injection of one binder droplet (p_d = params[DROPLET_MASS], b = params[DROPLET_LIQUID],
+  or b = 0 in a univariate scene) at  R_inj = cell[INJECTION] * V;
 * breakage of a granule (only with a [breakage] table): proposed per mass class at n_a B_a,
   B_a the largest selection rate S [1/s] on the class interval, accepted with S(p_i) / B_a;
   an accepted break keeps the particle count by the constant-number rule of
@@ -125,6 +125,7 @@ import math
 import numpy as np
 
 from ...physics import parameters as P
+from ...physics.injection import droplet_liquid
 from .box import (MAX_TRIALS, MOMENT_NAMES, N_QUANTITIES, PSD_BINS, QUANTITY_NAMES,
                   STATUS_MAX_TRIALS, STATUS_NONFINITE, STATUS_OK, STATUS_STALLED,
                   interval_pair_bound, pair_rate_bounds, run_box, run_box_with_sizes)
@@ -174,7 +175,7 @@ def initial_box(params, config, initial, particles, rng):
     p[n_gran:] = pd
     if biv:
         b[:n_gran] = y0 * pg
-        b[n_gran:] = pd
+        b[n_gran:] = float(droplet_liquid(params))
     if sep:
         isdrop[n_gran:] = 1
     return p, b, isdrop, particles / (n0 + nd0)

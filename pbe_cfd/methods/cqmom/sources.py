@@ -12,6 +12,7 @@ value times the points' mean selection (``_breakage``). All quantities are scale
 import numba as nb
 
 from ...physics import parameters as P
+from ...physics.injection import droplet_liquid
 from ...physics.breakage import daughter_moment_factor
 from ...physics.efficiency import efficiency_property_groups, pair_success_probability
 from ...physics.kernels import (kernel_cell_factor, kernel_property_groups, kernel_uses_d43,
@@ -170,9 +171,9 @@ def _mixed_gains(out, work, n_max, lmax, a, c, xpow, acc):
 
 @nb.njit(cache=True, error_model="numpy")
 def _droplet_capture(out, state, work, n_max, m, n, factor, u0, params, config, bivariate):
-    """Capture of free droplets (mass x_d, pure binder) by the granule points: a granule
-    (x, b) becomes (x + x_d, b + x_d), so M_kl gains
-      (x + x_d)^k (b + x_d)^l - x^k b^l = H_k (b + x_d)^l + x^k ((b + x_d)^l - b^l),
+    """Capture of free droplets (mass x_d, liquid binder x_l) by the granule points: a granule
+    (x, b) becomes (x + x_d, b + x_l), so M_kl gains
+      (x + x_d)^k (b + x_l)^l - x^k b^l = H_k (b + x_l)^l + x^k ((b + x_l)^l - b^l),
     H_k = (x + x_d)^k - x^k, all terms non-negative; the droplets lose what is captured."""
     n_state = config[P.N_STATE]
     nd = state[n_state - 1]
@@ -186,8 +187,9 @@ def _droplet_capture(out, state, work, n_max, m, n, factor, u0, params, config, 
     n_size = 2 * n_max
     pd = params[P.DROPLET_MASS]
     xd = pd / params[P.MASS_SCALE]
+    xl = droplet_liquid(params) / params[P.MASS_SCALE]     # the droplet's liquid binder
     drop = n_max * m
-    particle_properties(pd, pd, params, config, props, drop)
+    particle_properties(pd, droplet_liquid(params), params, config, props, drop)
     droplet_factor = params[P.NUMBER_SCALE] * params[P.DROPLET_FACTOR]
     code = config[P.KERNEL]
     captured = 0.0
@@ -206,12 +208,12 @@ def _droplet_capture(out, state, work, n_max, m, n, factor, u0, params, config, 
             flux_a += flux
             if bivariate:
                 bi = work[op + npt + i]
-                sb = bi + xd
+                sb = bi + xl
                 h = 0.0
                 total = 1.0
                 bl = 1.0
                 for l in range(1, lmax):
-                    h = sb * h + xd * bl          # (b + x_d)^l - b^l
+                    h = sb * h + xl * bl          # (b + x_l)^l - b^l
                     bl *= bi
                     total *= sb                   # (b + x_d)^l
                     work[acc + 8 * m + l] += flux * total
@@ -340,20 +342,21 @@ def cqmom_rhs(state, out, cell, aux, params, config, work):
         _breakage(out, state, work, n_max, m, n, cell, params, config, bivariate)
     inj = cell[P.INJECTION] / params[P.NUMBER_SCALE]
     xd = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
+    xl = droplet_liquid(params) / params[P.MASS_SCALE]
     if separate:
         if state[n_state - 1] > 0.0 and factor != 0.0 and n > 0:
             _droplet_capture(out, state, work, n_max, m, n, factor, u0, params, config,
                              bivariate)
         out[n_state - 1] += inj
     elif inj != 0.0:
-        # droplets as ordinary particles: S_kl = rate x_d^(k + l)
+        # droplets as ordinary particles: S_kl = rate x_d^k x_l^l
         value = inj
         for k in range(2 * n_max):
             out[k] += value
             value *= xd
         if bivariate:
             for l in range(1, 2 * m):
-                value = inj * xd ** l
+                value = inj * xl ** l
                 for k in range(n_max):
                     out[mixed_index(n_max, k, l)] += value
                     value *= xd

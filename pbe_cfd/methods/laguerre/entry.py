@@ -66,4 +66,5 @@ ENTRY = MethodEntry(
     distribution="laguerre_density",
     distribution_text="the Laguerre ROM's own density (wet and dry classes) integrated per "
                       "size class",
-    moments_text="integral of the Laguerre density over its support")
+    moments_text="integral of the Laguerre density over its support",
+    solute_droplets=False)

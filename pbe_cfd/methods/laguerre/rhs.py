@@ -333,10 +333,10 @@ def laguerre_rhs(state, out, cell, aux, params, config, work=None):
         out[K + m] += inj / nref
     elif inj != 0.0:
         x = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
-        src = inj / nref
+        xl = params[P.DROPLET_MASS] * (1.0 - params[P.DROPLET_SOLIDS]) / params[P.MASS_SCALE]
         for i in range(m):
             for j in range(m):
-                out[i * m + j] += src * x ** (i + j)
+                out[i * m + j] += inj / nref * (x ** (i + j) if xl == x else x ** i * xl ** j)
 
 
 @nb.njit(cache=True)

@@ -15,7 +15,8 @@ def _keys(t, defaults):
 
 
 def _state_names(scene):
-    return qmom_state_names(scene.method.nodes, scene.bivariate, scene.separate_droplets)
+    return qmom_state_names(scene.method.nodes, scene.bivariate, scene.separate_droplets,
+                            getattr(scene, "drying", None) is not None)
 
 
 def _population(state, aux, arrays):
@@ -41,4 +42,5 @@ ENTRY = MethodEntry(
     distribution_text="gamma density in granule mass fitted to the carried M00, M10, M20 "
                       "(one-kernel gamma EQMOM); binder fraction per size class interpolated "
                       "in ln p between the nodes' binder values",
-    moments_text="from the quadrature nodes (one binder value per size node)")
+    moments_text="from the quadrature nodes (one binder value per size node)",
+    dries=True)

@@ -18,10 +18,12 @@ import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
+from ...physics.injection import droplet_liquid
 from ...physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ...physics.properties import DIAMETER, N_PROPS
 from ...physics.rates import pair_rate, particle_properties
 from ..quadrature.breakage_sources import add_qmom_breakage
+from ..quadrature.drying_sources import add_qmom_drying
 from ..quadrature.binder import solve_node_binder
 from ..quadrature.gauss import wheeler_nodes
 
@@ -39,16 +41,20 @@ BINDER_TOLERANCE = 1.0e-6
 
 
 
-def state_length(nodes, bivariate, separate_droplets):
+def state_length(nodes, bivariate, separate_droplets, drying=False):
     """Number of entries of one cell's QMOM state."""
-    return 2 * nodes + (nodes if bivariate else 0) + (1 if separate_droplets else 0)
+    return (2 * nodes + (nodes if bivariate else 0) + (1 if drying else 0)
+            + (1 if separate_droplets else 0))
 
 
-def state_names(nodes, bivariate, separate_droplets):
-    """Names of the state entries: moment names 'M{i}{j}', then 'droplet_number_density'."""
+def state_names(nodes, bivariate, separate_droplets, drying=False):
+    """Names of the state entries: moment names 'M{i}{j}', 'evaporated_liquid' (with drying:
+    the liquid evaporated so far, scaled as a mass moment), then 'droplet_number_density'."""
     names = [f"M{k}0" for k in range(2 * nodes)]
     if bivariate:
         names += [f"M{k}1" for k in range(nodes)]
+    if drying:
+        names.append("evaporated_liquid")
     if separate_droplets:
         names.append("droplet_number_density")
     return names
@@ -57,7 +63,7 @@ def state_names(nodes, bivariate, separate_droplets):
 @nb.njit(cache=True)
 def work_size(n_max):
     """Length of the float work array the QMOM functions need for n_max nodes."""
-    return _off_cache(n_max) + _CACHE_HEADER + 3 * n_max + 1
+    return _off_cache(n_max) + _CACHE_HEADER + 3 * n_max + 2
 
 
 # ---- work layout (flat offsets; no reshape in the per-call path) -----------------------------
@@ -184,10 +190,11 @@ def _droplet_sources(state, out, cell, params, config, nodes, weights, binder, p
     inj = cell[P.INJECTION] / number_scale
     pd = params[P.DROPLET_MASS]
     xd = pd / mass_scale
+    xl = droplet_liquid(params) / mass_scale      # the droplet's liquid (xl = xd: pure)
     if config[P.SEPARATE_DROPLETS] == 1:
         nd = state[n_state - 1]
         if nd > 0.0 and factor != 0.0 and n > 0:
-            particle_properties(pd, pd, params, config, props, n_max)
+            particle_properties(pd, droplet_liquid(params), params, config, props, n_max)
             captured = 0.0
             droplet_factor = number_scale * params[P.DROPLET_FACTOR]
             for a in range(n):
@@ -209,8 +216,8 @@ def _droplet_sources(state, out, cell, params, config, nodes, weights, binder, p
                     pa = 1.0
                     total = 1.0     # (x + xd)^k, built up from k = 0
                     for k in range(n_max):
-                        # (x+xd)^k (b + xd) - x^k b = b H_k + xd (x + xd)^k
-                        out[n_size + k] += flux * (ba * h + xd * total)
+                        # (x+xd)^k (b + xl) - x^k b = b H_k + xl (x + xd)^k
+                        out[n_size + k] += flux * (ba * h + xl * total)
                         h = s * h + xd * pa
                         pa *= xa
                         total *= s
@@ -221,7 +228,7 @@ def _droplet_sources(state, out, cell, params, config, nodes, weights, binder, p
         for k in range(n_size):
             out[k] += value
             if bivariate and k < n_max:
-                out[n_size + k] += value * xd
+                out[n_size + k] += value * xl
             value *= xd
 
 
@@ -305,6 +312,8 @@ def qmom_rhs(state, out, cell, aux, params, config, work):
                         out[n_size + k] += pair * (ba * ha + bc * hc)
     if config[P.BREAKAGE] == 1:
         add_qmom_breakage(out, nodes, weights, binder, n, cell, params, config)
+    if config[P.DRYING] == 1:
+        add_qmom_drying(out, nodes, weights, binder, n, params, config)
     _droplet_sources(state, out, cell, params, config, nodes, weights, binder, props, n, factor,
                      u0)
 
@@ -314,12 +323,13 @@ def qmom_conserved(config, params, pivots, coefs):
     """Linear invariants of the QMOM state for the time integrator: rows c of ``coefs``
     (n_inv, N_STATE) with c . d(state)/dt independent of the state (the injection only):
     granule mass M10 plus the free droplets' mass x_d n_d, and (bivariate) binder mass M01 plus
-    x_d n_d, x_d = p_d / p_ref. ``pivots[r]`` is the entry with coefficient 1 (M10, M01).
-    Returns the number of invariants."""
+    their liquid x_l n_d, x_d = p_d / p_ref, x_l = b_d / p_ref. ``pivots[r]`` is the entry with
+    coefficient 1 (M10, M01). Returns the number of invariants."""
     n_max = config[P.ORDER]
     n_state = config[P.N_STATE]
     separate = config[P.SEPARATE_DROPLETS] == 1
     xd = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
+    xl = droplet_liquid(params) / params[P.MASS_SCALE]
     count = 2 if config[P.BIVARIATE] == 1 else 1
     for r in range(count):
         for k in range(n_state):
@@ -327,7 +337,9 @@ def qmom_conserved(config, params, pivots, coefs):
         pivots[r] = 1 if r == 0 else 2 * n_max
         coefs[r, pivots[r]] = 1.0
         if separate:
-            coefs[r, n_state - 1] = xd
+            coefs[r, n_state - 1] = xd if r == 0 else xl
+        if config[P.DRYING] == 1:        # what evaporates leaves M10 and M01 for this entry
+            coefs[r, n_state - 1 - config[P.SEPARATE_DROPLETS]] = 1.0
     return count
 
 
@@ -347,8 +359,9 @@ def _project_into(state, target, config, nodes, weights, binder, n):
             if k < n_max and config[P.BIVARIATE] == 1:
                 target[2 * n_max + k] += power * binder[a]
             power *= nodes[a]
-    if config[P.SEPARATE_DROPLETS] == 1:
-        target[config[P.N_STATE] - 1] = state[config[P.N_STATE] - 1]
+    for k in range(2 * n_max + (n_max if config[P.BIVARIATE] == 1 else 0),
+                   config[P.N_STATE]):
+        target[k] = state[k]         # the evaporated liquid and the droplets, as carried
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -369,8 +382,10 @@ def qmom_realizable(state, aux, params, config, work):
             return False
     if config[P.SEPARATE_DROPLETS] == 1 and state[n_state - 1] < 0.0:
         return False
+    if config[P.DRYING] == 1 and state[n_state - 1 - config[P.SEPARATE_DROPLETS]] < 0.0:
+        return False
     if state[0] == 0.0:
-        for k in range(n_state - config[P.SEPARATE_DROPLETS]):
+        for k in range(n_state - config[P.SEPARATE_DROPLETS] - config[P.DRYING]):
             if state[k] != 0.0:
                 return False
         return True

@@ -1,0 +1,150 @@
+"""Drying: evaporation of the liquid binder b from granules (docs/physics.md section 15).
+
+A particle (p, b) [kg] loses liquid at the rate e(p, b) [kg/s], so both its mass and its
+liquid drift, dp/dt = db/dt = -e; its dry mass p - b (primary solids and dissolved binder
+solids) never changes. Two periods (the characteristic drying curve, van Meel 1958):
+
+* constant rate (moisture X = b / (p - b) at or above the critical X_cr): the wet surface
+  evaporates as a free liquid surface at the wet-bulb temperature, limited by the gas side,
+      e_c = pi d^2 k_c rho_g (Y_s(T_wb) - Y),   k_c = Sh D_v / d,
+      Sh = 2 + 0.6 Re^(1/2) Sc^(1/3)  (Ranz and Marshall 1952),  Re = rho_g u_slip d / mu_g,
+  d the particle's exchange diameter (below);
+* falling rate (X < X_cr): e = e_c (X - X_eq) / (X_cr - X_eq), first order in the liquid, zero
+  at the equilibrium moisture X_eq (0 by default), so a granule's liquid decays exponentially
+  and never crosses zero (dry granules stay dry).
+
+Exchange diameter: the larger of the solid skeleton's, (6 (p - b) / (pi rho_s))^(1/3), and the
+liquid sphere's, (6 b / (pi rho_l))^(1/3): a granule's liquid fills its pores and films its
+surface (its size is the skeleton's, constant while it dries), a droplet of solution is a
+liquid sphere shrinking by the d^2 law until its solids remain.
+
+The gas state (rho_g, mu_g, D_v, the driving force Y_s(T_wb) - Y) depends on the scene only
+and is packed once (``gas_state``, plain Python); ``drying_rate`` is the per-particle rate the
+methods call (numba).
+"""
+import math
+
+import numba as nb
+
+from . import parameters as P
+
+#: gas constant [J/(mol K)] and molar masses of dry air and water [kg/mol] (CODATA; IUPAC)
+GAS_CONSTANT = 8.314462618
+MOLAR_MASS_AIR = 0.0289647
+MOLAR_MASS_WATER = 0.01801528
+#: ratio of the molar masses, 0.622 in psychrometry
+EPSILON = MOLAR_MASS_WATER / MOLAR_MASS_AIR
+ATMOSPHERE = 101325.0
+
+
+def saturation_pressure(temperature):
+    """Saturation pressure of water [Pa] at temperature [K]: Magnus form of Alduchov and
+    Eskridge (1996), e_s = 610.94 exp(17.625 t / (t + 243.04)), t in deg C (0.4% over -40..50
+    deg C)."""
+    t = temperature - 273.15
+    return 610.94 * math.exp(17.625 * t / (t + 243.04))
+
+
+def saturation_humidity(temperature, pressure):
+    """Humidity of saturated air [kg water / kg dry air] at temperature [K], pressure [Pa]."""
+    ps = saturation_pressure(temperature)
+    return EPSILON * ps / (pressure - ps)
+
+
+def latent_heat(temperature):
+    """Latent heat of evaporation of water [J/kg] at temperature [K]: 2.5008e6 - 2360 t, t in
+    deg C (Rogers and Yau 1989, the first two terms of their cubic fit; 0.2% over 0..50 deg C)."""
+    return 2.5008e6 - 2360.0 * (temperature - 273.15)
+
+
+def humid_heat(humidity):
+    """Humid heat of moist air [J/(kg dry air K)]: 1005 + 1884 Y (Perry's, psychrometry)."""
+    return 1005.0 + 1884.0 * humidity
+
+
+def wet_bulb_temperature(temperature, humidity, pressure):
+    """Wet-bulb temperature [K] of air at temperature [K], humidity [kg/kg dry air] and pressure
+    [Pa]: the root of the psychrometric balance with the Lewis relation (h = k_y c_s, air-water),
+    lambda(T_wb) (Y_s(T_wb) - Y) = c_s(Y) (T - T_wb), by bisection between the dew point side
+    (200 K) and T."""
+    if humidity >= saturation_humidity(temperature, pressure):
+        return float(temperature)
+    lo, hi = 200.0, float(temperature)
+    cs = humid_heat(humidity)
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        gap = (latent_heat(mid) * (saturation_humidity(mid, pressure) - humidity)
+               - cs * (temperature - mid))
+        if gap > 0.0:
+            hi = mid
+        else:
+            lo = mid
+        if hi - lo < 1e-10:
+            break
+    return 0.5 * (lo + hi)
+
+
+def air_density(temperature, pressure):
+    """Density of dry air [kg/m3] at temperature [K] and pressure [Pa] (ideal gas)."""
+    return pressure * MOLAR_MASS_AIR / (GAS_CONSTANT * temperature)
+
+
+def air_viscosity(temperature):
+    """Dynamic viscosity of air [Pa s]: Sutherland's law, mu0 = 1.716e-5 Pa s at 273.15 K,
+    S = 110.4 K (White, Viscous Fluid Flow, 3rd ed., table 1-2)."""
+    return 1.716e-5 * (temperature / 273.15) ** 1.5 * (273.15 + 110.4) / (temperature + 110.4)
+
+
+def vapour_diffusivity(temperature, pressure):
+    """Diffusivity of water vapour in air [m2/s]: Marrero and Mason (1972),
+    D = 1.87e-10 T^2.072 / (p / 1 atm) for 280 K < T < 450 K."""
+    return 1.87e-10 * temperature ** 2.072 / (pressure / ATMOSPHERE)
+
+
+def gas_state(temperature, humidity, pressure):
+    """(rho_g [kg/m3], mu_g [Pa s], D_v [m2/s], T_wb [K], driving force Y_s(T_wb) - Y [kg/kg])
+    of the fluidising air at temperature [K], humidity [kg water / kg dry air], pressure [Pa].
+    Properties are taken at the air temperature (the film at T_wb differs by a few %)."""
+    t_wb = wet_bulb_temperature(temperature, humidity, pressure)
+    return (air_density(temperature, pressure), air_viscosity(temperature),
+            vapour_diffusivity(temperature, pressure), t_wb,
+            max(saturation_humidity(t_wb, pressure) - humidity, 0.0))
+
+
+@nb.njit(cache=True, inline="always")
+def sherwood(reynolds, schmidt):
+    """Ranz-Marshall Sherwood number 2 + 0.6 Re^(1/2) Sc^(1/3) [-] (Ranz and Marshall 1952)."""
+    return 2.0 + 0.6 * math.sqrt(reynolds) * schmidt ** (1.0 / 3.0)
+
+
+@nb.njit(cache=True)
+def exchange_diameter(p, b, params):
+    """Exchange diameter [m] of a particle of mass p [kg] holding liquid b [kg]: the larger of
+    its solid skeleton's and its liquid sphere's (module docstring)."""
+    dry = max(p - b, 0.0)
+    skeleton = (6.0 * dry / (math.pi * params[P.DENSITY])) ** (1.0 / 3.0)
+    liquid = (6.0 * max(b, 0.0) / (math.pi * params[P.BINDER_DENSITY])) ** (1.0 / 3.0)
+    return max(skeleton, liquid)
+
+
+@nb.njit(cache=True)
+def drying_rate(p, b, slip, params):
+    """Evaporation rate e [kg/s] of the liquid b [kg] of a particle of mass p [kg] at gas-particle
+    slip velocity [m/s]: the constant rate e_c = pi d Sh D_v rho_g (Y_s(T_wb) - Y) times the
+    falling-rate factor min(1, (X - X_eq) / (X_cr - X_eq)), X = b / (p - b); 0 for b <= 0 or
+    X <= X_eq. Gas slots of params: DRY_DRIVING = D_v rho_g (Y_s - Y) [kg/(m s)], DRY_RE =
+    rho_g / mu_g [s/m2], DRY_SCHMIDT = Sc [-], DRY_CRITICAL X_cr, DRY_EQUILIBRIUM X_eq [-]."""
+    if b <= 0.0:
+        return 0.0
+    d = exchange_diameter(p, b, params)
+    rate = math.pi * d * sherwood(params[P.DRY_RE] * slip * d, params[P.DRY_SCHMIDT]) * \
+        params[P.DRY_DRIVING]
+    dry = p - b
+    x_cr = params[P.DRY_CRITICAL]
+    x_eq = params[P.DRY_EQUILIBRIUM]
+    if dry > 0.0 and b < x_cr * dry:
+        factor = (b / dry - x_eq) / (x_cr - x_eq)
+        if factor <= 0.0:
+            return 0.0
+        rate *= factor
+    return rate
