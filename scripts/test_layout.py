@@ -41,6 +41,7 @@ RULES = (
     # methods: one folder per method, shared method checks beside them
     ("test_qmom", "methods/qmom"),
     ("test_cqmom", "methods/cqmom"),
+    ("test_eqmom", "methods/eqmom"),
     ("test_laguerre", "methods/laguerre"),
     ("test_cnmc", "methods/cnmc"),
     ("test_toy_method", "methods"),

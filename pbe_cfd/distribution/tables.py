@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from . import kernel_mixture
 from . import reconstruct as R
 from ..methods.registry import method_of
 from .quantiles import FRACTIONS, DistributionError, check_grid_covers, log_grid
@@ -30,6 +31,9 @@ def reconstruction_of(scene, arrays, states, aux, populations, labels=str):
     kind = method_of(scene).distribution
     if kind == "laguerre_density":
         return R.laguerre_table(states, aux, arrays, scene.bivariate, labels)
+    if kind == "kernel_mixture":
+        return kernel_mixture.of_states(states, aux, arrays, scene.material.density,
+                                        scene.bivariate, labels)
     if kind == "gamma":
         return R.gamma_of_populations(populations, scene.material.density, scene.bivariate,
                                       labels)

@@ -60,7 +60,8 @@ class MethodEntry(NamedTuple):
                     (QMOM "3" -> 3, CQMOM "2x2" -> (2, 2)); None: not in that study
     bench_scene     f(scene, order) -> the scene with that order (the throughput study)
     distribution    how ``distribution.tables`` reconstructs the size distribution: "gamma"
-                    (from the populations), "laguerre_density" (its own), None (none)
+                    (from the populations), "laguerre_density" (its own), "kernel_mixture"
+                    (EQMOM's gamma kernels, ``distribution.kernel_mixture``), None (none)
     distribution_text   that reconstruction in words (columns.json, docs/physics.md 11.1)
     moments_text    how the moments it does not carry are reconstructed (columns.json)
     dries           True if it carries the drying drift of a [drying] table (docs/physics.md

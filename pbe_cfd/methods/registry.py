@@ -30,12 +30,12 @@ scaled moments in the state.
 """
 from __future__ import annotations
 
-from . import cnmc, cqmom, laguerre, qmom
+from . import cnmc, cqmom, eqmom, laguerre, qmom
 from .entry import NOT_INTEGRATED, MethodEntry  # noqa: F401
 from .laguerre import laguerre_state_names  # noqa: F401
 
 #: the registered methods, in the order the scene lists them
-METHOD_REGISTRY = [qmom.ENTRY, laguerre.ENTRY, cnmc.ENTRY, cqmom.ENTRY]
+METHOD_REGISTRY = [qmom.ENTRY, laguerre.ENTRY, cnmc.ENTRY, cqmom.ENTRY, eqmom.ENTRY]
 
 #: name -> entry
 METHODS = {}

@@ -1,0 +1,107 @@
+"""EQMOM's own continuous size distribution: per row a mixture of gamma kernels in granule
+mass p (``methods.eqmom``; docs/physics.md, section "EQMOM").
+
+Row r holds kernels a of centre x_a [kg], number weight w_a [1/m3], binder fraction y_a [-] and
+one width sigma [kg]; kernel a's number density is gamma of shape l_a = x_a / sigma and scale
+sigma, its mass density p n_a(p) gamma of shape l_a + 1 (times w_a x_a), so
+
+    Q3(d) = sum_a w_a x_a P(l_a + 1, p(d) / sigma) / sum_a w_a x_a,
+
+P the regularised lower incomplete gamma function. sigma = 0 (a discrete fit) makes every
+kernel a step at its centre. The binder fraction of a size class is the kernels' y_a weighted by
+their mass in the class (exact for the per-kernel binder model). Percentiles by bisection.
+A row whose inversion fell back is named in ``notes`` with the fallback.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .quantiles import bisect_quantiles, check_fractions
+from .reconstruct import _rows_text, diameter_of_mass, mass_of_diameter
+
+
+class KernelMixture:
+    """Rows of gamma-kernel mixtures: ``kernels`` a list per row of (sigma [kg], x [kg],
+    w [1/m3], y [-], status); ``rho`` the granule density [kg/m3]; ``status_text`` the
+    inversion branches' names; ``reported`` the branch codes worth a note, ``failed`` the
+    code of a row without kernels."""
+
+    def __init__(self, kernels, rho, bivariate, status_text, reported=(), failed=None,
+                 labels=str):
+        self.rho = float(rho)
+        self.rows = len(kernels)
+        n = max((len(k[1]) for k in kernels), default=0)
+        self.sigma = np.array([float(k[0]) for k in kernels])
+        self.x = np.zeros((self.rows, n))
+        self.w = np.zeros((self.rows, n))
+        self.y = np.zeros((self.rows, n))
+        for r, (_, x, w, y, _) in enumerate(kernels):
+            self.x[r, :len(x)], self.w[r, :len(x)], self.y[r, :len(x)] = x, w, y
+        self.bivariate = bivariate
+        self.kernel_mass = np.where(self.w > 0, self.w * self.x, 0.0)
+        self.mass = self.kernel_mass.sum(axis=1)
+        self.empty = ~(self.mass > 0)
+        self.notes = []
+        status = np.array([int(k[4]) for k in kernels])
+        for code in reported:
+            rows = np.flatnonzero(status == code)
+            if rows.size:
+                self.notes.append(f"size distribution: EQMOM inversion {status_text[code]} at "
+                                  f"{_rows_text(rows, labels)}"
+                                  + ("; no granules drawn, d10/d50/d90 = 0 there"
+                                     if code == failed else ""))
+
+    def _kernel_cdf(self, p):
+        """Per row and kernel the mass fraction of the kernel below p [kg] (rows, n, k)."""
+        from scipy.special import gammainc
+        p = np.asarray(p, dtype=float)
+        smooth = (self.sigma > 0)[:, None, None]
+        sig = np.where(self.sigma > 0, self.sigma, 1.0)[:, None, None]
+        shape = np.where(self.x > 0, self.x, 1.0)[:, :, None] / sig + 1.0
+        with np.errstate(invalid="ignore", over="ignore"):
+            g = gammainc(shape, p[:, None, :] / sig)
+        step = (p[:, None, :] >= self.x[:, :, None]) * 1.0
+        return np.where(smooth, g, step)
+
+    def cdf(self, d):
+        """Q3 [-] at diameters d [m] ((k,) or (rows, k)) per row (0 in an empty row)."""
+        d = np.broadcast_to(np.asarray(d, dtype=float), (self.rows,) + np.shape(d)[-1:])
+        p = mass_of_diameter(d, self.rho)
+        part = self._kernel_cdf(p)
+        num = np.einsum("rn,rnk->rk", self.kernel_mass, part)
+        tot = np.where(self.empty, 1.0, self.mass)[:, None]
+        return np.where(self.empty[:, None], 0.0, num / tot)
+
+    def quantiles(self, fractions):
+        """Diameters [m] at the mass fractions per row (0 in an empty row)."""
+        f = check_fractions(fractions)
+        xs = np.where(self.w > 0, self.x, np.nan)
+        lo = diameter_of_mass(np.nanmin(np.where(self.empty[:, None], 1.0, xs), axis=1)
+                              * 1e-6, self.rho)
+        hi = diameter_of_mass(np.nanmax(np.where(self.empty[:, None], 1.0, xs), axis=1)
+                              * 1e3 + 60.0 * self.sigma, self.rho)
+        q = bisect_quantiles(self.cdf, f, self.rows, lo=lo[:, None], hi=hi[:, None])
+        return np.where(self.empty[:, None], 0.0, q)
+
+    def class_binder(self, d_lo, d_hi):
+        """Binder mass over granule mass [-] in each class [d_lo, d_hi] (rows, k)."""
+        if not self.bivariate:
+            return None
+        rows = (self.rows,) + np.shape(d_lo)[-1:]
+        p_lo = mass_of_diameter(np.broadcast_to(np.asarray(d_lo, float), rows), self.rho)
+        p_hi = mass_of_diameter(np.broadcast_to(np.asarray(d_hi, float), rows), self.rho)
+        dm = self.kernel_mass[:, :, None] * (self._kernel_cdf(p_hi) - self._kernel_cdf(p_lo))
+        tot = dm.sum(axis=1)
+        yb = np.einsum("rn,rnk->rk", self.y, dm)
+        return np.where(tot > 0, yb / np.where(tot > 0, tot, 1.0), 0.0)
+
+
+def of_states(states, aux, arrays, rho, bivariate, labels=str) -> KernelMixture:
+    """The KernelMixture of EQMOM's scaled states (rows: times or cells); rows whose
+    inversion took the closest-sigma fallback or failed are named (a failed row has no
+    kernels: no granules to draw, d10/d50/d90 = 0 there)."""
+    from ..methods.eqmom import entry, inversion
+    kernels = [entry.kernels_si(s, aux, arrays) for s in np.atleast_2d(states)]
+    return KernelMixture(kernels, rho, bivariate, inversion.STATUS_TEXT,
+                         reported=(inversion.CLOSEST, inversion.FAILED),
+                         failed=inversion.FAILED, labels=labels)

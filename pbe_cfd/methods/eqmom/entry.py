@@ -1,0 +1,100 @@
+"""The gamma-EQMOM's registry entry (``ENTRY``; ``methods.registry`` lists it): scene keys,
+state names, aux, population, plan line, failure hint, diagnostics and its numba functions.
+
+Units as in ``methods.entry``: SI outside, scaled moments in the state.
+"""
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+
+from ...physics import parameters as P
+from ..entry import MethodEntry
+import pbe_cfd.methods.eqmom.inversion as I
+import pbe_cfd.methods.eqmom.state as S
+from .sources import eqmom_conserved, eqmom_project, eqmom_realizable, eqmom_rhs
+
+#: config[P.METHOD] of the EQMOM
+CODE = 3
+
+
+def scene_keys(t, defaults):
+    """The ``[method]`` keys of EQMOM: ``nodes`` (kernels N, 1..5)."""
+    return {"nodes": t.number("nodes", 2, integer=True, low=1, high=I.MAX_KERNELS)}
+
+
+def state_names(scene):
+    """State entry names of the scene's EQMOM."""
+    return S.state_names(scene.method.nodes, scene.bivariate, scene.separate_droplets)
+
+
+def aux(scene, arrays, theta_grid=None):
+    """[secondary Gauss nodes per kernel] (``state.secondary_nodes``)."""
+    return np.array([float(S.secondary_nodes(scene.method.nodes))])
+
+
+def population(state, aux_, arrays):
+    """(w [1/m3], p [kg], b [kg]) of the kernels' secondary particles."""
+    x, w, b = S.particles_of(state, arrays.config, aux_)
+    return w * arrays.number_scale, x * arrays.mass_scale, np.clip(b, 0.0, x) * arrays.mass_scale
+
+
+def kernels_si(state, aux_, arrays):
+    """(sigma [kg], centres [kg], number weights [1/m3], binder fractions [-], status) of one
+    scaled state."""
+    sigma, x, w, y, status = S.kernels_of(state, arrays.config, aux_)
+    return (sigma * arrays.mass_scale, x * arrays.mass_scale, w * arrays.number_scale, y,
+            status)
+
+
+def plan_line(scene):
+    """The method's line of ``pbe-cfd plan``."""
+    m = scene.method
+    return (f"gamma EQMOM with {m.nodes} kernels ({S.secondary_nodes(m.nodes)} secondary "
+            f"Gauss nodes each, binder fraction per kernel); state "
+            f"{', '.join(state_names(scene))}; rtol {m.rtol:g}")
+
+
+def failure_hint(scene, arrays, state, aux_):
+    """What the inversion made of a stopped cell's state."""
+    sigma, x, w, y, status = S.kernels_of(state, arrays.config, aux_)
+    return (f" (EQMOM inversion: {I.STATUS_TEXT[status]}, {len(x)} kernels, "
+            f"sigma = {sigma * arrays.mass_scale:.3g} kg)")
+
+
+def fallback_counts(states, aux_, arrays):
+    """Counter status -> rows of the states whose inversion used that branch."""
+    return Counter(S.kernels_of(s, arrays.config, aux_)[4] for s in np.atleast_2d(states))
+
+
+def diagnostics(states, aux_, arrays):
+    """({rows per inversion branch}, warnings): a warning names how many rows (times or
+    cells) needed the closest-sigma fallback or could not be inverted."""
+    counts = fallback_counts(states, aux_, arrays)
+    stats = {f"eqmom_{I.STATUS_TEXT[k].split(' ')[0]}_rows": int(v) for k, v in counts.items()}
+    notes = []
+    for code in (I.CLOSEST, I.FAILED):
+        if counts.get(code):
+            notes.append(f"EQMOM: {counts[code]} of {sum(counts.values())} final states: "
+                         f"{I.STATUS_TEXT[code]}")
+    return stats, notes
+
+
+ENTRY = MethodEntry(
+    name="eqmom", code=CODE, scene_keys=scene_keys, order_key="nodes", order_label="EQMOM N",
+    state_names=state_names, aux=aux, tabulates_theta=False, population=population,
+    failure_hint=failure_hint, diagnostics=diagnostics, plan_line=plan_line,
+    repairs_mixture=lambda scene: True,
+    # its droplet sources take the droplet as pure binder liquid (b = p_d), and it has no
+    # drying drift: the scene refuses a solids fraction and a [drying] table for it
+    solute_droplets=False,
+    rhs=eqmom_rhs, realizable=eqmom_realizable, project=eqmom_project,
+    conserved=eqmom_conserved,
+    work_size=lambda config: S.work_size(int(config[P.ORDER]), int(config[P.N_STATE])),
+    bench_orders=int, bench_scene=lambda scene, order: scene.with_method(nodes=order),
+    distribution="kernel_mixture",
+    distribution_text="the EQMOM's own density: N gamma kernels in granule mass fitted to the "
+                      "carried M00 .. M(2N)0; binder fraction per size class from the kernels' "
+                      "binder fractions",
+    moments_text="from the EQMOM kernels' secondary Gauss nodes (binder fraction per kernel)")
