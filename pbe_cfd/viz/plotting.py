@@ -9,14 +9,18 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from .figure_parts import PICTURE_UNITS  # noqa: E402
+
 UNITS = {"M00": "1/m3", "M10": "kg/m3", "M01": "kg/m3", "M20": "kg2/m3", "M11": "kg2/m3",
-         "M02": "kg2/m3", "droplet_number_density": "1/m3", "d32_m": "m", "d43_m": "m",
-         "binder_fraction": "-"}
+         "M02": "kg2/m3", "droplet_number_density": "1/m3", "binder_fraction": "-",
+         "span": "-"}
 
 
 def _unit(name):
     if name in UNITS:
         return UNITS[name]
+    if name.endswith("_m"):                          # a diameter column, SI metres
+        return "m"
     if name.startswith("M") and len(name) == 3:
         order = int(name[1]) + int(name[2])
         return f"kg{order}/m3" if order > 1 else ("kg/m3" if order == 1 else "1/m3")
@@ -114,23 +118,26 @@ def trajectories_figure(runs, title="", common_only=False):
 
 def _draw_quantity(ax, dev, name, runs, ref, colours):
     log = False
+    factor, unit = PICTURE_UNITS.get(_unit(name), (1.0, _unit(name)))   # diameters in um
     for r, (label, cols) in enumerate(runs):
         if name not in cols:
             continue
         t = cols["time_s"]
         colour = colours[r % len(colours)]
         if name + "_lo" in cols:
-            ax.fill_between(t, cols[name + "_lo"], cols[name + "_hi"], color=colour,
+            ax.fill_between(t, factor * cols[name + "_lo"], factor * cols[name + "_hi"],
+                            color=colour,
                             alpha=BAND_ALPHA, lw=0.6, edgecolor=colour,
                             label=f"{label} 95% band", zorder=2)
-            ax.plot(t, cols[name], color="k", lw=0.9, label=f"{label} mean", zorder=4)
+            ax.plot(t, factor * cols[name], color="k", lw=0.9, label=f"{label} mean",
+                    zorder=4)
         else:
-            ax.plot(t, cols[name], color=colour, lw=1.6, label=label, zorder=3)
+            ax.plot(t, factor * cols[name], color=colour, lw=1.6, label=label, zorder=3)
         log = log or spans_decades(cols[name])
     if log:
         ax.set_yscale("log")
     ax.set_title(name, fontsize=10)
-    ax.set_ylabel(f"[{_unit(name)}]" + (" log scale" if log else ""), fontsize=9)
+    ax.set_ylabel(f"[{unit}]" + (" log scale" if log else ""), fontsize=9)
     ax.grid(alpha=0.3)
     if dev is None:
         ax.set_xlabel("time [s]")
