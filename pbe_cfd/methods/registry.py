@@ -2,7 +2,8 @@
 ``methods.entry``).
 
 Every part of the program that depends on the method asks its entry here, never compares the
-method's name: the scene parses ``[method]`` with the entry's ``scene_keys``; ``model.pack``
+method's name: the scene parses ``[method]`` with the entry's ``scene_keys`` into its
+``options``; ``model.pack``
 writes its ``code``, ``order`` and ``config_slots`` into ``config``, names the state entries
 with ``state_names`` and checks ``work_size``; ``methods.dispatch`` builds the numba dispatch
 (by code, literal and run-time) from ``rhs``/``realizable``/``project``/``conserved``; the runs
@@ -17,9 +18,11 @@ Adding a method ``foo`` (the contract):
    params, config, work)``, ``conserved(config, params, pivots, coefs)``), plain functions of
    arrays and floats with ``cache=True``, using at most ``WORK_SIZE`` floats of ``work``;
 2. in ``methods/foo/__init__.py`` (or a module it imports) ``ENTRY = MethodEntry(name="foo",
-   code=<unused integer>, ...)``: its scene keys (``scene_keys(t, defaults)`` reading the
-   ``[method]`` table; a new key also needs its field and default in ``scene.Method``), state
-   names, plan line, and its Python hooks (``population``, optional ``aux``, ...);
+   code=<unused integer>, options=FooOptions, ...)``: its own ``[method]`` keys (a frozen
+   dataclass ``FooOptions`` in ``methods/foo/options.py`` with their defaults, and
+   ``scene_keys(t, defaults)`` reading them from the table with their limits; the scene
+   holds them as ``scene.method.options``), state names, plan line, and its Python hooks
+   (``population``, optional ``aux``, ...);
 3. one line in ``METHOD_REGISTRY`` below (or ``register(ENTRY)`` at run time, as the test
    suite does for its toy method: the literal dispatch, and so the integrator, see it; the
    run-time dispatch ``method_rhs`` ... is built at import from the entries listed here).
