@@ -11,9 +11,7 @@ draw is drawn again here, so a failure in the child never loses a picture silent
 
 A command that knows early that it will draw (``pbe-cfd couple``) calls ``start_processes``
 first: two drawing processes are forked before the solver starts any thread and import
-matplotlib and meshio while the run computes, at a lower priority (``DRAW_NICENESS``) so that
-the run keeps its cores; ``run_tasks`` then hands every task to them (``start_tasks`` hands
-some out early, ``finish_tasks`` collects them).
+matplotlib and meshio while the run computes; ``run_tasks`` then hands every task to them.
 The drawing processes ignore Ctrl-C (SIGINT): the command's own process stops and ends them,
 so an interrupted run prints no traceback of theirs.
 """
@@ -53,18 +51,8 @@ def _ignore_interrupt():
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-#: how much nicer (lower priority) than the command the started drawing processes run: they
-#: import matplotlib while the command sets up and solves, and must not slow that down on a
-#: machine with no core to spare (on an idle one they get the other core either way)
-DRAW_NICENESS = 5
-
-
 def _preload():
     _ignore_interrupt()
-    try:
-        os.nice(DRAW_NICENESS)
-    except OSError:
-        pass
     import matplotlib.backends.backend_agg  # noqa: F401
     import matplotlib.figure  # noqa: F401
     import meshio  # noqa: F401
