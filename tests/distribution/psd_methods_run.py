@@ -13,7 +13,9 @@ import psd_cases  # noqa: E402
 #: the methods compared: label -> [method] table
 METHODS = {"QMOM N=3": {"name": "qmom", "nodes": 3},
            "EQMOM N=3": {"name": "eqmom", "nodes": 3},
-           "Laguerre m=3": {"name": "laguerre", "order": 3}}
+           "Laguerre m=3": {"name": "laguerre", "order": 3},
+           "Laguerre m=3 following": {"name": "laguerre", "order": 3,
+                                      "following_support": True}}
 
 
 def scene(case, method):
@@ -36,6 +38,19 @@ def run(case, method):
     """The RunResult of the method on the case."""
     from pbe_cfd.runs.simulate import run_well_mixed
     return run_well_mixed(scene(case, method))
+
+
+def one_gamma(res, rho):
+    """d10, d50, d90 [m] at the last output time of the one-kernel gamma fit to the granule
+    M00, M10, M20 (the columns less the free droplets, each of mass p_d): QMOM's former
+    reconstruction, for comparison."""
+    from pbe_cfd.distribution.reconstruct import GammaFit
+    c = res.columns
+    nd = np.asarray(c.get("droplet_number_density", np.zeros(len(c["time_s"]))))[-1:]
+    from pbe_cfd.runs import model
+    p_d = float(model.pack(res.scene).droplet_mass) if nd[0] > 0 else 0.0
+    m = [np.asarray(c[k])[-1:] - nd * p_d ** i for i, k in enumerate(("M00", "M10", "M20"))]
+    return GammaFit(*m, rho).quantiles((0.1, 0.5, 0.9))[0]
 
 
 def final(res):
