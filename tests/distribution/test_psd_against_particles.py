@@ -23,7 +23,19 @@ import psd_reference_run  # noqa: E402
 
 AIMS = np.array([0.05, 0.03, 0.05])
 #: (case, method) -> the measured miss (docs/results/psd.md)
-KNOWN_MISSES = {}
+KNOWN_MISSES = {
+    ("seed", "QMOM N=3"): "d10 +5.09% (the primaries' comb of droplet masses)",
+    ("seed", "EQMOM N=3"): "d10 +4.74% (+0.87% band), d50 -3.83%",
+    ("seed", "Laguerre m=3"): "d10 +8.56%",
+    ("sum-a1-uniform", "QMOM N=3"): "d50 -13.1%, d90 +4.29% (+0.75% band): QMOM's M20 is "
+                                    "14% off here, the fit splits the mass in two humps",
+    ("sum-a1-uniform", "Laguerre m=3"): "d10 +25%, d50 +12%, d90 -15%: density negative "
+                                        "for 84% of the mass (scene defaults)",
+    ("eke-a1/3-equal", "Laguerre m=3"): "d10 +15%, d50 +8%, d90 -17%: density negative "
+                                        "for 75% of the mass (scene defaults)",
+}
+#: the methods measured in docs/results/psd.md's percentile table
+MEASURED = ("QMOM N=3", "EQMOM N=3", "Laguerre m=3")
 
 _REFERENCE = {}
 
@@ -36,7 +48,7 @@ def reference(case):
 
 PARAMS = [pytest.param(case, label, marks=[pytest.mark.xfail(
     reason=KNOWN_MISSES[(case, label)], strict=True)] if (case, label) in KNOWN_MISSES else [])
-    for case in psd_cases.CASES for label in M.METHODS]
+    for case in psd_cases.CASES for label in MEASURED]
 
 
 @pytest.mark.study
