@@ -80,6 +80,8 @@ RULES = (
     ("test_drawing", "viz"),
     # size distributions
     ("test_distribution", "distribution"),
+    ("test_reference_particles", "distribution"),
+    ("test_psd_against_particles", "distribution"),
     # studies and their result documents
     ("test_bench", "bench"),
     ("test_peer", "bench"),
