@@ -44,6 +44,7 @@ RULES = (
     ("test_eqmom", "methods/eqmom"),
     ("test_laguerre", "methods/laguerre"),
     ("test_cnmc", "methods/cnmc"),
+    ("test_registry_imports", "methods"),
     ("test_toy_method", "methods"),
     ("test_breakage", "methods"),
     ("test_hard_cases", "methods"),
