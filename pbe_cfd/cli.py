@@ -176,7 +176,7 @@ def _apply_resume(args):
     manifest = resume_manifest(args.resume)
     if not args.scene and manifest.get("scene"):
         args.scene = manifest["scene"]
-    if args.chunks is None and manifest.get("partition") == "blocks":
+    if args.chunks is None and manifest.get("partition") in ("blocks", "flux graph"):
         args.chunks = manifest.get("chunks")      # the same blocks as the first run
 
 
