@@ -176,14 +176,24 @@ class HaloRun:
                 break
             except TimeoutError:
                 continue
+            except Exception:  # noqa: BLE001 - cancelled: a worker took data down with it
+                break
         lost = self._lost()
+        deadline = _time.perf_counter() + 10.0
+        while (not lost and any(f.status == "cancelled" for f in self.block_f)
+               and _time.perf_counter() < deadline):
+            _time.sleep(0.2)                 # the scheduler is removing the lost worker
+            lost = self._lost()
         if lost:
             self.client.cancel(self.block_f)
             raise self.ex._failure({b: f"KilledWorker: worker {self.where[b]} lost"
                                     for b in lost}, self.part, at=(t0, t1))
         failed = {}
         for b, f in enumerate(self.block_f):
-            if f.status == "error":
+            if f.status == "cancelled":
+                failed[b] = (f"KilledWorker: the states of block {b} were lost with a worker "
+                             f"(it ran on {self.where[b]})")
+            elif f.status == "error":
                 exc = f.exception()
                 if isinstance(exc, BlockFailed) and exc.stopped:
                     raise SimulationError(f"{getattr(self.batch.scene, 'source', '')}: "
