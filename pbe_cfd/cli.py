@@ -320,43 +320,9 @@ def _couple_recorded(args, scene, out, phases, t_read, caught):
 
 
 def case_command(args):
-    """``pbe-cfd case run --mesh small --dir DIR``: copy and run the fluid-bed case."""
-    from .io.openfoam import cases
-    from .io import openfoam as of
-    if args.action == "make":
-        return _make_bed(args)
-    target = Path(args.dir or "fluid-bed-case")
-    try:
-        res = cases.copy_and_run(target, args.mesh, args.overwrite, flag="--dir",
-                                 log=lambda line: print(line, file=sys.stderr))
-    except of.OpenFOAMError as exc:
-        print(f"pbe-cfd: error: {exc}", file=sys.stderr)
-        return 1
-    print(f"case {target} ({args.mesh}) ran to t = {res.latest_time:g} s; "
-          + ", ".join(f"{k} {v:.1f} s" for k, v in res.wall_times.items()))
-    return 0
-
-
-def _make_bed(args):
-    """``pbe-cfd case make --3d --cells N --dir DIR``: a 3-D bed snapshot (io.openfoam.bed3d)."""
-    from .io import output
-    from .io.openfoam import bed3d
-    if not args.three_d or args.cells is None:
-        return _fail("case make: give --3d and --cells N (the 3-D bed is the one kind made)")
-    depth = bed3d.DEFAULT_DEPTH if args.depth is None else float(args.depth)
-    if not depth > 0.0:
-        return _fail(f"case make: --depth {args.depth}: expected a depth > 0 in m")
-    if args.cells < 8:
-        return _fail(f"case make: --cells {args.cells}: a 3-D bed needs at least 8 cells")
-    target = Path(args.dir or "fluid-bed-3d")
-    with output.atomic_directory(target, args.overwrite, flag="--dir", kind="3-D bed") as tmp:
-        info = bed3d.write_bed(tmp, args.cells, depth)
-    nx, ny, nz = info["grid"]
-    print(f"3-D bed {target}: {nx} x {ny} x {nz} = {info['cells']} cells of "
-          f"{1e3 * info['cell_m'][0]:.3g} mm, {info['faces']} inner faces, largest net "
-          f"outflow {info['max_net_outflow_rel']:.1e} of the largest face flux; use "
-          f"domain.case = \"{(target / bed3d.VTU_NAME).resolve()}\"")
-    return 0
+    """``pbe-cfd case run|make``: see ``io.openfoam.case_command``."""
+    from .io.openfoam.case_command import case_command as command
+    return command(args)
 
 
 def render_command(args):
@@ -456,6 +422,23 @@ def _method_list(text):
     return tuple(out)
 
 
+def _add_case_parser(sub):
+    p = sub.add_parser("case", help="run the bundled OpenFOAM fluid-bed case, or make a 3-D "
+                                    "bed of any size (make --3d --cells N)")
+    p.add_argument("action", choices=("run", "make"))
+    p.add_argument("--mesh", default="small", choices=("small", "full"))
+    p.add_argument("--dir", default=None, help="where to copy and run the case (default "
+                   "fluid-bed-case), or to write the 3-D bed (default fluid-bed-3d)")
+    p.add_argument("--cells", type=_positive_int, default=None,
+                   help="make: cells of the 3-D bed (near-cubic cells)")
+    p.add_argument("--3d", dest="three_d", action="store_true",
+                   help="make: the bundled bed extruded in depth (the one kind made)")
+    p.add_argument("--depth", type=float, default=None, help="make: depth of the bed in m "
+                   "(default 0.15)")
+    _add_overwrite(p, "the files of an earlier case pbe-cfd made there")
+    p.set_defaults(func=case_command)
+
+
 def build_parser():
     parser = argparse.ArgumentParser(
         prog="pbe-cfd",
@@ -518,20 +501,7 @@ def build_parser():
                         "to that run's)")
     p.set_defaults(func=couple_command)
 
-    p = sub.add_parser("case", help="run the bundled OpenFOAM fluid-bed case, or make a 3-D "
-                                    "bed of any size (make --3d --cells N)")
-    p.add_argument("action", choices=("run", "make"))
-    p.add_argument("--mesh", default="small", choices=("small", "full"))
-    p.add_argument("--dir", default=None, help="where to copy and run the case (default "
-                   "fluid-bed-case), or to write the 3-D bed (default fluid-bed-3d)")
-    p.add_argument("--cells", type=_positive_int, default=None,
-                   help="make: cells of the 3-D bed (near-cubic cells)")
-    p.add_argument("--3d", dest="three_d", action="store_true",
-                   help="make: the bundled bed extruded in depth (the one kind made)")
-    p.add_argument("--depth", type=float, default=None, help="make: depth of the bed in m "
-                   "(default 0.15)")
-    _add_overwrite(p, "the files of an earlier case pbe-cfd made there")
-    p.set_defaults(func=case_command)
+    _add_case_parser(sub)
 
     p = sub.add_parser("render", help="render PNGs of a coupled run's VTK series")
     p.add_argument("dir", help="output directory of `pbe-cfd couple`")

@@ -13,8 +13,8 @@ interpolated in (x, y) between its cell centres and the same at every depth.
 
 The flux is divergence-free on every cell by construction, through discrete stream functions
 on the mesh's edges: the in-plane circulation from the stream function psi(x, y) of the small
-case's solids flux (made divergence-free on its closed box by the least-squares correction of
-``transport.solids_flux``, integrated along x, interpolated bilinearly and scaled to the cell
+case's solids flux (made divergence-free on its closed box by the least-squares nearest
+correction, as the transport does on its active set; integrated along x, interpolated bilinearly and scaled to the cell
 depth), plus a depth-wise circulation chi(y, z) = DEPTH_CIRCULATION max_x|psi(x, y)|
 sin(pi z / depth) in the (y, z) planes so that granules also cross the depth. Every cell's net
 outflow is a telescoping sum of stream-function differences: zero to round-off. Nothing crosses
@@ -53,8 +53,6 @@ def _small_grid(cells, flux):
     """The small snapshot's cells on its (i, j) grid and psi at its vertices [m3/s per
     SMALL_DEPTH]: returns (x centres, y centres, alpha (nx, ny), Theta (nx, ny), psi
     (nx+1, ny+1))."""
-    from ...transport.solids_flux import divergence_free
-
     c = np.asarray(cells.cell_centre)
     xs, ys = np.unique(np.round(c[:, 0], 9)), np.unique(np.round(c[:, 1], 9))
     nx, ny = xs.size, ys.size
@@ -66,7 +64,7 @@ def _small_grid(cells, flux):
     theta = np.zeros((nx, ny))
     alpha[i, j], theta[i, j] = cells.alpha, cells.theta
     o, nb = np.asarray(flux.owner), np.asarray(flux.neighbour)
-    f = divergence_free(o, nb, np.asarray(flux.flux, dtype=float), cells.n_cells)
+    f = _closed_box_flux(o, nb, np.asarray(flux.flux, dtype=float), cells.n_cells)
     fy = np.zeros((nx, ny + 1))           # +y flux through the face below cell (i, j)
     vertical = j[o] != j[nb]
     sign = np.where(j[nb] > j[o], 1.0, -1.0)
@@ -75,6 +73,25 @@ def _small_grid(cells, flux):
     psi = np.zeros((nx + 1, ny + 1))      # psi(i+1, j) = psi(i, j) - Fy(i, j)
     psi[1:, :] = -np.cumsum(fy, axis=0)
     return xs, ys, alpha, theta, psi
+
+
+def _closed_box_flux(owner, neighbour, flux, n):
+    """The least-squares nearest inner-face flux [m3/s] with zero net outflow from each of
+    the n cells of a connected mesh: flux - D^T lambda, (D D^T) lambda = D flux, one cell
+    pinned (D the cell-face incidence), with one step of iterative refinement."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    m = len(flux)
+    d = sp.csr_matrix((np.r_[np.ones(m), -np.ones(m)],
+                       (np.r_[owner, neighbour], np.r_[np.arange(m), np.arange(m)])),
+                      shape=(n, m))
+    solve = spla.factorized((d @ d.T).tocsc()[1:, 1:])
+    out = np.array(flux, dtype=float)
+    for _ in range(2):
+        lam = np.r_[0.0, solve((d @ out)[1:])]
+        out = out - d.T @ lam
+    return out
 
 
 def _bilinear(xs, ys, values, x, y):
@@ -179,3 +196,28 @@ def write_bed(directory, n_cells: int, depth: float = DEFAULT_DEPTH) -> dict:
     return {**meta, "cells": int(flux.n_cells), "faces": int(flux.flux.size),
             "max_net_outflow_rel": float(div), "vtu": str(d / VTU_NAME),
             "flux_file": str(d / FLUX_NAME)}
+
+
+def make_case(directory, n_cells, depth=None, three_d=True, overwrite=False) -> str:
+    """``pbe-cfd case make``: write the 3-D bed of ``n_cells`` cells and ``depth`` [m] (None:
+    DEFAULT_DEPTH) into ``directory`` atomically (an earlier bed there is replaced only with
+    ``overwrite``; files pbe-cfd did not write are never touched). Returns the summary line.
+    Raises output.UsageError on bad input."""
+    from .. import output
+    if not three_d or n_cells is None:
+        raise output.UsageError("case make: give --3d and --cells N (the 3-D bed is the one "
+                                "kind made)")
+    depth = DEFAULT_DEPTH if depth is None else float(depth)
+    if not depth > 0.0:
+        raise output.UsageError(f"case make: --depth {depth}: expected a depth > 0 in m")
+    if n_cells < 8:
+        raise output.UsageError(f"case make: --cells {n_cells}: a 3-D bed needs at least 8 "
+                                "cells")
+    target = Path(directory)
+    with output.atomic_directory(target, overwrite, flag="--dir", kind="3-D bed") as tmp:
+        info = write_bed(tmp, n_cells, depth)
+    nx, ny, nz = info["grid"]
+    return (f"3-D bed {target}: {nx} x {ny} x {nz} = {info['cells']} cells of "
+            f"{1e3 * info['cell_m'][0]:.3g} mm, {info['faces']} inner faces, largest net "
+            f"outflow {info['max_net_outflow_rel']:.1e} of the largest face flux; use "
+            f'domain.case = "{(target / VTU_NAME).resolve()}"')
