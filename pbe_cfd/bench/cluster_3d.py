@@ -111,10 +111,12 @@ def _run_child(spec: dict, log) -> dict:
     return out
 
 
-def cluster_study(out_dir, quick: bool = False, cells=None, end_time=None, log=print) -> dict:
+def cluster_study(out_dir, quick: bool = False, cells=None, end_time=None, log=print,
+                  transports=(True, False), workers_list=(0, 1, 2)) -> dict:
     """The study (see the module docstring). ``cells``: list of bed sizes (default 1e5;
     quick 2000); ``end_time`` [s] of process per run (default 2 s, quick 0.5 s: the 60 s the
-    issue names does not fit a shared 2-core machine; the rates are per cell-step). Writes
+    issue names does not fit a shared 2-core machine; the rates are per cell-step);
+    ``transports`` and ``workers_list`` (0: serial) the runs made. Writes
     cluster.json, cluster.csv and cluster.md into ``out_dir``."""
     from ..io.openfoam.bed3d import VTU_NAME, write_bed
 
@@ -129,8 +131,8 @@ def cluster_study(out_dir, quick: bool = False, cells=None, end_time=None, log=p
             bed.mkdir()
             info = write_bed(bed, n)
             log(f"bed of {info['cells']} cells ({info['grid']})")
-            for transport in (True, False):
-                for workers in (0, 1, 2):
+            for transport in transports:
+                for workers in workers_list:
                     spec = {"vtu": str(bed / VTU_NAME), "end_time": end_time,
                             "interval": end_time / 2, "transport": transport,
                             "workers": workers}
