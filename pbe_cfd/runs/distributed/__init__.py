@@ -61,11 +61,11 @@ from .faults import FAULT_ENV, parse_fault
 from .launch import check_store, make_executor, resume_manifest
 from .partition import Partition, block_partition, processor_partition
 from .store import STORE_SUFFIX, ChunkStore, ChunkStoreError, fingerprint, store_path
-from .tasks import chunk_history, chunk_source
+from .tasks import chunk_history
 
 __all__ = ["host_cores", "numba_thread_table", "start_local_cluster", "decompose_case",
            "decomposition_dict", "processor_dirs", "read_decomposition",
            "write_processor_fields", "ChunksFailed", "ClusterExecutor", "FAULT_ENV",
            "parse_fault", "check_store", "make_executor", "resume_manifest", "Partition", "block_partition",
            "processor_partition", "STORE_SUFFIX", "ChunkStore", "ChunkStoreError",
-           "fingerprint", "store_path", "chunk_history", "chunk_source"]
+           "fingerprint", "store_path", "chunk_history"]
