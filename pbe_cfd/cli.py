@@ -491,8 +491,9 @@ def build_parser():
                    help="start a local cluster of N worker processes (numba threads per "
                         "worker: cores // N)")
     g.add_argument("--chunks", metavar="K", type=_positive_int, default=None,
-                   help="split the active cells into K blocks (default: 4 per worker, or one "
-                        "per processor directory of a decomposed case)")
+                   help="split the active cells into K blocks (default: 4 per worker, with "
+                        "[transport] one per worker; one per processor directory of a "
+                        "decomposed case)")
     g.add_argument("--decompose", metavar="N", type=_positive_int, default=None,
                    help="decomposePar the OpenFOAM case into N subdomains first; one task "
                         "per processor directory, --foam-fields also written per processor")
