@@ -52,6 +52,8 @@ ENTRY = MethodEntry(
     work_size=lambda config: cqmom_work_size(config[P.ORDER], config[P.BINDER_NODES]),
     bench_orders=_bench_orders,
     bench_scene=lambda scene, order: scene.with_method(nodes=order[0], binder_nodes=order[1]),
+    bench_quick=("2x2",), bench_full=("2x2", "3x2", "3x3"), bench_ceiling="points",
+    bench_versus_baseline=True,
     distribution="gamma",
     distribution_text="gamma density in granule mass fitted to the carried M00, M10, M20 "
                       "(one-kernel gamma EQMOM); binder fraction per size class interpolated "
