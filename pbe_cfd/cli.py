@@ -377,7 +377,7 @@ def bench_command(args):
         files = "peer.csv, peer.md, peer.png, peer.json"
         print((out / "peer.md").read_text())
     else:
-        study_of = {"cnmc": bench.cnmc_study, "laguerre": bench.laguerre_study,
+        study_of = {bench.CNMC_STUDY: bench.cnmc_study, bench.LAGUERRE_STUDY: bench.laguerre_study,
                     "couple": bench.couple_study, "integrators": bench.integrator_study,
                     "cluster": bench.cluster_study}
         study_of[study](out, quick=quick)

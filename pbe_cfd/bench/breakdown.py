@@ -85,9 +85,10 @@ def _median_ns(fn, n_evals, repeats):
     return 1e9 * statistics.median(walls) / n_evals
 
 
-def rhs_breakdown(case, cells, states, reps=20, repeats=5) -> dict:
-    """ns per cell-RHS of each part (module doc) on one thread for a ThroughputCase (QMOM or
-    Laguerre) and cell rows / states as the throughput study draws them."""
+def rhs_breakdown(case, cells, states, reps=20, repeats=5, kind="nodes") -> dict:
+    """ns per cell-RHS of each part (module doc) on one thread for a ThroughputCase and cell
+    rows / states as the throughput study draws them; ``kind``: its method entry's
+    ``bench_breakdown``, "nodes" (the QMOM's parts) or "contraction" (the Laguerre ROM's)."""
     nb.set_num_threads(1)
     params, config, aux = case.arrays.params, case.arrays.config, case.aux
     n = states.shape[0]
@@ -100,7 +101,7 @@ def rhs_breakdown(case, cells, states, reps=20, repeats=5) -> dict:
 
     full = _median_ns(lambda k: rhs_sweep(states, cells, aux, params, config,
                                           1 if k == 1 else reps, out), evals, repeats)
-    if case.method == "qmom":
+    if kind == "nodes":
         wheeler = timed(lambda r: _qmom_part_sweep(states, cells, params, config, r, acc, 0))
         inversion = timed(lambda r: _qmom_part_sweep(states, cells, params, config, r, acc, 1))
         props = timed(lambda r: _qmom_part_sweep(states, cells, params, config, r, acc, 2))

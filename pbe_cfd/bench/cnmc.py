@@ -10,7 +10,8 @@ import numpy as np
 from ..runs import model
 from ..methods.cnmc.ensemble import simulate_ensemble
 from ..scene.scene import load_scene
-from .common import _git_describe, _machine_line, _say, _write_simple, machine_info
+from .common import (CNMC_STUDY, _git_describe, _machine_line, _say, _write_simple,
+                     machine_info)
 
 
 def cnmc_study(out_dir="bench-out", quick=False, quiet=False) -> dict:
@@ -38,7 +39,7 @@ def cnmc_study(out_dir="bench-out", quick=False, quiet=False) -> dict:
     lines += ["", "Seed 000 scenario (eke, geometric + physical efficiency, droplets as their own "
               "population, injection), one replica per size, one core. Machine: "
               f"{_machine_line(result['machine'])}."]
-    _write_simple(Path(out_dir), "cnmc", rows, "\n".join(lines) + "\n", result)
+    _write_simple(Path(out_dir), CNMC_STUDY, rows, "\n".join(lines) + "\n", result)
     return result
 
 

@@ -11,6 +11,9 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
+from ..methods.cnmc import ENTRY as _cnmc_entry
+from ..methods.laguerre import ENTRY as _laguerre_entry
+
 
 # ============================================================================ machine, timing
 def machine_info() -> dict:
@@ -91,12 +94,17 @@ def failure_status(exc) -> str:
     return "failed: " + " ".join(str(exc).split())
 
 
+#: the studies of one method, named like it (``pbe-cfd bench cnmc``, ``... laguerre``)
+CNMC_STUDY, LAGUERRE_STUDY = _cnmc_entry.name, _laguerre_entry.name
+#: the studies that write <name>.csv, .md and .json
+SIMPLE_STUDIES = (CNMC_STUDY, LAGUERRE_STUDY, "couple", "integrators", "cluster")
+
 #: The files each study writes into --out (several studies may share one directory).
 STUDY_FILES = {
     "accuracy": ["accuracy.csv", "accuracy.md", "pareto.png", "accuracy.json"],
     "throughput": ["throughput.csv", "throughput.md", "throughput.png", "throughput.json",
                    "machine.json"],
     **{name: [f"{name}.csv", f"{name}.md", f"{name}.json"]
-       for name in ("cnmc", "laguerre", "couple", "integrators", "cluster")},
+       for name in SIMPLE_STUDIES},
     "peer": ["peer.csv", "peer.md", "peer.png", "peer.json"],
 }

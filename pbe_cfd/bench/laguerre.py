@@ -12,7 +12,8 @@ import numpy as np
 from ..runs import model
 from ..methods.laguerre import tensor as LT
 from ..physics import parameters as P
-from .common import _git_describe, _machine_line, _say, _write_simple, machine_info
+from .common import (LAGUERRE_STUDY, _git_describe, _machine_line, _say, _write_simple,
+                     machine_info)
 from .throughput import measure_rhs_rate, throughput_case
 
 
@@ -25,7 +26,7 @@ def laguerre_study(out_dir="bench-out", quick=False, quiet=False) -> dict:
     n_cells = 1000 if quick else 10_000
     rows = []
     for m in orders:
-        case = throughput_case("laguerre", m)
+        case = throughput_case(LAGUERRE_STUDY, m)
         sc, arrays = case.scene, case.arrays
         for g in grids:
             weights, support = LT.scene_weights_support(sc)
@@ -62,5 +63,5 @@ def laguerre_study(out_dir="bench-out", quick=False, quiet=False) -> dict:
                      + " | ".join(f"{r[f'rhs_per_s_{th}thr']:.3g}" for th in ths) + " |")
     lines += ["", f"ktgf + geometric + physical scene; RHS on {n_cells} cells with the "
               "Theta-interpolated tensor. Machine: " + _machine_line(result["machine"]) + "."]
-    _write_simple(Path(out_dir), "laguerre", rows, "\n".join(lines) + "\n", result)
+    _write_simple(Path(out_dir), LAGUERRE_STUDY, rows, "\n".join(lines) + "\n", result)
     return result

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..runs import model
 from ..runs.batch import CellBatch, output_times
-from ..methods.registry import METHODS
+from ..methods.registry import METHOD_REGISTRY, METHODS
 from ..physics import parameters as P
 from ..physics.kernels import collision_velocity
 from ..physics.properties import N_PROPS
@@ -150,7 +150,8 @@ def measure_ceiling(case, n_cells, threads, target_evals=400_000, repeats=3, see
     states = cell_states(case.trajectory, n_cells, seed=seed + 1)
     params, config = case.arrays.params, case.arrays.config
     reps = max(1, int(round(target_evals / n_cells)))
-    if case.method == "qmom":
+    kind = METHODS[case.method].bench_ceiling
+    if kind == "nodes":
         n_max = int(config[P.ORDER])
         props = np.zeros((n_cells, n_max + 1, N_PROPS))
         counts = np.zeros(n_cells, dtype=np.int64)
@@ -160,12 +161,12 @@ def measure_ceiling(case, n_cells, threads, target_evals=400_000, repeats=3, see
         qmom_kernel_sweep(props, counts, cells, factors, params, config, 1, out)
         best, median = _time_call(lambda: qmom_kernel_sweep(props, counts, cells, factors,
                                                             params, config, reps, out), repeats)
-    elif case.method == "laguerre":
+    elif kind == "contraction":
         out = np.zeros_like(states)
         laguerre_contraction_sweep(states, case.aux, 1, out)
         best, median = _time_call(lambda: laguerre_contraction_sweep(states, case.aux, reps,
                                                                      out), repeats)
-    elif case.method == "cqmom":
+    elif kind == "points":
         n_points = int(config[P.ORDER] * config[P.BINDER_NODES])
         props = np.zeros((n_cells, n_points + 1, N_PROPS))
         counts = np.zeros(n_cells, dtype=np.int64)
@@ -243,6 +244,32 @@ def measure_baseline(case, n_cells=4, interval=1.0, rhs_samples=200, seed=0, rto
 
 
 # ============================================================================ throughput study
+def default_methods(quick=False) -> tuple:
+    """(method name, order) of the study: each registered method's ``bench_quick`` or
+    ``bench_full`` orders, in registry order."""
+    return tuple((m.name, m.bench_orders(text)) for m in METHOD_REGISTRY
+                 if m.bench_orders is not None
+                 for text in (m.bench_quick if quick else m.bench_full))
+
+
+def baseline_method() -> str | None:
+    """The method the NumPy/SciPy baseline reimplements (its entry's ``bench_baseline``)."""
+    return next((m.name for m in METHOD_REGISTRY if m.bench_baseline is not None), None)
+
+
+def baseline_case(cases):
+    """The (method, order) of ``cases`` the baseline runs: the baseline method at its
+    reference order if measured, else its first order; None without it."""
+    name = baseline_method()
+    if name is None:
+        return None
+    own = [k for k in cases if k[0] == name]
+    if not own:
+        return None
+    ref = (name, METHODS[name].bench_orders(METHODS[name].bench_baseline))
+    return ref if ref in cases else own[0]
+
+
 def throughput_study(out_dir="bench-out", quick=False, cells=None, threads=None, methods=None,
                      interval=None, quiet=False, scene_name=DEFAULT_THROUGHPUT_SCENE) -> dict:
     """Run the throughput study and write throughput.csv, throughput.md, throughput.png and
@@ -250,12 +277,7 @@ def throughput_study(out_dir="bench-out", quick=False, cells=None, threads=None,
     cells = cells or ((100, 1000) if quick else (100, 1000, 10_000, 100_000))
     max_threads = nb.config.NUMBA_NUM_THREADS
     threads = threads or tuple(t for t in (1, 2) if t <= max_threads)
-    methods = methods or ((("qmom", 2), ("qmom", 3), ("eqmom", 3), ("laguerre", 2),
-                           ("laguerre", 3), ("cqmom", (2, 2))) if quick
-                          else (("qmom", 2), ("qmom", 3), ("qmom", 4), ("eqmom", 2),
-                                ("eqmom", 3), ("laguerre", 2), ("laguerre", 3),
-                                ("laguerre", 4), ("cqmom", (2, 2)), ("cqmom", (3, 2)),
-                                ("cqmom", (3, 3))))
+    methods = methods or default_methods(quick)
     interval = interval or (0.05 if quick else 0.1)
     repeats = 1 if quick else 3
     target = 20_000 if quick else 300_000
@@ -292,22 +314,24 @@ def throughput_study(out_dir="bench-out", quick=False, cells=None, threads=None,
                 _say(quiet, f"    {n:>6d} cells, {th} thr: {rhs_best:.3g} RHS/s, "
                      f"{steps['cell_steps_per_s']:.3g} cell-steps/s "
                      f"(ceiling {ceiling[0]:.3g}/s)")
-    # plain NumPy/SciPy baseline (QMOM N = 3 if measured, else the first QMOM)
-    qm = [k for k in cases if k[0] == "qmom"]
-    if qm:
-        key = ("qmom", 3) if ("qmom", 3) in cases else qm[0]
-        _say(quiet, f"  NumPy/SciPy baseline, QMOM N = {key[1]} ...")
+    # plain NumPy/SciPy baseline (the baseline method's reference order if measured, else
+    # its first order)
+    key = baseline_case(cases)
+    if key is not None:
+        _say(quiet, f"  NumPy/SciPy baseline, {cases[key].label} ...")
         baseline = measure_baseline(cases[key], n_cells=1 if quick else 4, interval=interval,
                                     rhs_samples=30 if quick else 300)
-        baseline["order"] = key[1]
+        baseline["method"], baseline["order"] = key
     breakdown = []
     for (method, order), case in cases.items():
-        if method in ("qmom", "laguerre"):
+        kind = METHODS[method].bench_breakdown
+        if kind is not None:
             n = min(max(cells), 10_000)
             _say(quiet, f"  {case.label}: RHS breakdown on {n} cells, 1 thread ...")
             breakdown.append(rhs_breakdown(case, synthetic_cells(n, seed=0),
                                            cell_states(case.trajectory, n, seed=1),
-                                           reps=2 if quick else 20, repeats=repeats + 2))
+                                           reps=2 if quick else 20, repeats=repeats + 2,
+                                           kind=kind))
     result = {"machine": machine, "commit": _git_describe(), "quick": quick,
               "interval_s": interval, "repeats": repeats, "rows": rows, "baseline": baseline,
               "scene": scene_name, "breakdown": breakdown}
@@ -320,8 +344,8 @@ def _speedups(result):
     base = result.get("baseline")
     if not base:
         return []
-    order = base["order"]
-    rows = [r for r in result["rows"] if r["method"] == "qmom" and r["order"] == order]
+    order, name = base["order"], base.get("method", baseline_method())
+    rows = [r for r in result["rows"] if r["method"] == name and r["order"] == order]
     if not rows:
         return []
     n = max(r["cells"] for r in rows)
@@ -397,11 +421,17 @@ def throughput_markdown(result) -> str:
                                                     for n in cells for th in threads) + " |")
         out.append("")
     n = max(cells)
-    reference = next((r["label"] for r in rows if r["method"] == "qmom" and r["order"] == 3),
-                     None)
-    conditional = [label for label in labels if label.startswith(METHODS["cqmom"].order_label)]
+    name = baseline_method()
+    ref_order = (METHODS[name].bench_orders(METHODS[name].bench_baseline)
+                 if name is not None else None)
+    reference = next((r["label"] for r in rows if r["method"] == name
+                      and r["order"] == ref_order), None)
+    versus = [r["method"] for r in rows if r["method"] in METHODS
+              and METHODS[r["method"]].bench_versus_baseline]
+    conditional = list(dict.fromkeys(r["label"] for r in rows if r["method"] in versus))
     if reference and conditional:
-        out += [f"**CQMOM against {reference}** (RHS/s ratio, {n:g} cells): " + "; ".join(
+        who = ", ".join(dict.fromkeys(METHODS[m].order_label.split(" ")[0] for m in versus))
+        out += [f"**{who} against {reference}** (RHS/s ratio, {n:g} cells): " + "; ".join(
             f"{label}: " + ", ".join(
                 f"{cell(label, n, th, 'rhs_per_s') / cell(reference, n, th, 'rhs_per_s'):.2f}"
                 f" ({th} thr)" for th in threads) for label in conditional), ""]

@@ -63,6 +63,20 @@ class MethodEntry(NamedTuple):
     bench_orders    f(text) -> the order of ``pbe-cfd bench throughput --methods name:text``
                     (QMOM "3" -> 3, CQMOM "2x2" -> (2, 2)); None: not in that study
     bench_scene     f(scene, order) -> the scene with that order (the throughput study)
+    bench_quick, bench_full
+                    the order texts (``bench_orders``) of the quick and the full throughput
+                    study; () : not in it by default
+    bench_ceiling   the throughput study's kernel-only sweep of its aggregation rates
+                    (``bench.throughput.measure_ceiling``): "nodes" (pair rates of the
+                    quadrature nodes), "points" (of the N1 N2 conditional points),
+                    "contraction" (the Laguerre tensor contraction), None (no ceiling: NaN)
+    bench_baseline  the order text of the study's reference row, which the plain NumPy/SciPy
+                    baseline (``bench.numpy_baseline``) reimplements; None: not the baseline
+    bench_breakdown how the study breaks its RHS into parts (``bench.breakdown``): "nodes"
+                    (QMOM's Wheeler, binder solve, properties, pair rates), "contraction" (the
+                    Laguerre positions and quadratic forms), None (no breakdown)
+    bench_versus_baseline
+                    True if the study reports its RHS rate against the baseline row
     distribution    how ``distribution.tables`` reconstructs the size distribution: "gamma"
                     (from the populations), "laguerre_density" (its own), "kernel_mixture"
                     (EQMOM's gamma kernels, ``distribution.kernel_mixture``), None (none)
@@ -101,6 +115,12 @@ class MethodEntry(NamedTuple):
     work_size: Callable = lambda config: 0
     bench_orders: Callable | None = None
     bench_scene: Callable | None = None
+    bench_quick: tuple = ()
+    bench_full: tuple = ()
+    bench_ceiling: str | None = None
+    bench_baseline: str | None = None
+    bench_breakdown: str | None = None
+    bench_versus_baseline: bool = False
     distribution: str | None = None
     distribution_text: str = ""
     moments_text: str = ""

@@ -126,6 +126,18 @@ class CellBatch:
                    arrays=arrays, cell_ids=cell_ids,
                    schedule=spray.factors(inj, scene.end_time) if inj is not None else [])
 
+    @classmethod
+    def for_problem(cls, problem) -> "CellBatch":
+        """A batch of a packed problem's cells (``runs.problem.Problem``: its arrays, aux,
+        rows, tolerances, first step and spray schedule; a copy of its initial states)."""
+        n = problem.states.shape[0]
+        return cls(params=problem.arrays.params, config=problem.arrays.config,
+                   aux=problem.aux, rows=problem.rows,
+                   states=np.array(problem.states, dtype=np.float64, copy=True),
+                   rtol=problem.rtol, atol=problem.atol, steps=np.full(n, problem.first_step),
+                   scene=problem.scene, arrays=problem.arrays, cell_ids=problem.cell_ids,
+                   schedule=list(problem.schedule))
+
     @property
     def n_cells(self) -> int:
         """Number of cells [-]."""

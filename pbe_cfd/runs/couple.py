@@ -17,13 +17,12 @@ from pathlib import Path
 import numpy as np
 
 from . import model
-from .batch import CellBatch, SimulationError, check_physics, output_times
-from .domain import (PACKING_MARGIN, Domain, build_cells, coupled_scales, initial_states,
-                     spray_zone_cut, theta_grid)
+from .batch import CellBatch, SimulationError, check_physics  # noqa: F401 (SimulationError: API)
+from .domain import PACKING_MARGIN, Domain, spray_zone_cut
 from .executor import SerialExecutor
+from .problem import problem_of
 from ..methods import registry
 from ..methods.registry import method_of
-from ..physics import parameters as P
 from ..util.population import mean_diameters
 from ..scene.scene import SceneError
 
@@ -65,25 +64,16 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     executor = executor if executor is not None else SerialExecutor()
     start = _time.perf_counter()
     cells = domain.cells
-    rows, active, spray, notes = build_cells(scene, cells)
-    idx = np.flatnonzero(active)
-    if idx.size == 0:
-        raise SimulationError(f"{scene.source}: no cell has alpha >= alpha_min = "
-                              f"{scene.domain.alpha_min:g} (max alpha "
-                              f"{float(np.max(cells.alpha)):.3g})")
-    scaled_scene = coupled_scales(scene, rows[idx, P.ALPHA])
-    arrays = model.pack(scaled_scene)
-    grid = theta_grid(rows[idx, P.THETA]) if method.tabulates_theta else None
-    aux = method.aux(scaled_scene, arrays, grid)
+    problem = problem_of(scene, domain)
+    arrays, aux, times, idx = problem.arrays, problem.aux, problem.times, problem.cell_ids
+    active, spray, notes = problem.active, problem.spray, problem.notes
     warnings = []
-    batch = CellBatch.for_scene(scene, arrays, aux, np.ascontiguousarray(rows[idx]),
-                                initial_states(scene, arrays, rows[idx, P.ALPHA]),
-                                cell_ids=idx)
-    times = output_times(scene)
+    batch = CellBatch.for_problem(problem)
     transport = None
     if scene.transport is not None:
         from ..transport.operator import build_transport
-        transport = build_transport(scene, domain, active, rows, arrays=arrays, aux=aux)
+        transport = build_transport(scene, domain, active, problem.mesh_rows, arrays=arrays,
+                                    aux=aux)
         warnings.extend(transport.warnings)
     compile_s = batch.compile_announced(
         progress, None if transport is None else lambda: transport.compile(batch.states.shape[1]))

@@ -10,6 +10,7 @@ from . import model
 from ..physics.injection import droplet_liquid
 from ..scene import spray
 from .batch import CellBatch, SimulationError, check_physics, output_times
+from .problem import problem_of
 from ..methods.registry import method_of
 
 __all__ = ["RunResult", "SimulationError", "run_well_mixed", "output_times", "check_physics"]
@@ -39,15 +40,12 @@ def run_well_mixed(scene, progress=None) -> RunResult:
     if not method.integrated:
         return _run_ensemble(scene, progress)
     start = _time.perf_counter()
-    arrays = model.pack(scene)
-    aux = method.aux(scene, arrays, None)
+    problem = problem_of(scene)
+    arrays, aux, times = problem.arrays, problem.aux, problem.times
     warnings = []
-    times = output_times(scene)
-    state = model.initial_moments(scene, arrays, arrays.state_names)
-    states = np.zeros((len(times), len(state)))
-    states[0] = state
-    batch = CellBatch.for_scene(scene, arrays, aux, model.well_mixed_cell(scene),
-                                state[None, :].copy())
+    states = np.zeros((len(times), problem.states.shape[1]))
+    states[0] = problem.states[0]
+    batch = CellBatch.for_problem(problem)
     compile_s = batch.compile_announced(progress)
     start += compile_s                      # the run time excludes the compile
     for k in range(1, len(times)):
@@ -96,11 +94,10 @@ def _run_ensemble(scene, progress) -> RunResult:
     """A method with a run of its own (the cNMC ensemble of a well-mixed scene): mean and 95%
     band columns per output time."""
     start = _time.perf_counter()
-    arrays = model.pack(scene)
-    times = output_times(scene)
-    cells = model.well_mixed_cell(scene)
+    problem = problem_of(scene)
+    times = problem.times
     cb = (lambda f: progress(f, "")) if progress is not None else None
-    res = method_of(scene).ensemble(scene, arrays, cells[0], times, cb)
+    res = problem.method.ensemble(scene, problem.arrays, problem.rows[0], times, cb)
     wall = _time.perf_counter() - start
     columns = {"time_s": times}
     stats = {}

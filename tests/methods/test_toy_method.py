@@ -86,7 +86,8 @@ TOY = MethodEntry(
     tabulates_theta=False, population=_population, failure_hint=no_hint,
     diagnostics=no_diagnostics, plan_line=lambda scene: "toy two-moment closure",
     rhs=toy_rhs, realizable=toy_realizable, project=toy_project, conserved=toy_conserved,
-    bench_orders=int, bench_scene=lambda scene, order: scene)
+    bench_orders=int, bench_scene=lambda scene, order: scene, bench_quick=("1",),
+    bench_full=("1", "2"))
 
 
 @pytest.fixture
@@ -146,6 +147,9 @@ def test_plan_and_bench_list_name_the_registered_method(toy):
     from pbe_cfd.runs.plan import describe_plan
     assert "toy two-moment closure" in describe_plan(_toy_scene())
     assert _method_list("toy:1,qmom:2") == (("toy", 1), ("qmom", 2))
+    from pbe_cfd.bench.throughput import default_methods
+    assert default_methods(quick=True)[-1] == ("toy", 1)
+    assert default_methods(quick=False)[-2:] == (("toy", 1), ("toy", 2))
 
 
 def test_the_integrator_runs_the_registered_method_to_the_analytic_solution(toy):

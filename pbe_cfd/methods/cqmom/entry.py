@@ -52,6 +52,8 @@ ENTRY = MethodEntry(
     work_size=lambda config: cqmom_work_size(config[P.ORDER], config[P.BINDER_NODES]),
     bench_orders=_bench_orders,
     bench_scene=lambda scene, order: scene.with_method(nodes=order[0], binder_nodes=order[1]),
+    bench_quick=("2x2",), bench_full=("2x2", "3x2", "3x3"), bench_ceiling="points",
+    bench_versus_baseline=True,
     distribution="gamma",
     distribution_text="gamma EQMOM of N - 1 kernels of one width fitted to the carried "
                       "M00 .. M(2N-2)0 (one kernel for N = 2; M(2N-1)0 not used); binder "

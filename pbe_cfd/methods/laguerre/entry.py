@@ -64,6 +64,8 @@ ENTRY = MethodEntry(
     rhs=laguerre_rhs, realizable=laguerre_realizable, project=laguerre_project,
     conserved=laguerre_conserved, work_size=lambda config: 0,
     bench_orders=int, bench_scene=lambda scene, order: scene.with_method(order=order),
+    bench_quick=("2", "3"), bench_full=("2", "3", "4"), bench_ceiling="contraction",
+    bench_breakdown="contraction",
     distribution="laguerre_density",
     distribution_text="the Laguerre ROM's own density (wet and dry classes) integrated per "
                       "size class",

@@ -39,6 +39,8 @@ ENTRY = MethodEntry(
     rhs=qmom_rhs, realizable=qmom_realizable, project=qmom_project,
     conserved=qmom_conserved, work_size=lambda config: qmom_work_size(config[P.ORDER]),
     bench_orders=int, bench_scene=lambda scene, order: scene.with_method(nodes=order),
+    bench_quick=("2", "3"), bench_full=("2", "3", "4"), bench_ceiling="nodes",
+    bench_baseline="3", bench_breakdown="nodes",
     distribution="gamma",
     distribution_text="gamma EQMOM of N - 1 kernels of one width fitted to the carried "
                       "M00 .. M(2N-2)0 (one kernel for N = 2; M(2N-1)0 not used); binder "
