@@ -148,6 +148,7 @@ class Method:
     adaptive_points: int = 9
     following_support: bool = False               # Laguerre: the support follows the wet class
     following_growth: float = 1000.0              # its range: up to this x the initial mean mass
+    following_shape: bool = True                  # Laguerre: the weight's shape follows the variance
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,8 @@ from ...physics import parameters as P
 from .basis import (SPACINGS, basis_values, gamma_weight, mass_nodes,  # noqa: F401
                     fraction_basis_values, moment_index, projection_matrix,
                     quadrature, univariate_values)
-from .build import (FOLLOWING_SPAN, build_aux, default_cache_dir,  # noqa: F401
+from .build import (FOLLOWING_SHAPES, FOLLOWING_SPAN, build_aux,  # noqa: F401
+                    default_cache_dir,
                     spacing_code, theta_to_u0, unit_params)
 from .layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_COND_DRY,  # noqa: F401
                      AUX_FOLLOWING,
@@ -274,11 +275,15 @@ def aux_for_scene(scene, arrays, theta_grid=None, cache_dir=None):
 def following_spec(scene, arrays):
     """The following support's grid for a scene: wet weight means c from a quarter of the
     smaller of the initial mean mass and the droplet mass up to ``following_growth`` times
-    the initial mean mass [kg] (docs/physics.md section 9.2)."""
+    the initial mean mass [kg], and with ``following_shape`` (the default) the gamma shapes
+    of ``build.FOLLOWING_SHAPES`` (docs/physics.md section 9.2; without it the fixed
+    ``weight_shape_mass``)."""
     c0 = float(scene.initial.mean_mass)
     pd = float(arrays.params[P.DROPLET_MASS])
     low = 0.25 * (min(c0, pd) if pd > 0 else c0)
-    return dict(following=True, c=(low, c0 * float(scene.method.following_growth)))
+    shapes = FOLLOWING_SHAPES if getattr(scene.method, "following_shape", True) else None
+    return dict(following=True, c=(low, c0 * float(scene.method.following_growth)),
+                shapes=shapes)
 
 
 def table_bytes(method) -> int:
@@ -323,6 +328,7 @@ def scene_keys(t, defaults):
     kw["following_support"] = t.boolean("following_support", defaults.following_support)
     kw["following_growth"] = t.number("following_growth", defaults.following_growth,
                                       low=2.0, high=1e9)
+    kw["following_shape"] = t.boolean("following_shape", defaults.following_shape)
     return kw
 
 
