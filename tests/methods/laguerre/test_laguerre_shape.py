@@ -139,8 +139,9 @@ def test_the_following_support_defaults_the_dry_shape_to_2():
     held-out suite's droplet cases stop with 10, finish with 2), 10 without it."""
     from conftest import make_scene
     follow = {"name": "laguerre", "order": 3, "following_support": True}
-    assert make_scene(method=dict(follow, _replace=True)).method.dry_weight_shape_mass == 2.0
+    scene = make_scene(method=dict(follow, _replace=True))
+    assert scene.method.options.dry_weight_shape_mass == 2.0
     set10 = dict(follow, dry_weight_shape_mass=10.0, _replace=True)
-    assert make_scene(method=set10).method.dry_weight_shape_mass == 10.0
+    assert make_scene(method=set10).method.options.dry_weight_shape_mass == 10.0
     fixed = {"name": "laguerre", "order": 3, "_replace": True}
-    assert make_scene(method=fixed).method.dry_weight_shape_mass == 10.0
+    assert make_scene(method=fixed).method.options.dry_weight_shape_mass == 10.0
