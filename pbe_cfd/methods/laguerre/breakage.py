@@ -32,7 +32,7 @@ from ...physics import parameters as P
 from ...physics.breakage import (cell_selection_factor, daughter_moment_factor,
                                  selection_function)
 from .basis import moment_index
-from .layout import AUX_NWC, AUX_NWD, AUX_OFF_BREAK, AUX_ORDER
+from .layout import AUX_NWC, AUX_NWD, AUX_NWL, AUX_OFF_BREAK, AUX_ORDER, weight_corner
 
 
 def breakage_on(config) -> bool:
@@ -109,7 +109,7 @@ def add_linear_term(state, out, aux, offset, n, first_in, first_out, factor):
 @nb.njit(cache=True)
 def add_laguerre_breakage(state, out, cell, aux, params, config, wpos):
     """Add the breakage sources [scaled state units per s] of one cell to ``out``: the wet
-    class's L blended over the weight corners wpos = (ic, tc, jd, td) of the RHS, the dry
+    class's L blended over the weight corners wpos (``weight_corner``) of the RHS, the dry
     class's L_dry, both times the cell factor F_cell [1/s] of the cell row (ALPHA [-], THETA
     [m2/s2], COLLISION_VELOCITY [m/s]). Nothing without a breakage block or where F_cell = 0;
     free droplets are untouched."""
@@ -121,16 +121,11 @@ def add_laguerre_breakage(state, out, cell, aux, params, config, wpos):
         return
     m = int(aux[AUX_ORDER])
     K = m * m
+    nwc = int(aux[AUX_NWC])
     nwd = int(aux[AUX_NWD])
-    ic, tc, jd, td = wpos
-    for a in range(2):
-        i = ic + a
-        wa = 1.0 - tc if a == 0 else tc
-        for b in range(2):
-            j = jd + b
-            wb = 1.0 - td if b == 0 else td
-            if wa * wb != 0.0:
-                add_linear_term(state, out, aux, o + (i * nwd + j) * K * K, K, 0, 0,
-                                factor * wa * wb)
-    n_weights = int(aux[AUX_NWC]) * nwd
+    for q in range(8):
+        w, f = weight_corner(q, wpos, nwc, nwd)
+        if f != 0.0:
+            add_linear_term(state, out, aux, o + w * K * K, K, 0, 0, factor * f)
+    n_weights = nwc * nwd * max(1, int(aux[AUX_NWL]))
     add_linear_term(state, out, aux, o + n_weights * K * K, m, K, K, factor)

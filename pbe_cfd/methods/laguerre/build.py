@@ -34,7 +34,7 @@ from .layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_COND_DRY, AUX_COND_G,
                      AUX_CONSISTENT, AUX_DROPLET_MASS, AUX_FOLLOWING, AUX_HEADER,
                      AUX_LAYOUT_VERSION,
                      AUX_MASS_SCALE, AUX_N_B, AUX_N_DRY, AUX_N_NODES, AUX_N_P,
-                     AUX_NMOM, AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_OFF_BASIS,
+                     AUX_NMOM, AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_NWL, AUX_OFF_BASIS,
                      AUX_OFF_BREAK,
                      AUX_OFF_CAPMAP, AUX_OFF_CD, AUX_OFF_CD0, AUX_OFF_CDD,
                      AUX_OFF_CONDW, AUX_OFF_DRY_BASIS, AUX_OFF_F43, AUX_OFF_F43D,
@@ -58,6 +58,12 @@ FOLLOWING_SPAN = 8.0
 FOLLOWING_POINTS_PER_DECADE = 3.0
 FOLLOWING_RATIO = (0.01, 1.0)
 FOLLOWING_RATIO_POINTS = 5
+#: the gamma shapes lambda in p of the following weight, one per octave: the weight's shape
+#: follows the carried W10^2 / (W00 W20 - W10^2), so that with m = 3 the mass marginal's
+#: expansion is the gamma of the carried M0, M1, M2 itself (docs/physics.md section 9.2).
+#: Below 1/4 the number sits in the first node cell; above 8 the population spans fewer
+#: than three of the 20 cells on [0, 8 c_m]
+FOLLOWING_SHAPES = (0.25, 8.0)
 
 
 def unit_params(params):
@@ -142,7 +148,8 @@ def _u0_grid(config, theta_grid, collision_velocity):
 
 
 def _following_spec(spec):
-    """dict(following, c=[lo, hi] [kg], y=[lo, hi] [-], points_c, points_y, span [-])."""
+    """dict(following, c=[lo, hi] [kg], y=[lo, hi] [-], points_c, points_y, span [-],
+    shapes=[lo, hi] [-] or None (the fixed weight shape), points_l)."""
     c = [float(x) for x in spec["c"]]
     if not (0.0 < c[0] < c[1]):
         raise ValueError(f"following support: need 0 < c_lo < c_hi [kg], got {c}")
@@ -156,7 +163,15 @@ def _following_spec(spec):
     span = float(spec.get("span") or FOLLOWING_SPAN)
     if n_c < 2 or n_y < 2 or not span > 1.0:
         raise ValueError("following support: need >= 2 grid points a side and span > 1")
-    return dict(following=True, c=c, y=y, points_c=n_c, points_y=n_y, span=span)
+    shapes = spec.get("shapes", FOLLOWING_SHAPES)
+    n_l = 1
+    if shapes:
+        shapes = [float(x) for x in shapes]
+        if not (0.0 < shapes[0] < shapes[1]):
+            raise ValueError(f"following support: need 0 < shape_lo < shape_hi, got {shapes}")
+        n_l = int(spec.get("points_l") or round(math.log2(shapes[1] / shapes[0])) + 1)
+    return dict(following=True, c=c, y=y, points_c=n_c, points_y=n_y, span=span,
+                shapes=shapes or None, points_l=max(n_l, 2) if shapes else 1)
 
 
 def _adaptive_spec(adaptive, support):
@@ -247,22 +262,26 @@ def build_aux(params, config, order, weights=None, support=None, consistent=True
 
 
 def _weight_grid(weights, spec):
-    """(ln c grid, ln d grid, [(c, d) per weight slice]) of the wet weight means [kg]; with the
-    following support the second grid is ln(d / c)."""
+    """(ln c grid, ln d grid, ln lambda grid, [(c, d, lambda) per weight slice]) of the wet
+    weights (means [kg], shape [-]); with the following support the second grid is ln(d / c),
+    the first ln c_m (mass-weighted means), and slice w = (il * nwc + ic) * nwd + jd."""
+    lam = weights["lam"]
     if spec is not None and spec.get("following"):
         # grid in the mass-weighted mean c_m = W20/W10; the gamma weight of shape lam with
         # that mass-weighted mean has the number mean c = c_m lam / (lam + 1)
         cg = np.geomspace(spec["c"][0], spec["c"][1], spec["points_c"])
         yg = np.geomspace(spec["y"][0], spec["y"][1], spec["points_y"])
-        shrink = weights["lam"] / (weights["lam"] + 1.0)
-        return np.log(cg), np.log(yg), [(cm * shrink, y * cm * shrink) for cm in cg
-                                        for y in yg]
+        lg = (np.geomspace(spec["shapes"][0], spec["shapes"][1], spec["points_l"])
+              if spec.get("shapes") else np.array([lam]))
+        return np.log(cg), np.log(yg), np.log(lg), [
+            (cm * sh / (sh + 1.0), y * cm * sh / (sh + 1.0), sh)
+            for sh in lg for cm in cg for y in yg]
     if spec is None:
         cg, dg = np.array([weights["c"]]), np.array([weights["d"]])
     else:
         cg = np.geomspace(spec["c"][0], spec["c"][1], spec["points"])
         dg = np.geomspace(spec["d"][0], spec["d"][1], spec["points"])
-    return np.log(cg), np.log(dg), [(c, d) for c in cg for d in dg]
+    return np.log(cg), np.log(dg), np.zeros(0), [(c, d, lam) for c in cg for d in dg]
 
 
 def _kernel_data(bases, dry, u0, uparams, ucfg, separate):
@@ -276,29 +295,39 @@ def _same(a, b):
     return all(np.array_equal(x, y) for x, y in zip(a, b))
 
 
-def _slice_grids(grid, pairs, spec, weights):
+def _slice_grids(grid, pairs, spec):
     """The quadrature grid of each weight slice: the one support, or with the following
     support p_max = b_max = span c_m (c_m the weight's mass-weighted mean; b <= p bounds the
     binder), the nodes uniform in the binder
-    fraction and the basis in it (``laguerre_basis.fraction_basis_values``)."""
+    fraction and the basis in it (``laguerre_basis.fraction_basis_values``). Slices of the
+    same c_m share their nodes (and kernel matrices): the nodes depend on p_max alone."""
     if spec is None or not spec.get("following"):
         return [grid] * len(pairs)
-    grow = 1.0 + 1.0 / weights["lam"]             # c_m / c of the weight
-    return [dict(grid, p_max=spec["span"] * grow * c, b_max=spec["span"] * grow * c,
-                 spacing=1, fraction_basis=True) for c, _ in pairs]
+    out, seen = [], {}
+    for c, _, lam in pairs:
+        top = float(spec["span"] * (1.0 + 1.0 / lam) * c)       # span c_m
+        key = float("%.12e" % top)
+        if key not in seen:
+            seen[key] = dict(grid, p_max=top, b_max=top, spacing=1, fraction_basis=True)
+        out.append(seen[key])
+    return out
 
 
-def _slice_tensors(t, s, bases, dry, k, shared, u0, kargs, m, pd, p_ref):
+def _slice_tensors(t, s, bases, grids, dry, k, shared, u0, kargs, m, pd, p_ref):
     """Fill the blocks of collision-velocity slice s: k the kernel data on the first basis's
     nodes; with per-slice nodes (not shared) the wet and cross kernels are evaluated per
     weight slice."""
     B, kd, Bdd, Bdw, kdd = k
     separate = kargs[-1]
     t["Qdd"][s], t["Cdd"][s] = dry_tensors(dry, Bdd, kdd, m)
+    known = {id(grids[0]): (B, kd, Bdw)}          # kernel data per node set
     for w, basis in enumerate(bases):
-        if not shared and w > 0:
-            B, kd = wet_kernels(basis["p"], basis["b"], u0, *kargs)
-            _, Bdw, _ = dry_kernels(dry, basis["p"], basis["b"], u0, *kargs)
+        if not shared:
+            if id(grids[w]) not in known:
+                B, kd = wet_kernels(basis["p"], basis["b"], u0, *kargs)
+                _, Bdw, _ = dry_kernels(dry, basis["p"], basis["b"], u0, *kargs)
+                known[id(grids[w])] = (B, kd, Bdw)
+            B, kd, Bdw = known[id(grids[w])]
         t["Q"][w, s], t["Cd"][w, s], t["Cd0"][w, s] = wet_tensors(basis, B, kd, m, pd,
                                                                  separate)
         t["X"][w, s], t["XL"][w, s] = cross_tensors(dry, basis, Bdw, m, p_ref)
@@ -306,10 +335,10 @@ def _slice_tensors(t, s, bases, dry, k, shared, u0, kargs, m, pd, p_ref):
 
 def _tables(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
     """Every block of the aux as arrays (see ``laguerre_layout``)."""
-    lnc, lnd, pairs = _weight_grid(weights, spec)
-    grids = _slice_grids(grid, pairs, spec, weights)
-    bases = [wet_basis(m, (c, d, weights["lam"], weights["gam"]), g, consistent, p_ref)
-             for (c, d), g in zip(pairs, grids)]
+    lnc, lnd, lnl, pairs = _weight_grid(weights, spec)
+    grids = _slice_grids(grid, pairs, spec)
+    bases = [wet_basis(m, (c, d, lam, weights["gam"]), g, consistent, p_ref)
+             for (c, d, lam), g in zip(pairs, grids)]
     shared = grids[0] is grids[-1]
     pd = float(params[P.DROPLET_MASS])
     separate = int(config[P.SEPARATE_DROPLETS]) == 1 and params[P.DROPLET_FACTOR] > 0
@@ -336,10 +365,11 @@ def _tables(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
              Cdd=np.zeros((nS, m, m)))
     for s, u0 in enumerate(slices):
         k = first if s == 0 else (last if s == nS - 1 else kernels(u0))
-        _slice_tensors(t, s, bases, dry, k, shared, u0_of(u0), (uparams, ucfg, separate), m,
-                       pd, p_ref)
+        _slice_tensors(t, s, bases, grids, dry, k, shared, u0_of(u0),
+                       (uparams, ucfg, separate), m, pd, p_ref)
     logu = np.log(np.array([x if np.isfinite(x) else 1.0 for x in slices]))
-    t.update(logu=logu, logw=np.concatenate([lnc, lnd]), nwc=len(lnc), nwd=len(lnd),
+    t.update(logu=logu, logw=np.concatenate([lnc, lnd, lnl]), nwc=len(lnc), nwd=len(lnd),
+             nwl=max(1, len(lnl)),
              f43=np.concatenate([b["f43"] for b in bases]),
              basis=np.concatenate([b["basis"] for b in bases]),
              sup=np.concatenate([b["sup"] for b in bases]), dry=dry, separate=separate,
@@ -381,7 +411,7 @@ def _build(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
               AUX_N_B: grid["n_b"], AUX_N_NODES: t["n_nodes"], AUX_SPACING: grid["spacing"],
               AUX_DROPLET_MASS: t["pd"], AUX_SEPARATE: 1.0 if t["separate"] else 0.0,
               AUX_COND_G: t["cond"], AUX_COND_DRY: dry["cond"], AUX_N_DRY: grid["n_dry"],
-              AUX_NWC: t["nwc"], AUX_NWD: t["nwd"],
+              AUX_NWC: t["nwc"], AUX_NWD: t["nwd"], AUX_NWL: t["nwl"],
               AUX_FOLLOWING: 1.0 if t["following"] else 0.0,
               AUX_U0_FIXED: (slices[0] if (len(slices) == 1 and np.isfinite(slices[0])
                                            and not t["collapsed"]) else 0.0)}

@@ -7,9 +7,10 @@ granules' mixed moments, the dry granules' moments in p, free droplets.
 The aux array is a float64 header (slots below) followed by blocks at the offsets the header
 holds. Tensors depend on the collision velocity u0 (``slice`` s, NSLICE values of ln u0) and,
 with adaptive weights, on the wet weight means (``weight`` w = ic * NWD + id on a log grid of
-NWC means c and NWD means d; with the following support, NWC mass-weighted means c_m and NWD
-binder fractions y, and each weight slice integrates over its own support p <= span c_m,
-b <= p: docs/physics.md section 9.2);
+NWC means c and NWD means d; with the following support, w = (il * NWC + ic) * NWD + id over
+NWL gamma shapes lambda in p, NWC mass-weighted means c_m and NWD binder fractions y, and each
+weight slice integrates over its own support p <= span c_m, b <= p: docs/physics.md
+section 9.2);
 the dry-only blocks depend on the slice alone. Block shapes:
 
     Q[w, s, pair(k <= l < K), a < K]     wet + wet -> wet
@@ -25,6 +26,7 @@ the dry-only blocks depend on the slice alone. Block shapes:
 """
 import math
 
+import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
@@ -74,10 +76,11 @@ HEADER = (
     ("AUX_FOLLOWING", "1: following support (weight grid in (ln c, ln d/c), a support per slice)"),
     ("AUX_OFF_WET_SUPPORT", "offset of (p_max, b_max) [kg] of each weight slice (NWC * NWD "
                             "pairs)"),
-    ("AUX_SPARE", "unused (the header keeps its length of layout version 5)"),
+    ("AUX_NWL", "gamma shapes lambda in p on the following grid (1: a fixed shape); the "
+                "weight index is w = (il * NWC + ic) * NWD + jd"),
 )
 AUX_HEADER = numbered(HEADER, globals())
-AUX_LAYOUT_VERSION = 5.0
+AUX_LAYOUT_VERSION = 6.0
 
 TABLE_III = dict(weights=dict(c=1e-9, d=1e-9, lam=1.0, gam=0.2),
                  support=dict(p_max=1e-8, b_max=4e-9, n_p=20, n_b=20))
@@ -109,8 +112,18 @@ def basis_size(m):
 
 
 def n_weights(aux):
-    """Number of weight slices (NWC * NWD)."""
-    return int(aux[AUX_NWC]) * int(aux[AUX_NWD])
+    """Number of weight slices (NWL * NWC * NWD)."""
+    return int(aux[AUX_NWC]) * int(aux[AUX_NWD]) * max(1, int(aux[AUX_NWL]))
+
+
+def carried_shape(w00, w10, w20):
+    """Gamma shape [-] of the carried number moments (W00, W10, W20): mean^2 / variance =
+    W10^2 / (W00 W20 - W10^2); inf for a delta or a set without a positive variance, 0 for
+    a set with no number or mass."""
+    if not (w00 > 0.0 and w10 > 0.0):
+        return 0.0
+    var = w00 * w20 - w10 * w10
+    return w10 * w10 / var if var > 0.0 else math.inf
 
 
 def unpack_basis(aux, w=0):
@@ -168,7 +181,8 @@ def weight_corners(state, aux):
     """[(weight slice w, blend weight)] of a scaled state: the wet weight means follow the wet
     class's mean mass W10/W00 and mean binder W01/W00 on the adaptive grid (bilinear in
     ln c, ln d, as the RHS blends; with the following support in the mass-weighted mean mass
-    W20/W10 and the binder fraction W01/W10, both in logs); [(0, 1.0)] for fixed weights."""
+    W20/W10, the binder fraction W01/W10 and the carried gamma shape (``carried_shape``), all
+    in logs, trilinear); [(0, 1.0)] for fixed weights."""
     nwc, nwd = int(aux[AUX_NWC]), int(aux[AUX_NWD])
     if nwc * nwd <= 1:
         return [(0, 1.0)]
@@ -184,11 +198,18 @@ def weight_corners(state, aux):
         d = state[1] / state[m] if ok else 0.0
     ic, tc = _log_position(c, aux[o:o + nwc])
     jd, td = _log_position(d, aux[o + nwc:o + nwc + nwd])
+    nwl = max(1, int(aux[AUX_NWL]))
+    il, tl = 0, 0.0
+    if nwl > 1:
+        lam = carried_shape(w00, float(state[m]), float(state[2 * m]))
+        grid = aux[o + nwc + nwd:o + nwc + nwd + nwl]
+        il, tl = (nwl - 2, 1.0) if lam == math.inf else _log_position(lam, grid)
     out = []
-    for a, wa in ((0, 1.0 - tc), (1, tc)):
-        for b, wb in ((0, 1.0 - td), (1, td)):
-            if wa * wb > 0.0:
-                out.append(((ic + a) * nwd + jd + b, wa * wb))
+    for g, wg in ((0, 1.0 - tl), (1, tl)):
+        for a, wa in ((0, 1.0 - tc), (1, tc)):
+            for b, wb in ((0, 1.0 - td), (1, td)):
+                if wg * wa * wb > 0.0:
+                    out.append((((il + g) * nwc + ic + a) * nwd + jd + b, wg * wa * wb))
     return out
 
 
@@ -204,3 +225,23 @@ def wet_support(aux, w=0):
         o = int(aux[AUX_OFF_WET_SUPPORT]) + 2 * w
         return float(aux[o]), float(aux[o + 1])
     return float(aux[AUX_P_MAX]), float(aux[AUX_B_MAX])
+
+
+@nb.njit(cache=True, inline="always")
+def _corner(k, i, t):
+    """(index, weight) of corner k (0 lower, 1 upper) of a linear interpolation at (i, t)."""
+    if k == 0:
+        return i, 1.0 - t
+    return i + 1, t
+
+
+@nb.njit(cache=True, inline="always")
+def weight_corner(q, wpos, nwc, nwd):
+    """(weight slice w, blend weight) of corner q < 8 of the weight position wpos
+    (``_weight_position``): bit 0 the mass axis, bit 1 the binder axis, bit 2 the shape
+    axis; w = (il * nwc + ic) * nwd + jd."""
+    ic, tc, jd, td, il, tl = wpos
+    i, wa = _corner(q & 1, ic, tc)
+    j, wb = _corner((q >> 1) & 1, jd, td)
+    g, wg = _corner((q >> 2) & 1, il, tl)
+    return (g * nwc + i) * nwd + j, wa * wb * wg

@@ -25,9 +25,10 @@ class LaguerreOptions:
     grid_spacing: str = "fraction"
     dry_class: bool = True
     dry_weight_mean_mass: float | None = None     # kg; None: the initial mean mass
-    dry_weight_shape_mass: float = 10.0
+    dry_weight_shape_mass: float = 10.0           # 2 with following_support
     dry_grid_mass: int = 200
     adaptive_weights: bool = True
     adaptive_points: int = 9
     following_support: bool = False               # the support follows the wet class
     following_growth: float = 1000.0              # its range: up to this x the initial mean mass
+    following_shape: bool = True                  # the weight's shape follows the variance

@@ -39,10 +39,11 @@ import numpy as np
 from ...physics import parameters as P
 from ...physics.kernels import KTGF, kernel_cell_factor
 from .layout import (AUX_CHECK_LEVEL, AUX_FOLLOWING, AUX_MASS_SCALE, AUX_NPAIR, AUX_NSLICE,
-                     AUX_NWC, AUX_NWD, AUX_OFF_CAPMAP, AUX_OFF_CD, AUX_OFF_CD0, AUX_OFF_CDD,
+                     AUX_NWC, AUX_NWD, AUX_NWL, AUX_OFF_CAPMAP, AUX_OFF_CD, AUX_OFF_CD0, AUX_OFF_CDD,
                      AUX_OFF_F43, AUX_OFF_F43D, AUX_OFF_LOGU, AUX_OFF_LOGW, AUX_OFF_Q,
                      AUX_OFF_QDD, AUX_OFF_SUPPORT, AUX_OFF_X, AUX_OFF_XL, AUX_ORDER, AUX_P_MAX,
-                     AUX_SEPARATE, state_names, state_size, weight_corners, wet_support)
+                     AUX_SEPARATE, _corner, state_names, state_size, weight_corner,
+                     weight_corners, wet_support)
 from .breakage import add_laguerre_breakage
 from .tensor import (basis_values, build_aux, dry_particles, dry_support_functionals,
                      escaped_mass_share, fraction_basis_values, initial_state, projection_matrix,
@@ -96,37 +97,39 @@ def _slice_position(cell, aux):
 
 @nb.njit(cache=True)
 def _weight_position(state, aux, m):
-    """Adaptive weights: ((index, upper weight) in c, (index, upper weight) in d) of the wet
+    """Adaptive weights: (ic, tc, jd, td, il, tl), the (lower index, upper weight) of the wet
     class's mean mass W10/W00 and mean binder W01/W00 [kg] on the weight grid (following
-    support: the mass-weighted mean mass W20 / W10 [kg] and the binder fraction W01 / W10
-    [-])."""
+    support: the mass-weighted mean mass W20 / W10 [kg], the binder fraction W01 / W10 [-]
+    and the carried gamma shape W10^2 / (W00 W20 - W10^2) [-], all in logs; the shape index
+    is (0, 0.0) without a shape axis)."""
     nwc = int(aux[AUX_NWC])
     nwd = int(aux[AUX_NWD])
     if nwc * nwd <= 1 or not (state[0] > 0.0) or not (state[m] > 0.0):
-        return 0, 0.0, 0, 0.0
+        return 0, 0.0, 0, 0.0, 0, 0.0
     o = int(aux[AUX_OFF_LOGW])
     pref = aux[AUX_MASS_SCALE]
+    il, tl = 0, 0.0
     if aux[AUX_FOLLOWING] == 1.0:          # mass-weighted mean mass W20 / W10
         if not (state[2 * m] > 0.0):
-            return 0, 0.0, 0, 0.0
+            return 0, 0.0, 0, 0.0, 0, 0.0
         ic, tc = _log_position(math.log(state[2 * m] / state[m] * pref), aux, o, nwc)
+        nwl = int(aux[AUX_NWL])
+        if nwl > 1:
+            var = state[0] * state[2 * m] - state[m] * state[m]
+            if var > 0.0:
+                il, tl = _log_position(math.log(state[m] * state[m] / var), aux,
+                                       o + nwc + nwd, nwl)
+            else:                          # a delta: the narrowest shape
+                il, tl = nwl - 2, 1.0
     else:
         ic, tc = _log_position(math.log(state[m] / state[0] * pref), aux, o, nwc)
     if not (state[1] > 0.0):
-        return ic, tc, 0, 0.0
+        return ic, tc, 0, 0.0, il, tl
     if aux[AUX_FOLLOWING] == 1.0:          # ratio d / c = W01 / W10
         jd, td = _log_position(math.log(state[1] / state[m]), aux, o + nwc, nwd)
     else:
         jd, td = _log_position(math.log(state[1] / state[0] * pref), aux, o + nwc, nwd)
-    return ic, tc, jd, td
-
-
-@nb.njit(cache=True, inline="always")
-def _corner(k, i, t):
-    """(index, weight) of corner k (0 lower, 1 upper) of a linear interpolation at (i, t)."""
-    if k == 0:
-        return i, 1.0 - t
-    return i + 1, t
+    return ic, tc, jd, td, il, tl
 
 
 @nb.njit(cache=True)
@@ -144,20 +147,19 @@ def laguerre_d43(state, aux, params, config):
     m = int(aux[AUX_ORDER])
     K = m * m
     pref = params[P.MASS_SCALE]
-    ic, tc, jd, td = _weight_position(state, aux, m)
+    wpos = _weight_position(state, aux, m)
+    nwc = int(aux[AUX_NWC])
     nwd = int(aux[AUX_NWD])
     m43 = 0.0
-    for a in range(2):
-        i, wa = _corner(a, ic, tc)
-        for b in range(2):
-            j, wb = _corner(b, jd, td)
-            if wa * wb == 0.0:
-                continue
-            o = int(aux[AUX_OFF_F43]) + (i * nwd + j) * K
-            acc = 0.0
-            for k in range(K):
-                acc += aux[o + k] * state[k]
-            m43 += wa * wb * acc
+    for q in range(8):
+        w, f = weight_corner(q, wpos, nwc, nwd)
+        if f == 0.0:
+            continue
+        o = int(aux[AUX_OFF_F43]) + w * K
+        acc = 0.0
+        for k in range(K):
+            acc += aux[o + k] * state[k]
+        m43 += f * acc
     od = int(aux[AUX_OFF_F43D])
     for k in range(m):
         m43 += aux[od + k] * state[K + k]
@@ -258,10 +260,10 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
     returns the droplets captured per unit time (scaled)."""
     K = m * m
     ns = int(aux[AUX_NSLICE])
+    nwc = int(aux[AUX_NWC])
     nwd = int(aux[AUX_NWD])
     npair = int(aux[AUX_NPAIR])
     capture = nd != 0.0 and aux[AUX_SEPARATE] == 1.0
-    ic, tc, jd, td = wpos
     loss = 0.0
     for sc in range(2):
         s, ws = _corner(sc, i0, t)
@@ -276,23 +278,21 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
                                      mult * ws * nd)
         if not wet:
             continue
-        for a in range(2):
-            i, wa = _corner(a, ic, tc)
-            for b in range(2):
-                j, wb = _corner(b, jd, td)
-                f = ws * wa * wb
-                if f == 0.0:
-                    continue
-                ws_ = (i * nwd + j) * ns + s
-                _quadratic_form(state, 0, K, out, 0, aux, int(aux[AUX_OFF_Q]) + ws_ * npair * K,
-                                mult * f)
-                if dry:
-                    _dry_wet_aggregation(state, out, aux, m,
-                                         int(aux[AUX_OFF_X]) + ws_ * m * K * K,
-                                         int(aux[AUX_OFF_XL]) + ws_ * m * K * m, mult * f)
-                if capture:
-                    loss += _wet_capture(state, out, aux, m, int(aux[AUX_OFF_CD]) + ws_ * K * K,
-                                         int(aux[AUX_OFF_CD0]) + ws_ * K, mult * f * nd)
+        for q in range(8):
+            w, fw = weight_corner(q, wpos, nwc, nwd)
+            f = ws * fw
+            if f == 0.0:
+                continue
+            ws_ = w * ns + s
+            _quadratic_form(state, 0, K, out, 0, aux, int(aux[AUX_OFF_Q]) + ws_ * npair * K,
+                            mult * f)
+            if dry:
+                _dry_wet_aggregation(state, out, aux, m,
+                                     int(aux[AUX_OFF_X]) + ws_ * m * K * K,
+                                     int(aux[AUX_OFF_XL]) + ws_ * m * K * m, mult * f)
+            if capture:
+                loss += _wet_capture(state, out, aux, m, int(aux[AUX_OFF_CD]) + ws_ * K * K,
+                                     int(aux[AUX_OFF_CD0]) + ws_ * K, mult * f * nd)
     return loss
 
 
