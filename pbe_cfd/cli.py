@@ -176,7 +176,7 @@ def _apply_resume(args):
     manifest = resume_manifest(args.resume)
     if not args.scene and manifest.get("scene"):
         args.scene = manifest["scene"]
-    if args.chunks is None and manifest.get("partition") == "blocks":
+    if args.chunks is None and manifest.get("partition") in ("blocks", "flux graph"):
         args.chunks = manifest.get("chunks")      # the same blocks as the first run
 
 
@@ -320,19 +320,9 @@ def _couple_recorded(args, scene, out, phases, t_read, caught):
 
 
 def case_command(args):
-    """``pbe-cfd case run --mesh small --dir DIR``: copy and run the fluid-bed case."""
-    from .io.openfoam import cases
-    from .io import openfoam as of
-    target = Path(args.dir)
-    try:
-        res = cases.copy_and_run(target, args.mesh, args.overwrite, flag="--dir",
-                                 log=lambda line: print(line, file=sys.stderr))
-    except of.OpenFOAMError as exc:
-        print(f"pbe-cfd: error: {exc}", file=sys.stderr)
-        return 1
-    print(f"case {target} ({args.mesh}) ran to t = {res.latest_time:g} s; "
-          + ", ".join(f"{k} {v:.1f} s" for k, v in res.wall_times.items()))
-    return 0
+    """``pbe-cfd case run|make``: see ``io.openfoam.case_command``."""
+    from .io.openfoam.case_command import case_command as command
+    return command(args)
 
 
 def render_command(args):
@@ -388,7 +378,8 @@ def bench_command(args):
         print((out / "peer.md").read_text())
     else:
         study_of = {"cnmc": bench.cnmc_study, "laguerre": bench.laguerre_study,
-                    "couple": bench.couple_study, "integrators": bench.integrator_study}
+                    "couple": bench.couple_study, "integrators": bench.integrator_study,
+                    "cluster": bench.cluster_study}
         study_of[study](out, quick=quick)
         files = f"{study}.csv, {study}.md"
         print((out / f"{study}.md").read_text())
@@ -430,6 +421,23 @@ def _method_list(text):
     if not out:
         raise argparse.ArgumentTypeError("name at least one method")
     return tuple(out)
+
+
+def _add_case_parser(sub):
+    p = sub.add_parser("case", help="run the bundled OpenFOAM fluid-bed case, or make a 3-D "
+                                    "bed of any size (make --3d --cells N)")
+    p.add_argument("action", choices=("run", "make"))
+    p.add_argument("--mesh", default="small", choices=("small", "full"))
+    p.add_argument("--dir", default=None, help="where to copy and run the case (default "
+                   "fluid-bed-case), or to write the 3-D bed (default fluid-bed-3d)")
+    p.add_argument("--cells", type=_positive_int, default=None,
+                   help="make: cells of the 3-D bed (near-cubic cells)")
+    p.add_argument("--3d", dest="three_d", action="store_true",
+                   help="make: the bundled bed extruded in depth (the one kind made)")
+    p.add_argument("--depth", type=float, default=None, help="make: depth of the bed in m "
+                   "(default 0.15)")
+    _add_overwrite(p, "the files of an earlier case pbe-cfd made there")
+    p.set_defaults(func=case_command)
 
 
 def build_parser():
@@ -483,8 +491,9 @@ def build_parser():
                    help="start a local cluster of N worker processes (numba threads per "
                         "worker: cores // N)")
     g.add_argument("--chunks", metavar="K", type=_positive_int, default=None,
-                   help="split the active cells into K blocks (default: 4 per worker, or one "
-                        "per processor directory of a decomposed case)")
+                   help="split the active cells into K blocks (default: 4 per worker, with "
+                        "[transport] one per worker; one per processor directory of a "
+                        "decomposed case)")
     g.add_argument("--decompose", metavar="N", type=_positive_int, default=None,
                    help="decomposePar the OpenFOAM case into N subdomains first; one task "
                         "per processor directory, --foam-fields also written per processor")
@@ -494,12 +503,7 @@ def build_parser():
                         "to that run's)")
     p.set_defaults(func=couple_command)
 
-    p = sub.add_parser("case", help="run the bundled OpenFOAM fluid-bed case")
-    p.add_argument("action", choices=("run",))
-    p.add_argument("--mesh", default="small", choices=("small", "full"))
-    p.add_argument("--dir", default="fluid-bed-case", help="where to copy and run the case")
-    _add_overwrite(p, "the files of an earlier case pbe-cfd made there")
-    p.set_defaults(func=case_command)
+    _add_case_parser(sub)
 
     p = sub.add_parser("render", help="render PNGs of a coupled run's VTK series")
     p.add_argument("dir", help="output directory of `pbe-cfd couple`")
@@ -515,7 +519,7 @@ def build_parser():
 
     p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")
     p.add_argument("study", choices=("accuracy", "throughput", "cnmc", "laguerre", "couple",
-                                     "integrators", "peer"))
+                                     "integrators", "peer", "cluster"))
     p.add_argument("scene", nargs="?", help="scene for the accuracy study")
     p.add_argument("--out", default="bench-out")
     p.add_argument("--quick", action="store_true", help="a tiny configuration (plumbing check)")

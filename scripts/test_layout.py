@@ -66,8 +66,10 @@ RULES = (
     ("test_model", "runs"),
     # transport
     ("test_transport", "transport"),
+    ("test_halo", "transport"),
     # io: output guard, manifest, OpenFOAM case I/O, user cases
     ("test_openfoam", "io"),
+    ("test_bed3d", "io"),
     ("test_output", "io"),
     ("test_data_safety", "io"),
     ("test_cfd_input", "io"),

@@ -53,6 +53,7 @@ from .accuracy import (DEFAULT_ACCURACY_SCENE, QUANTITIES, TIME_FRACTIONS, Varia
 from .accuracy_report import accuracy_markdown, pareto_front, plot_pareto
 from .analytic import (analytic_applicable, analytic_moments, analytic_reference,
                        smoluchowski_d43)
+from .cluster_3d import cluster_study
 from .cnmc import cnmc_study, seed_scenario_benchmark, seed_scenario_setup
 from .common import STUDY_FILES, failure_status, machine_info
 from .couple import couple_study, replicated_domain

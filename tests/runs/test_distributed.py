@@ -134,25 +134,6 @@ def test_killed_worker_chunk_is_reported_and_resumed(serial_short, tmp_path):
         cluster.close()
 
 
-def test_transport_on_the_cluster_equals_serial_and_resumes(client, tmp_path):
-    scene = short("fluid-bed-transport", end=1.0, interval=0.5)
-    domain = load_domain(scene, need_flux=True)
-    ref = run_coupled(scene, domain)
-    store = tmp_path / "tr.chunks"
-    ex = D.ClusterExecutor(client=client, chunks=2, store_dir=store,
-                           fault=D.parse_fault("raise:1@0.5"))
-    with pytest.raises(D.ChunksFailed, match="source step 0.5"):
-        run_coupled(scene, domain, executor=ex)
-    assert ex.store.stored_steps() == [1]
-    rep = ex.report()["transport"]
-    n_active = int(ref.stats["active_cells"])
-    assert rep["bytes_out_per_step"] > 8 * n_active     # states + step memory every step
-    again = D.ClusterExecutor(client=client, chunks=2, store_dir=store, resume=True)
-    res = run_coupled(scene, domain, executor=again)
-    assert res.stats["cluster"]["transport"]["resumed_from_output"] == 1
-    assert_same(ref, res)
-
-
 def _short_scene_file(tmp_path, case=None, end=10.0, interval=5.0) -> Path:
     text = bundled_scenes()["fluid-bed"].read_text()
     text = text.replace("end_time = 60.0", f"end_time = {end}")

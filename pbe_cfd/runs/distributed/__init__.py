@@ -15,12 +15,17 @@ Design
 * **Without transport** chunks are independent over the whole run: one task per chunk
   integrates its cells over *all* output intervals and returns the history (states at every
   output time), the step memory, the counters and the status. Data moves once each way.
-* **With** ``[transport]`` the transport operator couples all cells every split step, so the
-  client keeps the states and runs ``Transport.advance`` (sparse upwind matrix, as in the
-  serial run); each source part of each split step is one task per chunk: the chunk's states
-  and step memory go out, the integrated states, step memory and counters come back (the
-  cell rows and the method data are sent once and stay on the workers). The bytes moved and
-  the wall time per split step are measured and reported (``report()["transport"]``).
+* **With** ``[transport]`` the states stay on the workers (``halo_run``). Each block of cells
+  (one per processor directory of a decomposed case, else ``--chunks K`` or one per worker
+  blocks of the flux graph, ``transport.halo.level_partition``) lives on one worker. Per
+  transport part a block reads, worker to worker through Dask's dependency transfer, only the
+  states of its halo (the cells within k upwind hops in other blocks, k the CFL substeps of the
+  part) and advances its own cells through the k substeps; per source part it integrates its
+  own cells. The client submits each output interval's task graph (control messages only) and
+  gathers the states once per output time. Results are bitwise the serial run's (the local
+  rows of the step matrix keep the global rows' entries in order; the rest is per cell). The
+  bytes the client sends per split step, the halo sizes and the gathered bytes per output time
+  are reported (``report()["transport"]``).
 * **Fault tolerance.** With a chunk store (``DIR.chunks/`` next to the output ``DIR``) every
   finished chunk is written atomically to ``DIR.chunks/chunk_00003.npz`` by the client as soon
   as it arrives. A chunk whose task fails (an exception, or a worker lost more often than the
@@ -29,7 +34,8 @@ Design
   missing ones. The store carries a fingerprint of every numeric input (initial states, cell
   rows, method data, times, tolerances, partition), so a store made by a different problem is
   refused. With transport, the client stores the states at every output time
-  (``DIR.chunks/step_00004.npz``) and a resume continues from the last stored output time.
+  (``DIR.chunks/step_00004.npz``) and a resume continues from the last stored output time; a
+  worker lost during an interval is found by polling the scheduler and named with its blocks.
   The output directory itself is written atomically (``output.atomic_directory``) only after
   the whole run succeeded; the chunk store is removed after that.
 * **Threads.** A ``LocalCluster`` of N worker processes has one Dask thread per worker (one
@@ -42,7 +48,8 @@ Design
   through the ``progress(fraction, text)`` callback (the CLI's tqdm bar).
 
 Modules: ``partition`` (chunks), ``decompose`` (decomposePar, processor directories), ``store``
-(the chunk store), ``faults`` (fault injection), ``tasks`` (what a worker runs), ``cluster``
+(the chunk store), ``faults`` (fault injection), ``tasks`` (what a worker runs), ``halo_run``
+and ``halo_tasks`` (transport with the states on the workers), ``cluster``
 (local clusters, threads), ``executor`` (``ClusterExecutor``), ``launch`` (an executor from the
 command-line options).
 """
@@ -54,11 +61,11 @@ from .faults import FAULT_ENV, parse_fault
 from .launch import check_store, make_executor, resume_manifest
 from .partition import Partition, block_partition, processor_partition
 from .store import STORE_SUFFIX, ChunkStore, ChunkStoreError, fingerprint, store_path
-from .tasks import chunk_history, chunk_source
+from .tasks import chunk_history
 
 __all__ = ["host_cores", "numba_thread_table", "start_local_cluster", "decompose_case",
            "decomposition_dict", "processor_dirs", "read_decomposition",
            "write_processor_fields", "ChunksFailed", "ClusterExecutor", "FAULT_ENV",
            "parse_fault", "check_store", "make_executor", "resume_manifest", "Partition", "block_partition",
            "processor_partition", "STORE_SUFFIX", "ChunkStore", "ChunkStoreError",
-           "fingerprint", "store_path", "chunk_history", "chunk_source"]
+           "fingerprint", "store_path", "chunk_history"]

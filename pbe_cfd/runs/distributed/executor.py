@@ -17,7 +17,7 @@ from .decompose import write_processor_fields
 from .partition import Partition, block_partition, processor_partition
 from .store import STORE_SUFFIX, ChunkStore, fingerprint
 from .cluster import numba_thread_table
-from .tasks import _identity, chunk_history, chunk_source
+from .tasks import _identity, chunk_history
 
 
 class ChunksFailed(SimulationError):
@@ -63,7 +63,7 @@ class ClusterExecutor:
         start = _time.perf_counter()
         states, rows, idx, steps = batch.states, batch.rows, batch.cell_ids, batch.steps
         n = states.shape[0]
-        part = self._partition(n, idx)
+        part = self._partition(n, idx, transport)
         shared = batch.shared()
         threads = numba_thread_table(self.client)
         layout = np.concatenate([np.r_[len(c), c] for c in part.chunks])
@@ -143,15 +143,23 @@ class ClusterExecutor:
         return out
 
     # -- pieces ------------------------------------------------------------------------
-    def _partition(self, n, idx) -> Partition:
+    def _partition(self, n, idx, transport=None) -> Partition:
         if isinstance(self.chunks, Partition):
             return self.chunks
         if self.decomposition is not None and self.chunks is None:
             n_cells = sum(len(a) for a in self.decomposition)
             return processor_partition(self.decomposition, np.asarray(idx), n_cells)
         k = self.chunks
+        n_workers = max(1, len(self.client.scheduler_info().get("workers", {})))
+        if transport is not None:
+            # blocks of the flux graph, one per worker unless --chunks says otherwise
+            from ...transport.halo import level_partition
+            labels = level_partition(transport.generator, int(k or n_workers))
+            blocks = [np.flatnonzero(labels == b) for b in range(int(labels.max()) + 1)]
+            return Partition(chunks=blocks, labels=[f"block {b}" for b in range(len(blocks))],
+                             kind="flux graph")
         if k is None:
-            k = 4 * max(1, len(self.client.scheduler_info().get("workers", {})))
+            k = 4 * n_workers
         return block_partition(n, int(k))
 
     def _run_independent(self, part, batch, times, shared, threads, progress):
@@ -226,101 +234,8 @@ class ClusterExecutor:
         return [history[k] for k in range(n_t)]
 
     def _run_transport(self, part, batch, times, transport, shared, threads, progress):
-        from distributed import as_completed
-
-        states, rows = batch.states, batch.rows
-        steps, stats, status, reached = (batch.steps, batch.stats_counts, batch.status,
-                                         batch.reached)
-        client = self.client
-        history = [states.copy()]
-        k0 = 0
-        if self.store is not None and self.resume:
-            for k in self.store.stored_steps():
-                if k >= len(times):
-                    continue
-                z = self.store.load_step(k)
-                history.append(z["states"].copy())
-                k0 = k
-            if k0 > 0:
-                z = self.store.load_step(k0)
-                states[...] = z["states"]
-                steps[...] = z["steps"]
-                stats[...] = z["stats"]
-                status[...] = z["status"]
-                reached[...] = z["reached"]
-            history = history[:k0 + 1]
-        shared_f = client.submit(_identity, shared, pure=False)
-        rows_f = [client.submit(_identity, np.ascontiguousarray(rows[pos]), pure=False)
-                  for pos in part.chunks]
-        moved = {"out": [], "back": [], "wall": [], "compute_max": [], "wait": []}
-
-        def source_step(s, ta, tb):
-            t_start = _time.perf_counter()
-            futs = {}
-            out_bytes = 0
-            for c, pos in enumerate(part.chunks):
-                sc, st = s[pos], steps[pos]
-                out_bytes += sc.nbytes + st.nbytes
-                f = client.submit(chunk_source, c, sc, rows_f[c], st, shared_f, float(ta),
-                                  float(tb), threads, self.fault, pure=False)
-                futs[f] = c
-            failed, back, cmax = {}, 0, 0.0
-            for f in as_completed(list(futs)):
-                c = futs[f]
-                try:
-                    res = f.result()
-                except Exception as exc:  # noqa: BLE001
-                    failed[c] = f"{type(exc).__name__}: {exc}"
-                    continue
-                pos = part.chunks[c]
-                s[pos] = res["states"]
-                steps[pos] = res["steps"]
-                stats[pos] += res["stats"]
-                status[pos] = res["status"]
-                reached[pos] = res["reached"]
-                back += sum(res[x].nbytes for x in ("states", "steps", "stats", "status",
-                                                    "reached"))
-                cmax = max(cmax, float(res["compute_s"]))
-            wall = _time.perf_counter() - t_start
-            moved["out"].append(out_bytes)
-            moved["back"].append(back)
-            moved["wall"].append(wall)
-            moved["compute_max"].append(cmax)
-            moved["wait"].append(wall - cmax)
-            if failed:
-                raise self._failure(failed, part, at=(ta, tb))
-            bad = np.flatnonzero(status != integrate.OK)
-            if bad.size:
-                batch.raise_if_failed(s, failed=bad)
-
-        try:
-            for k in range(k0 + 1, len(times)):
-                transport.advance(states, times[k - 1], times[k], source_step)
-                history.append(states.copy())
-                if self.store is not None:
-                    self.store.save_step(k, {"states": states, "steps": steps,
-                                             "stats": stats, "status": status,
-                                             "reached": reached})
-                if progress is not None:
-                    progress(times[k] / times[-1], f"t = {times[k]:.4g} s "
-                             f"({part.n_chunks} chunks per source step)")
-        finally:
-            for f in rows_f:
-                f.release()
-            shared_f.release()
-            med = (lambda xs: float(statistics.median(xs)) if xs else 0.0)
-            self._report["transport"] = {
-                "source_steps": len(moved["wall"]),
-                "resumed_from_output": int(k0),
-                "bytes_out_per_step": med(moved["out"]),
-                "bytes_back_per_step": med(moved["back"]),
-                "source_step_wall_s_median": med(moved["wall"]),
-                "slowest_task_compute_s_median": med(moved["compute_max"]),
-                "overhead_s_per_step_median": med(moved["wait"]),
-                "note": "transport on the client (scipy.sparse), per-cell sources per chunk "
-                        "on the workers; states and step memory go out and back every "
-                        "split step, cell rows and method data are sent once"}
-        return history
+        from .halo_run import run_on_workers
+        return run_on_workers(self, part, batch, times, transport, shared, threads, progress)
 
     def _failure(self, failed: dict, part: Partition, at=None) -> ChunksFailed:
         names = ", ".join(f"{k} ({part.labels[k]}: {why})" for k, why in sorted(failed.items()))

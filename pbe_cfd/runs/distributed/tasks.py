@@ -1,5 +1,5 @@
 """The tasks a Dask worker runs: one chunk's cells as a ``CellBatch`` over all output times
-(no transport) or over one source step (transport)."""
+(no transport); with transport the block tasks are in ``halo_tasks``."""
 from __future__ import annotations
 
 import threading
@@ -68,19 +68,3 @@ def chunk_history(chunk: int, states, rows, steps, shared, times, threads, fault
             "status": batch.status, "reached": batch.reached, "fail_interval": fail,
             "compute_s": np.array(_time.perf_counter() - start),
             "threads": np.array(nthreads)}
-
-
-def chunk_source(chunk: int, states, rows, steps, shared, t0: float, t1: float, threads,
-                 fault=None) -> dict:
-    """Task: integrate one chunk's per-cell sources from t0 to t1 [s] (one source part of a
-    split step). Returns states, steps [s], stats (increments), status, reached [s] and
-    compute_s [s]."""
-    _maybe_fail(fault, chunk, t0)
-    start = _time.perf_counter()
-    batch = CellBatch.of_chunk(shared, rows, states, steps)
-    with _NUMBA_LOCK:
-        _set_threads(_numba_threads(threads))
-        batch.advance(t0, t1)
-    return {"states": batch.states, "steps": batch.steps, "stats": batch.stats_counts,
-            "status": batch.status, "reached": batch.reached,
-            "compute_s": _time.perf_counter() - start}
