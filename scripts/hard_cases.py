@@ -6,7 +6,7 @@ A well-mixed ktgf cell (study-ktgf: friction cap 0.5) at solids fraction ``--alp
 0.6199, packing 0.62), granular temperature ``--theta`` [m2/s2], k0 = 1e-3, binder injected at
 1e4 x the seed rate, 20 s with outputs every 2 s, the viscous Stokes criterion sharp
 (``--width 0``, the default) or smooth of the width given; the [method] table of the method's
-seed scene (QMOM: study-ktgf's N = 3; cNMC with ``--particles`` x ``--replicas``). Prints one
+seed scene (QMOM: study-ktgf's N = 3, EQMOM: the same N = 3; cNMC with ``--particles`` x ``--replicas``). Prints one
 JSON object: whether it finished, the time reached or the stop message, wall time [s], the
 final M00 [1/m3], M20 [kg2/m3], d43 [m], whether the cell was smoothed, the accepted steps.
 """
@@ -27,7 +27,8 @@ from pbe_cfd.runs.simulate import run_well_mixed
 
 SEED_RATE = 1.485e8          # droplets/(m3 s), seed 000
 SOURCES = {"qmom": "study-ktgf", "cqmom": "seed-wurster-cqmom",
-           "laguerre": "seed-wurster-laguerre", "cnmc": "seed-wurster-cnmc"}
+           "laguerre": "seed-wurster-laguerre", "cnmc": "seed-wurster-cnmc",
+           "eqmom": "study-ktgf"}
 
 
 def hard_scene(method, theta, alpha, width, rtol, particles=2000, replicas=4):
@@ -36,6 +37,8 @@ def hard_scene(method, theta, alpha, width, rtol, particles=2000, replicas=4):
     m = load_scene(SOURCES[method]).method
     if method == "cnmc":
         m = m.replaced(particles=particles, replicas=replicas)
+    if method == "eqmom":       # no bundled scene: study-ktgf's N = 3 as gamma EQMOM
+        m = m.replaced(name="eqmom")
     return dataclasses.replace(
         s, end_time=20.0, output_interval=2.0,
         domain=dataclasses.replace(s.domain, solids_fraction=alpha, granular_temperature=theta),
@@ -52,10 +55,12 @@ def main(argv=None) -> int:
     ap.add_argument("--alpha", type=float, default=0.6199)
     ap.add_argument("--width", type=float, default=0.0)
     ap.add_argument("--rtol", type=float, default=1e-8)
+    ap.add_argument("--end", type=float, default=20.0, help="end time [s] (outputs: 10)")
     ap.add_argument("--particles", type=int, default=2000)
     ap.add_argument("--replicas", type=int, default=4)
     a = ap.parse_args(argv)
     scene = hard_scene(a.method, a.theta, a.alpha, a.width, a.rtol, a.particles, a.replicas)
+    scene = dataclasses.replace(scene, end_time=a.end, output_interval=a.end / 10)
     row = {"method": a.method, "theta": a.theta, "alpha": a.alpha, "width": a.width,
            "rtol": a.rtol}
     start = time.perf_counter()
@@ -75,6 +80,7 @@ def main(argv=None) -> int:
                    d43=float(c["d43_m"][-1]), M10_rel_err=mass_err,
                    smoothed=int(res.stats.get("smooth_stokes_cells", 0)),
                    accepted_steps=int(res.stats.get("accepted_steps", 0)),
+                   stokes_switch_steps=int(res.stats.get("stokes_switch_steps", 0)),
                    warnings=[w[:160] for w in res.warnings])
     print(json.dumps(row), flush=True)
     return 0

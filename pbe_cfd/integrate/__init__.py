@@ -27,7 +27,8 @@ from .cell import integrate_cell, integrate_cells_kernel  # noqa: F401
 from .codes import (ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, IMPLICIT,  # noqa: F401
                     IMPLICIT_STEPS, JACOBIANS,
                     MAX_STEPS_PER_INTERVAL, N_STATS, NOT_FINITE, OK, REJECTED_ERROR,
-                    REJECTED_REALIZABILITY, RHS_CALLS, SCHEMES, STATUS_TEXT, STEP_BELOW_FLOOR,
+                    REJECTED_REALIZABILITY, REJECTED_SWITCH, RHS_CALLS, SCHEMES,
+                    STOKES_EVENTS, STATUS_TEXT, STEP_BELOW_FLOOR,
                     SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START)
 
 
@@ -113,7 +114,16 @@ def stats_summary(stats) -> dict:
             "implicit_steps": int(st[IMPLICIT_STEPS]),
             "jacobians": int(st[JACOBIANS]),
             "scheme_switches": int(st[SWITCHES]),
-            "exponential_steps": int(st[EXPONENTIAL_STEPS])}
+            "exponential_steps": int(st[EXPONENTIAL_STEPS]),
+            **_stokes_events(st)}
+
+
+def _stokes_events(st) -> dict:
+    """The counters of the sharp Stokes step's switches (``codes``), where there were any."""
+    if int(st[STOKES_EVENTS]) == 0 and int(st[REJECTED_SWITCH]) == 0:
+        return {}
+    return {"stokes_switch_steps": int(st[STOKES_EVENTS]),
+            "rejected_switch": int(st[REJECTED_SWITCH])}
 
 
 def compile_kernels(aux, params, config, n_cells=1) -> float:

@@ -33,11 +33,13 @@ from ..physics import parameters as P
 from .codes import (ACCEPT, ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, F0, FTMP, GCOL,
                     IMPLICIT, IMPLICIT_STEPS, JACOBIANS, KC, N_BUF, NOT_FINITE, OK,
                     REJECT_ERROR, REJECT_NOT_FINITE,
-                    REJECT_REALIZABILITY, REJECTED_ERROR, REJECTED_REALIZABILITY, RHS_CALLS,
-                    STEP_BELOW_FLOOR, SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START, YNEW, YTMP)
+                    REJECT_REALIZABILITY, REJECT_SWITCH, REJECTED_ERROR,
+                    REJECTED_REALIZABILITY, REJECTED_SWITCH, RHS_CALLS, STEP_BELOW_FLOOR,
+                    STOKES_EVENTS, SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START, YNEW, YTMP)
 from .explicit import bs3_attempt
 from .exponential import capture_column, exp_bs3_attempt
 from .rosenbrock import jacobian, rodas3_attempt, spectral_radius
+from .switches import held_params, locate_next, located, location_memory, release
 
 STIFF_H_RHO = 1.0        # h rho above which an explicit step counts as stability-limited
 N_STIFF = 15             # such steps in a row before an auto cell goes implicit
@@ -293,13 +295,18 @@ def _capture_chosen(scheme, method, state, h, buf, cap, cell, aux, params, confi
 
 
 @nb.njit(cache=True)
-def _rate_after_step(method, explicit, expo, state, buf, cell, aux, params, config, work, n,
-                     stats):
+def _rate_after_step(method, explicit, expo, crossed, state, buf, cell, aux, params, config,
+                     work, n, stats):
     """buf[F0] = f(state) after an accepted step: first same as last where the explicit pair's
     last stage evaluated f(y_new) and the projection moved the state by round-off only
-    (``_projection_small``), else one RHS call (counted in stats)."""
+    (``_projection_small``), else one RHS call (counted in stats). After a step across a
+    switch of the sharp Stokes step (``crossed``) the decisions are released first: the next
+    step restarts here with the decisions of this state."""
     f0 = buf[F0]
-    if explicit and _projection_small(state, buf[YNEW], n):
+    if crossed:
+        release(params)
+        stats[STOKES_EVENTS] += 1
+    if explicit and not crossed and _projection_small(state, buf[YNEW], n):
         last_rate = buf[FTMP] if expo else buf[KC]
         for i in range(n):
             f0[i] = last_rate[i]
@@ -314,6 +321,9 @@ def _after_reject(outcome, err, h_try, stats):
     if outcome == REJECT_ERROR:
         stats[REJECTED_ERROR] += 1
         return h_try * max(0.2, 0.9 * err ** (-1.0 / 3.0))
+    if outcome == REJECT_SWITCH:     # bisect the bracket of the switching time
+        stats[REJECTED_SWITCH] += 1
+        return 0.5 * h_try
     if outcome == REJECT_REALIZABILITY:
         stats[REJECTED_REALIZABILITY] += 1
     else:
@@ -375,6 +385,34 @@ def _memory(scheme, mode, h):
 
 
 @nb.njit(cache=True)
+def _attempt(scheme, method, mode, state, h_try, buf, phis, cap, jac, lu, piv, pivots, coefs,
+             n_inv, have_jac, cell, aux, local, config, work, rtol, atol, droplet, n, stats):
+    """One attempted step of h_try [s] in mode (0 explicit, 1 implicit); the Jacobian is
+    evaluated first where the implicit mode has none. Returns (outcome, error norm, h rho,
+    whether the capture was exact, have_jac)."""
+    h_rho, expo = 0.0, False
+    if mode == 0:
+        expo = droplet >= 0 and scheme == AUTO and _capture_chosen(
+            scheme, method, state, h_try, buf, cap, cell, aux, local, config, work, rtol,
+            atol, droplet, n, stats)
+        local[P.STOKES_CROSSED] = 0.0
+        outcome, err, h_rho, calls = _explicit(scheme, method, state, h_try, buf, phis, expo,
+                                               cell, aux, local, config, work, rtol, atol,
+                                               droplet, n)
+    else:
+        if not have_jac:
+            stats[RHS_CALLS] += _jacobian(scheme, method, state, buf, jac, pivots, coefs,
+                                          n_inv, cell, aux, local, config, work, rtol, atol, n)
+            stats[JACOBIANS] += 1
+            have_jac = True
+        local[P.STOKES_CROSSED] = 0.0
+        outcome, err, calls = _implicit(scheme, method, state, h_try, buf, jac, lu, piv, cell,
+                                        aux, local, config, work, rtol, atol, n)
+    stats[RHS_CALLS] += calls
+    return outcome, err, h_rho, expo, have_jac
+
+
+@nb.njit(cache=True)
 def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_end, step,
                    rtol, atol, max_steps, stats):
     """Advance one cell's state from t_start to t_end [s] in place.
@@ -383,29 +421,34 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
     one-element array holding the proposed step [s] (updated for the next call; its sign is
     the auto scheme's memory). ``stats`` accumulates the columns of ``codes``. Returns
     (status, time reached [s]).
+
+    Under the sharp viscous Stokes step the pairs' decisions are held within a step and a step
+    across a switch restarts the next from its end (``switches``).
     """
     n = config[P.N_STATE]
     work = np.empty(WORK_SIZE)
     if not realizable(method, state, aux, params, config, work):
         return UNREALIZABLE_START, t_start
+    local, saved = held_params(params, config)
+    hold = saved.shape[0] > 0
     buf = np.empty((N_BUF, n))
     jac, lu = np.empty((n, n)), np.empty((n, n))
     piv = np.empty(n, dtype=np.int64)
     pivots, coefs = np.zeros(2, dtype=np.int64), np.zeros((2, n))
-    n_inv = conserved(method, config, params, pivots, coefs)
+    n_inv = conserved(method, config, local, pivots, coefs)
     sw = np.zeros(N_SW)
     phis = np.empty((3, 6))
     droplet = n - 1 if config[P.SEPARATE_DROPLETS] == 1 else -1
-    droplets = scheme == AUTO and droplet >= 0     # auto: capture exact where it pays
     mode = 1 if (scheme == IMPLICIT or (scheme == AUTO and step[0] < 0.0)) else 0
     h = abs(step[0]) if abs(step[0]) > 0.0 else (t_end - t_start) * 1e-3
-    rhs(method, state, buf[F0], cell, aux, params, config, work)
+    rhs(method, state, buf[F0], cell, aux, local, config, work)
     stats[RHS_CALLS] += 1
     if not _all_finite(buf[F0], n):
         step[0] = _memory(scheme, mode, h)
         return NOT_FINITE, t_start
-    floor = params[P.STEP_FLOOR]
+    floor = local[P.STEP_FLOOR]
     t, taken, have_jac = t_start, 0, False
+    loc = location_memory()           # locating a Stokes switching time
     cap = np.zeros(N_CAP, dtype=np.int64)   # what buf[GCOL] holds (CAP_* below)
     # the step proposed after this call's first accepted step [s]; whether that step was
     # rejected first or accepted with little margin
@@ -420,34 +463,23 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
             step[0] = _memory(scheme, mode, h)
             return STEP_BELOW_FLOOR, t
         taken += 1
-        h_rho, expo = 0.0, False
-        if mode == 0:
-            expo = droplets and _capture_chosen(scheme, method, state, h_try, buf, cap, cell,
-                                                aux, params, config, work, rtol, atol,
-                                                droplet, n, stats)
-            outcome, err, h_rho, calls = _explicit(scheme, method, state, h_try, buf, phis,
-                                                   expo, cell, aux, params, config, work, rtol,
-                                                   atol, droplet, n)
-        else:
-            if not have_jac:
-                stats[RHS_CALLS] += _jacobian(scheme, method, state, buf, jac, pivots, coefs,
-                                              n_inv, cell, aux, params, config, work, rtol,
-                                              atol, n)
-                stats[JACOBIANS] += 1
-                have_jac = True
-            outcome, err, calls = _implicit(scheme, method, state, h_try, buf, jac, lu, piv,
-                                            cell, aux, params, config, work, rtol, atol, n)
-        stats[RHS_CALLS] += calls
+        outcome, err, h_rho, expo, have_jac = _attempt(
+            scheme, method, mode, state, h_try, buf, phis, cap, jac, lu, piv, pivots, coefs,
+            n_inv, have_jac, cell, aux, local, config, work, rtol, atol, droplet, n, stats)
+        crossed = hold and outcome == ACCEPT and local[P.STOKES_CROSSED] != 0.0
+        if crossed:
+            outcome, err = located(method, t, state, h_try, buf, cell, aux, local, config,
+                                    work, rtol, atol, n, stats, saved, loc, outcome, err)
         if outcome == ACCEPT:
             t = t_end if last else t + h_try
             for i in range(n):
                 state[i] = buf[YNEW, i]
             if scheme != EXPLICIT and droplet >= 0:
                 _absorb_droplets(method, state, droplet, atol, pivots, coefs, n_inv, aux,
-                                 params, config, work, buf[FTMP])
-            project(method, state, aux, params, config, work)
-            _rate_after_step(method, mode == 0, expo, state, buf, cell, aux, params, config,
-                             work, n, stats)
+                                 local, config, work, buf[FTMP])
+            project(method, state, aux, local, config, work)
+            _rate_after_step(method, mode == 0, expo, crossed, state, buf, cell, aux, local,
+                             config, work, n, stats)
             stats[ACCEPTED] += 1
             if expo:
                 stats[EXPONENTIAL_STEPS] += 1
@@ -459,6 +491,8 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
             h = h_try * factor if not last else max(h, h_try * factor)
             have_jac = False
             mode, h = _next_mode(scheme == AUTO, mode, h, h_try, h_rho, sw, jac, buf, n, stats)
+            if hold:
+                h = locate_next(crossed, t, h, loc)
             if h_opening == 0.0:
                 h_opening = h
                 opening_tight = opening_tight or factor < OPENING_MARGIN

@@ -37,6 +37,10 @@ STATS_TABLE = (
     ("JACOBIANS", "Jacobians evaluated (finite differences)"),
     ("SWITCHES", "scheme switches of the auto integrator"),
     ("EXPONENTIAL_STEPS", "accepted explicit steps with the droplet capture integrated exactly"),
+    ("STOKES_EVENTS", "accepted steps across which a pair's sharp Stokes decision switched "
+                      "(the next step restarts there with the new decisions)"),
+    ("REJECTED_SWITCH", "steps rejected because the switch of a sharp Stokes decision within "
+                        "them was not located closely enough"),
 )
 N_STATS = numbered(STATS_TABLE, globals())
 
@@ -46,6 +50,8 @@ OUTCOME_TABLE = (
     ("REJECT_ERROR", "the error estimate is above the tolerance"),
     ("REJECT_REALIZABILITY", "a stage or the result is not realizable"),
     ("REJECT_NOT_FINITE", "a stage is not finite"),
+    ("REJECT_SWITCH", "a sharp Stokes decision switched within the step and the step is too "
+                      "long for the switching time it leaves unlocated"),
 )
 numbered(OUTCOME_TABLE, globals())
 

@@ -16,6 +16,8 @@ from typing import Callable, NamedTuple
 
 import numba as nb
 import numpy as np
+from numba.core import types
+from numba.extending import overload
 
 from . import parameters as P
 from .properties import (ACCESSIBLE_BINDER, BINDER, BINDER_LAYER, DIAMETER,
@@ -56,18 +58,48 @@ def critical_stokes_number(props, a, c, params):
     return 2.0 * math.log(ratio)
 
 
+def held_decision(on, a, c, params):
+    """The sharp Stokes decision [-] (0 or 1) of property rows a, c: ``on`` as evaluated, or
+    the decision held in the switch memory of an extended params (physics.parameters.HELD)."""
+    raise NotImplementedError("numba only")
+
+
+@overload(held_decision, inline="always")
+def _held_decision(on, a, c, params):
+    if isinstance(params, types.Array) and not params.mutable:
+        return lambda on, a, c, params: on      # a read-only params holds nothing
+
+    def held(on, a, c, params):
+        # the event function of the pair is g = St - St* (physics.md, "the sharp Stokes step")
+        if params.shape[0] < P.N_PARAMS_HELD or params[P.STOKES_HOLD] == 0.0:
+            return on
+        if a >= P.HELD_ROWS or c >= P.HELD_ROWS:
+            return on
+        k = P.STOKES_HELD + a * P.HELD_ROWS + c
+        kept = params[k]
+        if kept < 0.0:
+            params[k] = on
+            return on
+        if kept != on:
+            params[P.STOKES_CROSSED] = 1.0
+        return kept
+    return held
+
+
 @nb.njit(cache=True, inline="always")
 def physical_efficiency(props, a, c, u0, params):
     """Viscous Stokes criterion psi_p [-]: 1 if St <= St*, else 0.
 
     With params[STOKES_WIDTH] = w > 0 the step becomes the smooth switch
-    0.5 (1 - tanh((St - St*) / (w St*))), which tends to the step as w -> 0.
+    0.5 (1 - tanh((St - St*) / (w St*))), which tends to the step as w -> 0. The sharp step's
+    decision is held within an integrator step where params carries the switch memory
+    (``held_decision``).
     """
     st = stokes_number(props, a, c, u0, params)
     st_crit = critical_stokes_number(props, a, c, params)
     width = params[P.STOKES_WIDTH]
     if width <= 0.0 or st_crit <= 0.0:
-        return 1.0 if st <= st_crit else 0.0
+        return held_decision(1.0 if st <= st_crit else 0.0, a, c, params)
     return 0.5 * (1.0 - math.tanh((st - st_crit) / (width * st_crit)))
 
 
@@ -164,4 +196,5 @@ def success_probability(p1, b1, p2, b2, u0, params, config):
     props = np.empty((2, N_PROPS))
     fill_properties(p1, b1, params, FACTOR_GROUPS, props, 0)
     fill_properties(p2, b2, params, FACTOR_GROUPS, props, 1)
-    return pair_success_probability(props, 0, 1, u0, params, config)
+    # the scene's own slots only: a single pair's decision is never held
+    return pair_success_probability(props, 0, 1, u0, params[:P.N_PARAMS], config)

@@ -65,6 +65,23 @@ PARAMS = (
 )
 N_PARAMS = numbered(PARAMS, globals())
 
+# ---- the switch memory of the sharp viscous Stokes step (float64, after the params) -------
+# The integrator hands the rates a per-cell copy of params extended by these slots
+# (``integrate.cell``): with STOKES_HOLD = 1 the decision psi_p in {0, 1} of each pair of
+# property rows (a, c), a, c < HELD_ROWS, is held as first evaluated (-1: not yet) until the
+# integrator releases it, so that the rates are smooth within a step; a stage whose own
+# decision differs sets STOKES_CROSSED (physics.efficiency.held_decision)
+HELD = (
+    ("STOKES_HOLD", "1: the sharp Stokes decisions of the pairs are held, 0: evaluated anew"),
+    ("STOKES_CROSSED", "set to 1 by a rate evaluation whose own decision differs from the "
+                       "held one (a pair crossed St = St*)"),
+)
+STOKES_HELD = numbered(HELD, globals(), N_PARAMS)
+#: property rows whose pairs have a held decision (more rows: evaluated anew, not held)
+HELD_ROWS = 40
+#: length of the extended per-cell params: decision of rows (a, c) at STOKES_HELD + a HELD_ROWS + c
+N_PARAMS_HELD = STOKES_HELD + HELD_ROWS * HELD_ROWS
+
 # ---- config (int64) ---------------------------------------------------------------------
 CONFIG = (
     ("KERNEL", "code of the collision kernel (physics.kernels.KERNEL_REGISTRY)"),

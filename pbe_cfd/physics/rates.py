@@ -45,7 +45,8 @@ def aggregation_rate(p1, b1, p2, b2, alpha, theta, u0, d43, params, config):
     particle_properties(p1, b1, params, config, props, 0)
     particle_properties(p2, b2, params, config, props, 1)
     factor = kernel_cell_factor(config[P.KERNEL], alpha, theta, d43, params)
-    return pair_rate(props, 0, 1, factor, u0, params, config)
+    # the scene's own slots only: a single pair's Stokes decision is never held
+    return pair_rate(props, 0, 1, factor, u0, params[:P.N_PARAMS], config)
 
 
 @nb.njit(cache=True)

@@ -1,16 +1,15 @@
 """The sharp viscous Stokes criterion on a cell that holds a pair on St = St*: the hard case of
 issue 28 (a well-mixed ktgf cell at alpha 0.6199, packing 0.62, Theta 2 m2/s2, k0 1e-3,
-injection 1e4 x the seed rate, default sharp step) stopped at its step floor. The default
-now finishes: the cell continues from where the step controller stalled with the smooth
-switch of width ``batch.STOKES_FALLBACK_WIDTH`` and says so; cells that do not stall keep
-the sharp step (the bundled scenes' results are unchanged)."""
+injection 1e4 x the seed rate, default sharp step). The integrator holds every pair's decision
+within a step, locates the steps across a switch and restarts there (integrate.switches,
+docs/physics.md 6.2); a cell whose step controller still stalls would continue with the smooth
+switch of width ``batch.STOKES_FALLBACK_WIDTH`` and say so."""
 import dataclasses
 import re
 
 import numpy as np
 import pytest
 
-from pbe_cfd.runs.batch import STOKES_FALLBACK_WIDTH
 from pbe_cfd.physics.injection import droplet_mass
 from pbe_cfd.scene.scene import load_scene
 from pbe_cfd.runs.simulate import run_well_mixed
@@ -55,26 +54,72 @@ def jump_time(warnings):
     return None
 
 
+def sharp_run(rtol, end, width=0.0):
+    """The hard case to ``end`` [s] (ten outputs) at ``rtol``, default sharp step (or the
+    smooth switch of ``width``)."""
+    return run_well_mixed(dataclasses.replace(hard_scene(rtol=rtol, width=width), end_time=end,
+                                              output_interval=end / 10))
+
+
+def assert_across_the_switches(res):
+    """Integrated across the sharp step's switches, never smoothed, nothing to warn about."""
+    assert res.stats["smooth_stokes_cells"] == 0, res.warnings
+    assert res.stats.get("stokes_switch_steps", 0) > 0
+    assert jump_time(res.warnings) is None
+
+
+def largest_difference(got, ref):
+    """Largest relative difference of M00, M20, d43 over the output times [-]."""
+    return max(float(np.max(np.abs(got.columns[k] - ref.columns[k]) / np.abs(ref.columns[k])))
+               for k in ("M00", "M20", "d43_m"))
+
+
+def test_the_sharp_step_is_integrated_across_its_switches():
+    """The hard case's first 0.2 s (the step controller stalled at 0.09 s and the cell was
+    smoothed from there): sharp all through, its switches located and restarted from, finite,
+    realizable, M10 and M01 exact."""
+    res = sharp_run(1e-8, 0.2)
+    assert_finite_realizable_exact(res.columns)
+    assert_across_the_switches(res)
+
+
 @pytest.mark.slow
-def test_the_hard_case_finishes_by_default_and_says_where_it_smoothed():
-    """The issue's case with the default sharp step: finishes, finite and realizable, M10 and
-    M01 exact; the warning names the cell, the time and the width; against the same default at
-    rtol 1e-10 within the sum of local errors (accepted steps x rtol, as the hard-case suite)."""
+def test_the_sharp_solution_is_the_limit_of_tolerance_and_of_width():
+    """Two independent ways to the sharp step's solution over the hard case's first 0.2 s
+    converge to the same: (a) the held-switch integration as rtol tightens, (b) the smooth
+    switch (a different code path: tanh, nothing held) as its width w -> 0.
+
+    (a) Sliding along St = St* the held decisions switch every step or two, so the error is of
+    first order in the step, and steps scale as rtol^(1/3) (a third-order pair): from 1e-8 to
+    1e-9 the error falls 10^(1/3) = 2.15 times; against 1e-10 (its own error 2.15 times below
+    1e-9's) the differences fall 2.15 (1 - 1/4.6) / (1 - 1/2.15) = 3.1 times: asserted > 2.
+    (b) A regularised switch slides at an O(w) distance from Filippov's solution
+    (Sotomayor-Teixeira): from w = 1e-3 to 3e-4 the difference falls 3.3 times (first order,
+    the reference's own error is below both): asserted > 2."""
+    ref = sharp_run(1e-10, 0.2)
+    assert_across_the_switches(ref)
+    d8 = largest_difference(sharp_run(1e-8, 0.2), ref)
+    d9 = largest_difference(sharp_run(1e-9, 0.2), ref)
+    print(f"sharp: rtol 1e-8 {d8:.2g}, 1e-9 {d9:.2g} from rtol 1e-10")
+    assert d8 / d9 > 2.0, (d8, d9)
+    w3 = largest_difference(sharp_run(1e-8, 0.2, width=1e-3), ref)
+    w4 = largest_difference(sharp_run(1e-8, 0.2, width=3e-4), ref)
+    print(f"smooth: width 1e-3 {w3:.2g}, 3e-4 {w4:.2g} from the sharp step at rtol 1e-10")
+    assert w3 / w4 > 2.0, (w3, w4)
+    assert w4 > d8          # the smooth switch's O(w) error dominates at these widths
+
+
+@pytest.mark.slow
+def test_the_hard_case_finishes_by_default_across_the_switches():
+    """The issue's case over its 20 s with the default sharp step: finishes without smoothing,
+    finite and realizable, M10 and M01 exact. (How far it lies from tighter runs is a
+    first-order error while sliding: test_the_sharp_solution_is_the_limit_of_tolerance_and_of_
+    width checks its convergence; docs/results/hard-cases.md gives the 20 s differences.)"""
     res = run_well_mixed(hard_scene())
     c = res.columns
     assert c["time_s"][-1] == pytest.approx(20.0, rel=1e-12, abs=0)
     assert_finite_realizable_exact(c)
-    assert res.stats["smooth_stokes_cells"] == 1
-    t_jump = jump_time(res.warnings)
-    assert t_jump is not None and 0.0 <= t_jump < 20.0, res.warnings
-    assert f"width {STOKES_FALLBACK_WIDTH:g}" in res.warnings[-1]
-    ref = run_well_mixed(hard_scene(rtol=1e-10))
-    assert ref.stats["smooth_stokes_cells"] == 1
-    bound = res.stats["accepted_steps"] * 1e-8
-    for name in ("M00", "M20", "M11", "d43_m"):
-        rel = np.max(np.abs(c[name] - ref.columns[name]) / np.abs(ref.columns[name]))
-        print(f"{name}: largest relative difference from rtol 1e-10: {rel:.2g}")
-        assert rel < bound, (name, rel, bound)
+    assert_across_the_switches(res)
 
 
 # Theta [m2/s2] and width of the variants (alpha 1e-4 or 1e-5 below packing is the same cell
