@@ -12,6 +12,7 @@ from ...physics.breakage import cell_selection_factor
 from ...physics.kernels import collision_frequency
 from ...physics.rates import aggregation_rate, droplet_capture_rate
 from .breakage import breakage_trial, breakage_weights
+from .drying import drift_box, drift_due
 from .slots import C_D as _C_D
 from .slots import N_BINS, Particles, Slots
 from .slots import d4 as _d4
@@ -203,12 +204,13 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
     n_out = output_times.size
     return run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config,
                               rng_seed, exponential_dt, max_trials, out,
-                              np.zeros((n_out, PSD_BINS, 2)), np.zeros((n_out, 3)))
+                              np.zeros((n_out, PSD_BINS, 2)), np.zeros((n_out, 3)),
+                              np.zeros(n_out))
 
 
 @nb.njit(cache=True)
 def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
-                       exponential_dt, max_trials, out, classes, percentiles):
+                       exponential_dt, max_trials, out, classes, percentiles, evaporated):
     """One cNMC replica. Mutates p, b, isdrop (the final box) and fills ``out``.
 
     p, b: float64 [kg], length N (N >= 2 for aggregation); isdrop: int64 flags, 1 = free
@@ -218,7 +220,8 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
     rng_seed: seed of numba's generator; exponential_dt: 0 = mean waiting time 1/R per trial
     (seed 000), 1 = exponential; max_trials: budget of proposals; out: (len(output_times),
     N_QUANTITIES), columns QUANTITY_NAMES (rows not reached: NaN); classes (n_out, PSD_BINS,
-    2), percentiles (n_out, 3): ``box_size_classes`` per output time. Returns (trials, accepted,
+    2), percentiles (n_out, 3): ``box_size_classes`` per output time; evaporated (n_out): the
+    liquid evaporated by then [kg/m3] (config[DRYING] == 1, ``methods.cnmc.drying``). Returns (trials, accepted,
     injections, violations, status, t_reached [s], break_trials, splits): aggregation
     proposals and aggregations, injections, proposals above their majorant (must be 0), a
     STATUS_* code, breakage proposals and breakages (``methods.cnmc_breakage``).
@@ -245,6 +248,7 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
     d43_tab = _initial_bounds(rho, dcnt[0], pd, ptot, s4, lo, hi, dirty, table, tabd, alpha,
                               theta, params, config)
     trials = accepted = injections = violations = break_trials = splits = since_sync = 0
+    dry = np.zeros(3)                # evaporated [kg/m3], time of the last drift [s], trials
     status, t, w_gg, w_dg, w_br, k_out, n_occ, changed = STATUS_OK, 0.0, 0.0, 0.0, 0.0, 0, 0, True
     while k_out < n_out:
         if changed:
@@ -252,7 +256,7 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
             n_occ, w_gg, w_dg = _pair_weights(bcnt, table, tabd, occ, srow, trow, drow)
             w_br = breakage_weights(bcnt, lo, hi, occ, n_occ, brk_factor, params, config,
                                     bbound, brow)
-        vol = ptot / (conc0 + mass_rate * t)
+        vol = ptot / (conc0 + mass_rate * t - dry[0])
         nd = dcnt[0]
         r_gg = 0.5 * w_gg / vol
         r_dg = nd * w_dg / vol
@@ -262,8 +266,11 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
             status = STATUS_NONFINITE
             break
         t_next = _next_event_time(t, r, exponential_dt)
-        k_out = _store_outputs(k_out, t_next, output_times, p, b, isdrop, conc0, mass_rate,
-                               rho, out, classes, percentiles)
+        k_out, ptot, drifted = _store_outputs(k_out, t_next, output_times, p, b, isdrop, conc0,
+                                              mass_rate, rho, out, classes, percentiles,
+                                              evaporated, dry, ptot, params, config)
+        if drifted:                  # the masses moved: exact sums and intervals now
+            changed, since_sync = True, n - 1
         if k_out >= n_out:
             break
         if t_next <= t:
@@ -362,14 +369,28 @@ def _initial_bounds(rho, n_free_droplets, pd, ptot, s4, lo, hi, dirty, table, ta
 
 @nb.njit(cache=True, inline="always")
 def _store_outputs(k_out, t_next, output_times, p, b, isdrop, conc0, mass_rate, rho, out,
-                   classes, percentiles):
-    """Store the box at every output time before t_next [s]; returns the next output row."""
+                   classes, percentiles, evaporated, dry, ptot, params, config):
+    """Store the box at every output time before t_next [s]; with drying (``dry``: evaporated
+    [kg/m3], last drift [s], proposals since) dry it to each output time first, and to t_next
+    when a drift is due. Returns (next output row, total mass [kg], True if it dried)."""
     n_out = output_times.size
+    drying = config[P.DRYING] == 1
+    drifted = False
+    dry[2] += 1.0
     while k_out < n_out and output_times[k_out] < t_next:
-        box_quantities(p, b, isdrop, conc0 + mass_rate * output_times[k_out], rho, out[k_out])
+        if drying:
+            ptot = drift_box(p, b, isdrop, output_times[k_out], conc0, mass_rate, dry, ptot,
+                             params)
+            drifted = True
+        box_quantities(p, b, isdrop, conc0 + mass_rate * output_times[k_out] - dry[0], rho,
+                       out[k_out])
         box_size_classes(p, b, isdrop, rho, classes[k_out], percentiles[k_out])
+        evaporated[k_out] = dry[0]
         k_out += 1
-    return k_out
+    if drying and k_out < n_out and drift_due(dry[2], p.size, t_next):
+        ptot = drift_box(p, b, isdrop, t_next, conc0, mass_rate, dry, ptot, params)
+        drifted = True
+    return k_out, ptot, drifted
 
 
 @nb.njit(cache=True, inline="always")

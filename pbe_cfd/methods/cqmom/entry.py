@@ -19,7 +19,8 @@ def _keys(t, defaults):
 
 def _state_names(scene):
     m = scene.method
-    return cqmom_state_names(m.nodes, m.binder_nodes, scene.bivariate, scene.separate_droplets)
+    return cqmom_state_names(m.nodes, m.binder_nodes, scene.bivariate, scene.separate_droplets,
+                             getattr(scene, "drying", None) is not None)
 
 
 def _population(state, aux, arrays):
@@ -54,4 +55,5 @@ ENTRY = MethodEntry(
     distribution_text="gamma density in granule mass fitted to the carried M00, M10, M20 "
                       "(one-kernel gamma EQMOM); binder fraction per size class interpolated "
                       "in ln p between the size nodes' mass-mean binder fractions",
-    moments_text="from the quadrature nodes (one binder value per size node)")
+    moments_text="from the quadrature nodes (one binder value per size node)",
+    dries=True)
