@@ -11,10 +11,16 @@ out here again:
   Sh = 2 + 0.6 Re^(1/2) Sc^(1/3), Re = rho_g u d / mu_g, Sc = mu_g / (rho_g D_v),
   d = max((6 m / (pi rho_s))^(1/3), (6 b / (pi rho_l))^(1/3)); dp/dt = db/dt = -e;
 - aggregation at the constant kernel k0 per unordered pair / V: (p_i + p_j, b_i + b_j) takes
-  slot i, slot j gets a copy of a particle drawn among the other N - 1, V -> V N / (N - 1);
+  slot i, slot j gets a copy of a particle drawn among the other N - 1;
 - spraying: droplets of a solution (mass p_d, liquid (1 - s) p_d) arrive as ordinary particles
   at R V [1/s] while the spray is on (t in [start, stop)); each is added and then one of the
-  N + 1 particles drawn uniformly is removed, V -> V N / (N + 1).
+  N + 1 particles drawn uniformly is removed.
+
+The box's volume follows from the mass balance, which is known: the mass concentration is
+C(t) = n0 p0 + R p_d t_on(t) - E(t) (t_on the time sprayed so far), so after every event
+V = P / C(t), P the box's mass (Smith and Matsoukas 1998, eqs. 18-19, with the sprayed mass at
+its expectation); M10 is then exact and the other moments' scatter is smaller than with the
+number-based rescaling.
 
 Between events every particle's liquid is advanced by classical RK4 on the whole box at once
 (steps of at most a fifth of the smallest liquid time b / e of the wet particles, and never
@@ -73,12 +79,18 @@ def _moments(p, b, vol, evaporated):
     return np.array([np.sum(p ** i * b ** j) / vol for i, j in ORDERS] + [evaporated])
 
 
+def _sprayed(case, t):
+    """Mass sprayed by t [s], per m3 [kg/m3]."""
+    return max(0.0, min(t, case["stop"]) - case["start"]) * case["rate"] * case["droplet_mass"]
+
+
 def run_box(case, n_particles, times, rng):
     """One replica: the NAMES at ``times`` [s] (from 0, increasing)."""
     n = n_particles
     p = np.full(n, case["p0"])
     b = case["y0"] * p
     vol = n / case["n0"]
+    conc0 = case["n0"] * case["p0"]
     pd = case["droplet_mass"]
     bd = (1.0 - case["solids_fraction"]) * pd
     evaporated = 0.0
@@ -94,6 +106,9 @@ def run_box(case, n_particles, times, rng):
         # the spray switches at start and stop: the rate changes there
         switch = min((s for s in (case["start"], case["stop"]) if s > t), default=np.inf)
         t_stop = min(t_event, switch, times[k_out])
+        # the volume at t_stop of the box before it dries (the spray's mass at its
+        # expectation), then the loss in that volume
+        vol = p.sum() / (conc0 + _sprayed(case, t_stop) - evaporated)
         p, b, lost = _dry(p, b, t_stop - t, case)
         evaporated += lost / vol
         t = t_stop
@@ -110,14 +125,11 @@ def run_box(case, n_particles, times, rng):
             k = rng.integers(n - 1)
             k = k + 1 if k >= j else k
             p[j], b[j] = p[k], b[k]
-            vol *= n / (n - 1)
         else:
-            p = np.append(p, pd)
-            b = np.append(b, bd)
             k = rng.integers(n + 1)
-            p = np.delete(p, k)
-            b = np.delete(b, k)
-            vol *= n / (n + 1)
+            if k < n:                       # the droplet stays, particle k leaves
+                p[k], b[k] = pd, bd
+        vol = p.sum() / (conc0 + _sprayed(case, t) - evaporated)
     return out
 
 

@@ -221,34 +221,29 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
     (seed 000), 1 = exponential; max_trials: budget of proposals; out: (len(output_times),
     N_QUANTITIES), columns QUANTITY_NAMES (rows not reached: NaN); classes (n_out, PSD_BINS,
     2), percentiles (n_out, 3): ``box_size_classes`` per output time; evaporated (n_out): the
-    liquid evaporated by then [kg/m3] (config[DRYING] == 1, ``methods.cnmc.drying``). Returns (trials, accepted,
-    injections, violations, status, t_reached [s], break_trials, splits): aggregation
-    proposals and aggregations, injections, proposals above their majorant (must be 0), a
-    STATUS_* code, breakage proposals and breakages (``methods.cnmc_breakage``).
-    """
+    liquid evaporated by then [kg/m3] (``methods.cnmc.drying``). Returns (trials, accepted,
+    injections, violations, status, t_reached [s], break_trials, splits): aggregation proposals
+    and aggregations, injections, proposals above their majorant (must be 0), a STATUS_* code,
+    breakage proposals and breakages (``methods.cnmc_breakage``)."""
     np.random.seed(rng_seed)
-    n = p.size
-    n_out = output_times.size
+    n, n_out = p.size, output_times.size
     sep = config[P.SEPARATE_DROPLETS] == 1
-    rho = params[P.DENSITY]
-    pd = params[P.DROPLET_MASS]
+    rho, pd = params[P.DENSITY], params[P.DROPLET_MASS]
     bd = droplet_liquid(params) if config[P.BIVARIATE] == 1 else 0.0
     alpha, theta, u0, inj = cell[P.ALPHA], cell[P.THETA], cell[P.COLLISION_VELOCITY], cell[P.INJECTION]
     brk_factor = cell_selection_factor(cell, params, config)
     cls = _new_classes(n)
     members, bcnt, bpos, bin_of, lo, hi, dirty, table, tabd, dlist, dpos, dcnt = cls[:12]
     occ, srow, trow, drow = cls[12:16]
-    bbound, brow = np.zeros(N_BINS), np.zeros(N_BINS)
+    bbound, brow, dry = np.zeros(N_BINS), np.zeros(N_BINS), np.zeros(3)   # dry: _store_outputs
     m_ref, ptot, s4 = _fill_classes(p, isdrop, sep, rho, bin_of, bpos, members, bcnt, lo, hi,
                                     dirty, dlist, dpos, dcnt)
     box, slots = Particles(p, b, isdrop, rho, m_ref), Slots(bin_of, bpos, members, bcnt, lo, hi,
                                                             dirty, dlist, dpos, dcnt)
-    conc0 = ptot / volume0
-    mass_rate = inj * pd                     # kg/(m3 s) added by injection
+    conc0, mass_rate = ptot / volume0, inj * pd     # kg/m3; kg/(m3 s) added by injection
     d43_tab = _initial_bounds(rho, dcnt[0], pd, ptot, s4, lo, hi, dirty, table, tabd, alpha,
                               theta, params, config)
     trials = accepted = injections = violations = break_trials = splits = since_sync = 0
-    dry = np.zeros(3)                # evaporated [kg/m3], time of the last drift [s], trials
     status, t, w_gg, w_dg, w_br, k_out, n_occ, changed = STATUS_OK, 0.0, 0.0, 0.0, 0.0, 0, 0, True
     while k_out < n_out:
         if changed:
@@ -266,11 +261,10 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
             status = STATUS_NONFINITE
             break
         t_next = _next_event_time(t, r, exponential_dt)
-        k_out, ptot, drifted = _store_outputs(k_out, t_next, output_times, p, b, isdrop, conc0,
-                                              mass_rate, rho, out, classes, percentiles,
-                                              evaporated, dry, ptot, params, config)
-        if drifted:                  # the masses moved: exact sums and intervals now
-            changed, since_sync = True, n - 1
+        k_out, ptot, changed = _store_outputs(k_out, t_next, output_times, box, conc0, mass_rate,
+                                              out, classes, percentiles, evaporated, dry, ptot,
+                                              params, config)
+        since_sync = n - 1 if changed else since_sync    # dried: exact sums and intervals
         if k_out >= n_out:
             break
         if t_next <= t:
@@ -368,12 +362,13 @@ def _initial_bounds(rho, n_free_droplets, pd, ptot, s4, lo, hi, dirty, table, ta
 
 
 @nb.njit(cache=True, inline="always")
-def _store_outputs(k_out, t_next, output_times, p, b, isdrop, conc0, mass_rate, rho, out,
-                   classes, percentiles, evaporated, dry, ptot, params, config):
+def _store_outputs(k_out, t_next, output_times, box, conc0, mass_rate, out, classes,
+                   percentiles, evaporated, dry, ptot, params, config):
     """Store the box at every output time before t_next [s]; with drying (``dry``: evaporated
     [kg/m3], last drift [s], proposals since) dry it to each output time first, and to t_next
     when a drift is due. Returns (next output row, total mass [kg], True if it dried)."""
     n_out = output_times.size
+    p, b, isdrop, rho = box.p, box.b, box.isdrop, box.rho
     drying = config[P.DRYING] == 1
     drifted = False
     dry[2] += 1.0

@@ -4,6 +4,7 @@ particle over the interval (``physics.drying.advance_liquid``: exact in the skel
 the events see the box as dried to the last drift (operator splitting, see ``DRIFT_TRIALS``).
 Free droplets of their own do not dry (their mass is p_d in every method). Masses in kg."""
 import numba as nb
+import numpy as np
 
 from ...physics import parameters as P
 from ...physics.drying import advance_liquid
@@ -49,3 +50,15 @@ def drift_box(p, b, isdrop, t, conc0, mass_rate, dry, ptot, params):
     dry[1] = t
     dry[2] = 0.0
     return ptot - lost
+
+
+def evaporated_columns(evaporated, t_factor, config):
+    """{"liquid_evaporated", + "_lo", "_hi"} [kg/m3] of the replicas' rows ``evaporated``
+    (replicas, times): their mean -+ t_factor x their standard deviation (the ensemble's 95%
+    band); empty without drying (config[DRYING] == 0)."""
+    if int(config[P.DRYING]) != 1:
+        return {}
+    mean = evaporated.mean(axis=0)
+    half = t_factor * evaporated.std(axis=0, ddof=1) if len(evaporated) > 1 else 0.0 * mean
+    return {"liquid_evaporated": mean, "liquid_evaporated_lo": mean - half,
+            "liquid_evaporated_hi": mean + half}

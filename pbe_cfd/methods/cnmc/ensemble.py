@@ -129,6 +129,7 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.injection import droplet_liquid
+from .drying import evaporated_columns
 from .box import (MAX_TRIALS, MOMENT_NAMES, N_QUANTITIES, PSD_BINS, QUANTITY_NAMES,
                   STATUS_MAX_TRIALS, STATUS_NONFINITE, STATUS_OK, STATUS_STALLED,
                   interval_pair_bound, pair_rate_bounds, run_box, run_box_with_sizes)
@@ -271,8 +272,7 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
     "psd_mass_fraction" (+ "_lo", "_hi"): shape (times, PSD_BINS), each replica's granule mass
     fraction per class of the size lattice (``cnmc_box.PSD_LOG10_LO``, ``PSD_PER_DECADE``),
     its ensemble mean and band; "psd_binder_fraction": the pooled binder mass / granule mass
-    per class (0 in an empty class); with drying (config[DRYING] == 1, ``methods.cnmc.drying``)
-    "liquid_evaporated" [kg/m3] (+ "_lo", "_hi"); "trials", "accepted", "events_injection": totals over the ensemble (int64), and with
+    per class (0 in an empty class); with drying "liquid_evaporated" [kg/m3] (+ "_lo", "_hi"); "trials", "accepted", "events_injection": totals over the ensemble (int64), and with
     breakage "trials_breakage" (proposals) and "events_breakage" (splits).
     Raises RuntimeError if a replica exhausts MAX_TRIALS trials (e.g. a product kernel past
     gelation), FloatingPointError for an infinite event rate (alpha >= alpha_max).
@@ -335,11 +335,7 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
         result[name] = mean[:, q]
         result[name + "_lo"] = mean[:, q] - half[:, q]
         result[name + "_hi"] = mean[:, q] + half[:, q]
-    if int(config[P.DRYING]) == 1:
-        e_half = t_factor * evaporated.std(axis=0, ddof=1) if replicas > 1 else 0.0
-        result["liquid_evaporated"] = evaporated.mean(axis=0)
-        result["liquid_evaporated_lo"] = result["liquid_evaporated"] - e_half
-        result["liquid_evaporated_hi"] = result["liquid_evaporated"] + e_half
+    result.update(evaporated_columns(evaporated, t_factor, config))
     s_mean = sizes.mean(axis=0)
     s_half = t_factor * sizes.std(axis=0, ddof=1) if replicas > 1 else np.zeros_like(s_mean)
     for q, name in enumerate(("d10_m", "d50_m", "d90_m", "span")):
