@@ -116,11 +116,16 @@ def test_drying_needs_a_liquid_and_a_method_that_carries_it():
     with pytest.raises(SceneError) as err:
         make_scene(drying={**AIR, "critical_moisture": 0.1})        # dry start, no spray
     assert err.value.key == "drying"
-    for method in ({"name": "laguerre"}, {"name": "cnmc"}, {"name": "cqmom"}):
-        with pytest.raises(SceneError) as err:
-            make_scene(initial={"binder_fraction": 0.1}, drying={**AIR, "critical_moisture": 0.1},
-                       method={"_replace": True, **method})
-        assert err.value.key == "drying"
+    # every registered method carries the drift; one that does not is refused by name
+    from pbe_cfd.methods.registry import METHOD_REGISTRY
+    from pbe_cfd.scene.drying import drying_refusals
+    for entry in METHOD_REGISTRY:
+        scene = make_scene(initial={"binder_fraction": 0.1},
+                           drying={**AIR, "critical_moisture": 0.1},
+                           method={"_replace": True, "name": entry.name})
+        assert entry.dries and drying_refusals(scene, METHOD_REGISTRY) == []
+        others = [e._replace(dries=e.name != entry.name) for e in METHOD_REGISTRY]
+        assert [k for k, _ in drying_refusals(scene, others)] == ["drying"]
     with pytest.raises(SceneError) as err:                   # pure droplets among particles
         make_scene(initial={"binder_fraction": 0.1}, drying={**AIR, "critical_moisture": 0.1},
                    binder_injection={"rate": 1e8, "droplet_diameter": 60e-6})

@@ -12,6 +12,7 @@ from ...physics.breakage import cell_selection_factor
 from ...physics.kernels import collision_frequency
 from ...physics.rates import aggregation_rate, droplet_capture_rate
 from .breakage import breakage_trial, breakage_weights
+from .drying import drift_box, drift_due
 from .slots import C_D as _C_D
 from .slots import N_BINS, Particles, Slots
 from .slots import d4 as _d4
@@ -203,12 +204,13 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
     n_out = output_times.size
     return run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config,
                               rng_seed, exponential_dt, max_trials, out,
-                              np.zeros((n_out, PSD_BINS, 2)), np.zeros((n_out, 3)))
+                              np.zeros((n_out, PSD_BINS, 2)), np.zeros((n_out, 3)),
+                              np.zeros(n_out))
 
 
 @nb.njit(cache=True)
 def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
-                       exponential_dt, max_trials, out, classes, percentiles):
+                       exponential_dt, max_trials, out, classes, percentiles, evaporated):
     """One cNMC replica. Mutates p, b, isdrop (the final box) and fills ``out``.
 
     p, b: float64 [kg], length N (N >= 2 for aggregation); isdrop: int64 flags, 1 = free
@@ -218,30 +220,27 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
     rng_seed: seed of numba's generator; exponential_dt: 0 = mean waiting time 1/R per trial
     (seed 000), 1 = exponential; max_trials: budget of proposals; out: (len(output_times),
     N_QUANTITIES), columns QUANTITY_NAMES (rows not reached: NaN); classes (n_out, PSD_BINS,
-    2), percentiles (n_out, 3): ``box_size_classes`` per output time. Returns (trials, accepted,
-    injections, violations, status, t_reached [s], break_trials, splits): aggregation
-    proposals and aggregations, injections, proposals above their majorant (must be 0), a
-    STATUS_* code, breakage proposals and breakages (``methods.cnmc_breakage``).
-    """
+    2), percentiles (n_out, 3): ``box_size_classes`` per output time; evaporated (n_out): the
+    liquid evaporated by then [kg/m3] (``methods.cnmc.drying``). Returns (trials, accepted,
+    injections, violations, status, t_reached [s], break_trials, splits): aggregation proposals
+    and aggregations, injections, proposals above their majorant (must be 0), a STATUS_* code,
+    breakage proposals and breakages (``methods.cnmc_breakage``)."""
     np.random.seed(rng_seed)
-    n = p.size
-    n_out = output_times.size
+    n, n_out = p.size, output_times.size
     sep = config[P.SEPARATE_DROPLETS] == 1
-    rho = params[P.DENSITY]
-    pd = params[P.DROPLET_MASS]
+    rho, pd = params[P.DENSITY], params[P.DROPLET_MASS]
     bd = droplet_liquid(params) if config[P.BIVARIATE] == 1 else 0.0
     alpha, theta, u0, inj = cell[P.ALPHA], cell[P.THETA], cell[P.COLLISION_VELOCITY], cell[P.INJECTION]
     brk_factor = cell_selection_factor(cell, params, config)
     cls = _new_classes(n)
     members, bcnt, bpos, bin_of, lo, hi, dirty, table, tabd, dlist, dpos, dcnt = cls[:12]
     occ, srow, trow, drow = cls[12:16]
-    bbound, brow = np.zeros(N_BINS), np.zeros(N_BINS)
+    bbound, brow, dry = np.zeros(N_BINS), np.zeros(N_BINS), np.zeros(3)   # dry: _store_outputs
     m_ref, ptot, s4 = _fill_classes(p, isdrop, sep, rho, bin_of, bpos, members, bcnt, lo, hi,
                                     dirty, dlist, dpos, dcnt)
     box, slots = Particles(p, b, isdrop, rho, m_ref), Slots(bin_of, bpos, members, bcnt, lo, hi,
                                                             dirty, dlist, dpos, dcnt)
-    conc0 = ptot / volume0
-    mass_rate = inj * pd                     # kg/(m3 s) added by injection
+    conc0, mass_rate = ptot / volume0, inj * pd     # kg/m3; kg/(m3 s) added by injection
     d43_tab = _initial_bounds(rho, dcnt[0], pd, ptot, s4, lo, hi, dirty, table, tabd, alpha,
                               theta, params, config)
     trials = accepted = injections = violations = break_trials = splits = since_sync = 0
@@ -252,7 +251,7 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
             n_occ, w_gg, w_dg = _pair_weights(bcnt, table, tabd, occ, srow, trow, drow)
             w_br = breakage_weights(bcnt, lo, hi, occ, n_occ, brk_factor, params, config,
                                     bbound, brow)
-        vol = ptot / (conc0 + mass_rate * t)
+        vol = ptot / (conc0 + mass_rate * t - dry[0])
         nd = dcnt[0]
         r_gg = 0.5 * w_gg / vol
         r_dg = nd * w_dg / vol
@@ -262,8 +261,10 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
             status = STATUS_NONFINITE
             break
         t_next = _next_event_time(t, r, exponential_dt)
-        k_out = _store_outputs(k_out, t_next, output_times, p, b, isdrop, conc0, mass_rate,
-                               rho, out, classes, percentiles)
+        k_out, ptot, changed = _store_outputs(k_out, t_next, output_times, box, conc0, mass_rate,
+                                              out, classes, percentiles, evaporated, dry, ptot,
+                                              params, config)
+        since_sync = n - 1 if changed else since_sync    # dried: exact sums and intervals
         if k_out >= n_out:
             break
         if t_next <= t:
@@ -361,15 +362,30 @@ def _initial_bounds(rho, n_free_droplets, pd, ptot, s4, lo, hi, dirty, table, ta
 
 
 @nb.njit(cache=True, inline="always")
-def _store_outputs(k_out, t_next, output_times, p, b, isdrop, conc0, mass_rate, rho, out,
-                   classes, percentiles):
-    """Store the box at every output time before t_next [s]; returns the next output row."""
+def _store_outputs(k_out, t_next, output_times, box, conc0, mass_rate, out, classes,
+                   percentiles, evaporated, dry, ptot, params, config):
+    """Store the box at every output time before t_next [s]; with drying (``dry``: evaporated
+    [kg/m3], last drift [s], proposals since) dry it to each output time first, and to t_next
+    when a drift is due. Returns (next output row, total mass [kg], True if it dried)."""
     n_out = output_times.size
+    p, b, isdrop, rho = box.p, box.b, box.isdrop, box.rho
+    drying = config[P.DRYING] == 1
+    drifted = False
+    dry[2] += 1.0
     while k_out < n_out and output_times[k_out] < t_next:
-        box_quantities(p, b, isdrop, conc0 + mass_rate * output_times[k_out], rho, out[k_out])
+        if drying:
+            ptot = drift_box(p, b, isdrop, output_times[k_out], conc0, mass_rate, dry, ptot,
+                             params)
+            drifted = True
+        box_quantities(p, b, isdrop, conc0 + mass_rate * output_times[k_out] - dry[0], rho,
+                       out[k_out])
         box_size_classes(p, b, isdrop, rho, classes[k_out], percentiles[k_out])
+        evaporated[k_out] = dry[0]
         k_out += 1
-    return k_out
+    if drying and k_out < n_out and drift_due(dry[2], p.size, t_next):
+        ptot = drift_box(p, b, isdrop, t_next, conc0, mass_rate, dry, ptot, params)
+        drifted = True
+    return k_out, ptot, drifted
 
 
 @nb.njit(cache=True, inline="always")

@@ -49,8 +49,11 @@ accepted 1 trial in 175, with the classes 3 in 4.
   in seed 000). Removing among the N + 1 (droplet included) instead would be biased: the box's
   droplet fraction f must grow at cell[INJECTION] V (1 - f) / N, which is what removal among
   the N old particles gives.
+* Drying (a [drying] table): between events every granule's liquid drifts (``methods.cnmc.
+  drying``); the box dries at each output time and after every N / DRIFT_TRIALS proposals,
+  and the evaporated liquid E [kg/m3] leaves the mass concentration below.
 * Volume: aggregation conserves mass and injection adds p_d * cell[INJECTION] kg per m3 per s,
-  so the exact mass concentration is C(t) = M10(0) + cell[INJECTION] p_d t. The box volume is
+  so the exact mass concentration is C(t) = M10(0) + cell[INJECTION] p_d t (- E with drying). The box volume is
   V(t) = P_box / C(t), P_box the total mass in the box. After a refill this is the seed's
   eq. 18, V -> V (P + p_k) / P; for injection it is eq. 19 with the injected mass entering as its
   expectation instead of in Poisson jumps (the number of droplets put into the box stays
@@ -126,6 +129,7 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.injection import droplet_liquid
+from .drying import evaporated_columns
 from .box import (MAX_TRIALS, MOMENT_NAMES, N_QUANTITIES, PSD_BINS, QUANTITY_NAMES,
                   STATUS_MAX_TRIALS, STATUS_NONFINITE, STATUS_OK, STATUS_STALLED,
                   interval_pair_bound, pair_rate_bounds, run_box, run_box_with_sizes)
@@ -268,7 +272,7 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
     "psd_mass_fraction" (+ "_lo", "_hi"): shape (times, PSD_BINS), each replica's granule mass
     fraction per class of the size lattice (``cnmc_box.PSD_LOG10_LO``, ``PSD_PER_DECADE``),
     its ensemble mean and band; "psd_binder_fraction": the pooled binder mass / granule mass
-    per class (0 in an empty class); "trials", "accepted", "events_injection": totals over the ensemble (int64), and with
+    per class (0 in an empty class); with drying "liquid_evaporated" [kg/m3] (+ "_lo", "_hi"); "trials", "accepted", "events_injection": totals over the ensemble (int64), and with
     breakage "trials_breakage" (proposals) and "events_breakage" (splits).
     Raises RuntimeError if a replica exhausts MAX_TRIALS trials (e.g. a product kernel past
     gelation), FloatingPointError for an infinite event rate (alpha >= alpha_max).
@@ -283,6 +287,7 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
 
     n_out = output_times.size
     data = np.empty((replicas, n_out, N_QUANTITIES))
+    evaporated = np.zeros((replicas, n_out))
     sizes = np.zeros((replicas, n_out, 4))           # d10, d50, d90 [m], span
     psd = _ClassSums(n_out)
     totals = np.zeros(5, np.int64)
@@ -294,7 +299,8 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
         box_seed = int(rng.integers(0, 2 ** 31 - 1))
         (trials, accepted, injections, violations, status, t_reached, break_trials,
          splits) = run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config,
-                                      box_seed, 0, MAX_TRIALS, data[r], psd.classes, pct)
+                                      box_seed, 0, MAX_TRIALS, data[r], psd.classes, pct,
+                                      evaporated[r])
         if violations:
             raise RuntimeError(f"cNMC replica {r}: {violations} pair rates exceeded the "
                                "majorant (bound bug)")
@@ -329,6 +335,7 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
         result[name] = mean[:, q]
         result[name + "_lo"] = mean[:, q] - half[:, q]
         result[name + "_hi"] = mean[:, q] + half[:, q]
+    result.update(evaporated_columns(evaporated, t_factor, config))
     s_mean = sizes.mean(axis=0)
     s_half = t_factor * sizes.std(axis=0, ddof=1) if replicas > 1 else np.zeros_like(s_mean)
     for q, name in enumerate(("d10_m", "d50_m", "d90_m", "span")):

@@ -38,4 +38,5 @@ ENTRY = MethodEntry(
     tabulates_theta=False, population=_population, failure_hint=no_hint,
     diagnostics=no_diagnostics, plan_line=_plan, ensemble=_ensemble,
     distribution_text="mass histogram of each replica's particle list (50 classes per decade "
-                      "of d), the replicas' mean and 95% band; d10/d50/d90 exact per replica")
+                      "of d), the replicas' mean and 95% band; d10/d50/d90 exact per replica",
+    dries=True)

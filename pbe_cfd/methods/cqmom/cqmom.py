@@ -6,6 +6,7 @@ with N1 = config[ORDER] size nodes and N2 = config[BINDER_NODES] conditional nod
 
     [M_00, M_10, ..., M_(2N1-1)0]                pure size moments, 2 N1 entries
     [M_0l, M_1l, ..., M_(N1-1)l], l = 1..2N2-1   mixed moments, N1 entries per l (bivariate)
+    [E]                                          evaporated liquid (only with drying)
     [n_d]                                        free droplets (only with separate droplets)
 
 N1 (2 N2 + 1) moments in all; with N2 = 1 this is exactly the QMOM state (and method).
@@ -48,18 +49,22 @@ MAX_SIZE_NODES = 4
 MAX_BINDER_NODES = 3
 
 
-def state_length(nodes, binder_nodes, bivariate, separate_droplets):
+def state_length(nodes, binder_nodes, bivariate, separate_droplets, drying=False):
     """Number of entries of one cell's CQMOM state."""
     mixed = nodes * (2 * binder_nodes - 1) if bivariate else 0
-    return 2 * nodes + mixed + (1 if separate_droplets else 0)
+    return 2 * nodes + mixed + (1 if drying else 0) + (1 if separate_droplets else 0)
 
 
-def state_names(nodes, binder_nodes, bivariate, separate_droplets):
-    """Names of the state entries: 'M{i}{j}' in state order, then 'droplet_number_density'."""
+def state_names(nodes, binder_nodes, bivariate, separate_droplets, drying=False):
+    """Names of the state entries: 'M{i}{j}' in state order, 'evaporated_liquid' (with
+    drying: the liquid evaporated so far, scaled as a mass moment, as QMOM), then
+    'droplet_number_density'."""
     names = [f"M{k}0" for k in range(2 * nodes)]
     if bivariate:
         for l in range(1, 2 * binder_nodes):
             names += [f"M{k}{l}" for k in range(nodes)]
+    if drying:
+        names.append("evaporated_liquid")
     if separate_droplets:
         names.append("droplet_number_density")
     return names
@@ -293,8 +298,8 @@ def _project_into(state, target, config, work, n):
                 for k in range(n_max):
                     target[mixed_index(n_max, k, l)] += power
                     power *= work[a]
-    if config[P.SEPARATE_DROPLETS] == 1:
-        target[n_state - 1] = state[n_state - 1]
+    for k in range(n_state - config[P.SEPARATE_DROPLETS] - config[P.DRYING], n_state):
+        target[k] = state[k]         # the evaporated liquid and the droplets, as carried
 
 
 @nb.njit(cache=True)
@@ -332,8 +337,10 @@ def cqmom_realizable(state, aux, params, config, work):
             return False
     if separate == 1 and state[n_state - 1] < 0.0:
         return False
+    if config[P.DRYING] == 1 and state[n_state - 1 - separate] < 0.0:
+        return False
     if state[0] == 0.0:
-        for k in range(n_state - separate):
+        for k in range(n_state - separate - config[P.DRYING]):
             if state[k] != 0.0:
                 return False
         return True
@@ -413,7 +420,7 @@ def cqmom_project(state, aux, params, config, work):
     target = work[ot:ot + n_state]
     _project_into(state, target, config, work, n)
     m01 = 2 * n_max
-    for k in range(2, n_state - config[P.SEPARATE_DROPLETS]):
+    for k in range(2, n_state - config[P.SEPARATE_DROPLETS] - config[P.DRYING]):
         if k != m01:
             state[k] = target[k]
 

@@ -21,7 +21,8 @@ def _keys(t, defaults):
 
 def _state_names(scene):
     m = scene.method.options
-    return cqmom_state_names(m.nodes, m.binder_nodes, scene.bivariate, scene.separate_droplets)
+    return cqmom_state_names(m.nodes, m.binder_nodes, scene.bivariate, scene.separate_droplets,
+                             getattr(scene, "drying", None) is not None)
 
 
 def _population(state, aux, arrays):
@@ -59,4 +60,5 @@ ENTRY = MethodEntry(
                       "M00 .. M(2N-2)0 (one kernel for N = 2; M(2N-1)0 not used); binder "
                       "fraction per size class interpolated in ln p between the "
                       "size nodes' mass-mean binder fractions",
-    moments_text="from the quadrature nodes (one binder value per size node)")
+    moments_text="from the quadrature nodes (one binder value per size node)",
+    dries=True)

@@ -7,7 +7,9 @@ depends on the binder fractions) once per pair of their points. The gains of eve
 written as sums of non-negative terms, so the number loses exactly the aggregating pairs and
 M10, M01 gain exactly nothing; droplet capture moves a granule (p, b) to (p + p_d, b + p_d).
 Breakage: the size moments by quadrature over the size nodes, each mixed moment as its carried
-value times the points' mean selection (``_breakage``). All quantities are scaled (see ``methods.cqmom``); no allocation.
+value times the points' mean selection (``_breakage``). Drying (docs/physics.md section 15):
+every point drifts at dx/dt = db/dt = -e(x, b) (``_drying``), its dry mass x - b fixed. All
+quantities are scaled (see ``methods.cqmom``); no allocation.
 """
 import numba as nb
 
@@ -21,6 +23,7 @@ from ...physics.properties import (BINDER_LAYER, DIAMETER, EKE_CBRT, EKE_INV, IN
                                    WETTING, fill_properties)
 from ...physics.rates import particle_properties
 from ..quadrature.breakage_sources import cell_selection_factor, node_selection_rate
+from ..quadrature.drying_sources import drift_moment_rate, point_drying_rate
 from .cqmom import (invert_cached, mixed_index, off_acc, off_bpowers, off_counts, off_points,
                     off_powers, props_view)
 
@@ -317,6 +320,52 @@ def _breakage(out, state, work, n_max, m, n, cell, params, config, bivariate):
 
 
 @nb.njit(cache=True, error_model="numpy")
+def _drying(out, state, work, n_max, m, n, params, config, bivariate):
+    """Drying drift of the points (scaled moments per s): a point (x, b) of weight w loses
+    liquid at e(x, b) (``quadrature.drying_sources.point_drying_rate``, b clipped to [0, x]),
+    so M_kl gains G_kl = -sum w e (k x^(k-1) b^l + l x^k b^(l-1)) and the evaporated liquid
+    (entry N_STATE - 1 - SEPARATE_DROPLETS) sum w e.
+
+    The size moments, M10 and M01 take G_kl as it is (the points reproduce them exactly, so
+    M10 + E and M01 + E stay invariant); every other mixed moment takes its carried value
+    times the points' relative rate, M_kl G_kl / sum w x^k b^l (as ``_breakage``): the same
+    where the points reproduce M_kl, and a carried moment the points do not reproduce (the
+    closure's gap, ``cqmom_realizable``) then decays with its own value instead of being
+    driven through zero by a drift it does not hold (the falling rate is linear in b)."""
+    op = off_points(n_max)
+    npt = n_max * m
+    counts = off_counts(n_max, m)
+    rates = off_acc(n_max, m)             # w e of each point (n m <= 12 m accumulators)
+    evaporated = config[P.N_STATE] - 1 - config[P.SEPARATE_DROPLETS]
+    lmax = 2 * m if bivariate else 1
+    for a in range(n):
+        for q in range(int(work[counts + a])):
+            i = a * m + q
+            x = work[op + i]
+            work[rates + i] = work[op + 2 * npt + i] * point_drying_rate(
+                x, min(max(work[op + npt + i], 0.0), x), params)
+            out[evaporated] += work[rates + i]
+    for l in range(lmax):
+        for k in range(2 * n_max if l == 0 else n_max):
+            gain = 0.0
+            held = 0.0
+            for a in range(n):
+                for q in range(int(work[counts + a])):
+                    i = a * m + q
+                    x = work[op + i]
+                    b = min(max(work[op + npt + i], 0.0), x)
+                    gain += drift_moment_rate(k, l, x, b, work[rates + i])
+                    held += work[op + 2 * npt + i] * x ** k * b ** l
+            if l == 0:
+                out[k] += gain
+            elif k == 0 and l == 1:
+                out[mixed_index(n_max, 0, 1)] += gain
+            elif held > 0.0:
+                i = mixed_index(n_max, k, l)
+                out[i] += state[i] * (gain / held)
+
+
+@nb.njit(cache=True, error_model="numpy")
 def cqmom_rhs(state, out, cell, aux, params, config, work):
     """d(state)/dt of one cell [scaled moments per s] (layout in the module docstring).
 
@@ -340,6 +389,8 @@ def cqmom_rhs(state, out, cell, aux, params, config, work):
         _aggregation(out, work, n_max, m, n, factor, u0, params, config, bivariate)
     if n > 0 and config[P.BREAKAGE] == 1:
         _breakage(out, state, work, n_max, m, n, cell, params, config, bivariate)
+    if n > 0 and config[P.DRYING] == 1:
+        _drying(out, state, work, n_max, m, n, params, config, bivariate)
     inj = cell[P.INJECTION] / params[P.NUMBER_SCALE]
     xd = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
     xl = droplet_liquid(params) / params[P.MASS_SCALE]

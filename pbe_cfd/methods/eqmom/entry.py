@@ -27,7 +27,8 @@ def scene_keys(t, defaults):
 
 def state_names(scene):
     """State entry names of the scene's EQMOM."""
-    return S.state_names(scene.method.options.nodes, scene.bivariate, scene.separate_droplets)
+    return S.state_names(scene.method.options.nodes, scene.bivariate, scene.separate_droplets,
+                         getattr(scene, "drying", None) is not None)
 
 
 def aux(scene, arrays, theta_grid=None):
@@ -87,9 +88,9 @@ ENTRY = MethodEntry(
     state_names=state_names, aux=aux, tabulates_theta=False, population=population,
     failure_hint=failure_hint, diagnostics=diagnostics, plan_line=plan_line,
     repairs_mixture=lambda scene: True,
-    # its droplet sources take the droplet as pure binder liquid (b = p_d), and it has no
-    # drying drift: the scene refuses a solids fraction and a [drying] table for it
-    solute_droplets=False,
+    # its droplet sources take the droplet as pure binder liquid (b = p_d): the scene refuses
+    # a solids fraction with droplets of their own for it
+    solute_droplets=False, dries=True,
     rhs=eqmom_rhs, realizable=eqmom_realizable, project=eqmom_project,
     conserved=eqmom_conserved,
     work_size=lambda config: S.work_size(int(config[P.ORDER]), int(config[P.N_STATE])),

@@ -15,10 +15,12 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.breakage import cell_selection_factor, daughter_moment_factor
+from ...physics.injection import droplet_liquid
 from ...physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ...physics.properties import DIAMETER, N_PROPS
 from ...physics.rates import pair_rate, particle_properties
 from ..quadrature.breakage_sources import node_selection_rate
+from ..quadrature.drying_sources import drift_moment_rate, point_drying_rate
 import pbe_cfd.methods.eqmom.inversion as I
 import pbe_cfd.methods.eqmom.state as S
 
@@ -134,12 +136,33 @@ def _droplets(state, out, X, W, B, m, props, factor, u0, cell, n_size, n_max, bi
             out[n_state - 1] -= captured
         out[n_state - 1] += inj
     elif inj != 0.0:
+        xl = droplet_liquid(params) / params[P.MASS_SCALE]    # a solution's liquid (x_d: pure)
         value = inj
         for k in range(n_size):
             out[k] += value
             if bivariate and k < n_max:
-                out[n_size + k] += value * xd
+                out[n_size + k] += value * xl
             value *= xd
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _drying(out, X, W, B, m, n_size, n_max, bivariate, params, config):
+    """Drying drift of the m secondary particles (docs/physics.md section 15; as QMOM's
+    nodes): M_kl gains -W e (k X^(k-1) B^l + l X^k B^(l-1)), the evaporated liquid (entry
+    N_STATE - 1 - SEPARATE_DROPLETS) W e."""
+    evaporated = config[P.N_STATE] - 1 - config[P.SEPARATE_DROPLETS]
+    for a in range(m):
+        x = X[a]
+        b = min(max(B[a], 0.0), x)
+        rate = W[a] * point_drying_rate(x, b, params)
+        if rate == 0.0:
+            continue
+        out[evaporated] += rate
+        for k in range(1, n_size):
+            out[k] += drift_moment_rate(k, 0, x, b, rate)
+        if bivariate:
+            for k in range(n_max):
+                out[n_size + k] += drift_moment_rate(k, 1, x, b, rate)
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -181,6 +204,8 @@ def eqmom_rhs(state, out, cell, aux, params, config, work):
                      bivariate, params, config)
     if config[P.BREAKAGE] == 1:
         _breakage(out, X, W, B, m, cell, n_size, n_max, bivariate, params, config)
+    if config[P.DRYING] == 1:
+        _drying(out, X, W, B, m, n_size, n_max, bivariate, params, config)
     _droplets(state, out, X, W, B, m, props, factor, u0, cell, n_size, n_max, bivariate,
               params, config)
 
@@ -188,7 +213,8 @@ def eqmom_rhs(state, out, cell, aux, params, config, work):
 @nb.njit(cache=True)
 def eqmom_conserved(config, params, pivots, coefs):
     """Linear invariants (rows of coefs; pivots the entries of coefficient 1): granule mass
-    M10 plus the free droplets' x_d n_d, and (bivariate) binder mass M01 plus x_d n_d."""
+    M10 plus the free droplets' x_d n_d, and (bivariate) binder mass M01 plus x_d n_d, each
+    plus the evaporated liquid with drying."""
     n_max = config[P.ORDER]
     n_state = config[P.N_STATE]
     separate = config[P.SEPARATE_DROPLETS] == 1
@@ -201,6 +227,8 @@ def eqmom_conserved(config, params, pivots, coefs):
         coefs[r, pivots[r]] = 1.0
         if separate:
             coefs[r, n_state - 1] = xd
+        if config[P.DRYING] == 1:        # what evaporates leaves M10 and M01 for this entry
+            coefs[r, n_state - 1 - config[P.SEPARATE_DROPLETS]] = 1.0
     return count
 
 
@@ -238,8 +266,10 @@ def eqmom_realizable(state, aux, params, config, work):
             return False
     if config[P.SEPARATE_DROPLETS] == 1 and state[n_state - 1] < 0.0:
         return False
+    if config[P.DRYING] == 1 and state[n_state - 1 - config[P.SEPARATE_DROPLETS]] < 0.0:
+        return False
     if state[0] == 0.0:
-        for k in range(n_state - config[P.SEPARATE_DROPLETS]):
+        for k in range(n_state - config[P.SEPARATE_DROPLETS] - config[P.DRYING]):
             if state[k] != 0.0:
                 return False
         return True

@@ -29,13 +29,14 @@ from ...physics import parameters as P
 from ...physics.efficiency import uses_collision_velocity
 from .basis import SPACINGS
 from .breakage import breakage_blocks
+from .drying import drying_blocks
 from .dry import cross_tensors, dry_class, dry_kernels, dry_tensors
 from .layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_COND_DRY, AUX_COND_G,
                      AUX_CONSISTENT, AUX_DROPLET_MASS, AUX_FOLLOWING, AUX_HEADER,
                      AUX_LAYOUT_VERSION,
                      AUX_MASS_SCALE, AUX_N_B, AUX_N_DRY, AUX_N_NODES, AUX_N_P,
                      AUX_NMOM, AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_NWL, AUX_OFF_BASIS,
-                     AUX_OFF_BREAK,
+                     AUX_OFF_BREAK, AUX_OFF_DRYING,
                      AUX_OFF_CAPMAP, AUX_OFF_CD, AUX_OFF_CD0, AUX_OFF_CDD,
                      AUX_OFF_CONDW, AUX_OFF_DRY_BASIS, AUX_OFF_F43, AUX_OFF_F43D,
                      AUX_OFF_LOGU, AUX_OFF_LOGW, AUX_OFF_Q, AUX_OFF_QDD,
@@ -45,7 +46,7 @@ from .layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_COND_DRY, AUX_COND_G,
 from .wet import wet_basis, wet_kernels, wet_tensors
 
 _ALGO_TAG = "laguerre-rom-3-dry-class-adaptive"
-_SOURCES = ("build.py", "layout.py", "basis.py", "wet.py", "dry.py", "breakage.py")
+_SOURCES = ("build.py", "layout.py", "basis.py", "wet.py", "dry.py", "breakage.py", "drying.py")
 #: default adaptive grid of the wet weight means: c in [p_max/32, p_max/2.5], d in
 #: [b_max/64, b_max/2] (the weight must fit in the support)
 ADAPTIVE_RANGES = dict(c=(1.0 / 32.0, 1.0 / 2.5), d=(1.0 / 64.0, 0.5))
@@ -84,7 +85,8 @@ def _source_digest():
     phys = os.path.join(os.path.dirname(os.path.dirname(here)), "physics")
     h = hashlib.sha256()
     paths = [os.path.join(phys, f) for f in ("kernels.py", "efficiency.py", "rates.py",
-                                             "properties.py", "parameters.py", "breakage.py")]
+                                             "properties.py", "parameters.py", "breakage.py",
+                                             "drying.py")]
     paths += [os.path.join(here, f) for f in _SOURCES]
     for path in paths:
         with open(path, "rb") as fh:
@@ -377,7 +379,8 @@ def _tables(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
              cond=max(b["cond"] for b in bases), n_nodes=len(bases[0]["u"]), slices=slices,
              collapsed=collapsed, pd=pd, following=not shared,
              wet_support=np.array([[g["p_max"], g["b_max"]] for g in grids]),
-             breakage=breakage_blocks(params, config, m, bases, dry))
+             breakage=breakage_blocks(params, config, m, bases, dry),
+             drying=drying_blocks(params, config, m, bases, p_ref))
     return t
 
 
@@ -393,6 +396,8 @@ def _build(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
              (AUX_OFF_WET_SUPPORT, t["wet_support"])]
     if t["breakage"].size:                 # absent: AUX_OFF_BREAK stays 0
         named.append((AUX_OFF_BREAK, t["breakage"]))
+    if t["drying"].size:                   # absent: AUX_OFF_DRYING stays 0
+        named.append((AUX_OFF_DRYING, t["drying"]))
     pos = AUX_HEADER
     offs = []
     for _, blk in named:

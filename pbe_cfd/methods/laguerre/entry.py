@@ -10,9 +10,15 @@ from .rhs import laguerre_conserved, laguerre_project, laguerre_realizable, lagu
 CODE = 1
 
 
-def laguerre_state_names(order, separate_droplets):
-    """State entry names of the Laguerre ROM (wet moments, dry moments, free droplets)."""
-    return state_names(order, separate_droplets)
+def laguerre_state_names(order, separate_droplets, drying=False):
+    """State entry names of the Laguerre ROM (wet moments, dry moments, free droplets, the
+    evaporated liquid)."""
+    return state_names(order, separate_droplets, drying)
+
+
+def _names(scene):
+    return laguerre_state_names(scene.method.options.order, scene.separate_droplets,
+                                getattr(scene, "drying", None) is not None)
 
 
 def _keys(t, defaults):
@@ -44,7 +50,7 @@ def _diagnostics(states, aux, arrays):
 
 def _plan(scene):
     m = scene.method.options
-    n_state = len(laguerre_state_names(m.order, scene.separate_droplets))
+    n_state = len(_names(scene))
     return (f"Laguerre ROM of order {m.order} "
             f"({'moment-consistent' if m.consistent else 'plain projection'}"
             f"{', dry class' if m.dry_class else ''}"
@@ -54,8 +60,8 @@ def _plan(scene):
 
 
 ENTRY = MethodEntry(
-    name="laguerre", code=CODE, scene_keys=_keys, options=LaguerreOptions, order_key="order", order_label="Laguerre m",
-    state_names=lambda s: laguerre_state_names(s.method.options.order, s.separate_droplets),
+    name="laguerre", code=CODE, scene_keys=_keys, options=LaguerreOptions, order_key="order",
+    order_label="Laguerre m", state_names=lambda s: _names(s),
     aux=_aux, tabulates_theta=True, population=population_for_output,
     failure_hint=_hint, diagnostics=_diagnostics, plan_line=_plan,
     initial_state=scene_initial_state, columns=scene_columns,
@@ -70,4 +76,4 @@ ENTRY = MethodEntry(
     distribution_text="the Laguerre ROM's own density (wet and dry classes) integrated per "
                       "size class",
     moments_text="integral of the Laguerre density over its support",
-    solute_droplets=False)
+    solute_droplets=False, dries=True)

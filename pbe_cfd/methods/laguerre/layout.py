@@ -78,9 +78,10 @@ HEADER = (
                             "pairs)"),
     ("AUX_NWL", "gamma shapes lambda in p on the following grid (1: a fixed shape); the "
                 "weight index is w = (il * NWC + ic) * NWD + jd"),
+    ("AUX_OFF_DRYING", "offset of the drying block (laguerre_drying; 0: no drying)"),
 )
 AUX_HEADER = numbered(HEADER, globals())
-AUX_LAYOUT_VERSION = 6.0
+AUX_LAYOUT_VERSION = 7.0
 
 TABLE_III = dict(weights=dict(c=1e-9, d=1e-9, lam=1.0, gam=0.2),
                  support=dict(p_max=1e-8, b_max=4e-9, n_p=20, n_b=20))
@@ -91,18 +92,23 @@ def state_offsets(m):
     return m * m, m * m + m
 
 
-def state_size(order, separate_droplets):
-    """Length of one cell's state: m*m wet moments, m dry moments (+1 for free droplets)."""
-    return order * order + order + (1 if separate_droplets else 0)
+def state_size(order, separate_droplets, drying=False):
+    """Length of one cell's state: m*m wet moments, m dry moments (+1 for free droplets, +1
+    for the evaporated liquid with drying)."""
+    return order * order + order + (1 if separate_droplets else 0) + (1 if drying else 0)
 
 
-def state_names(order, separate_droplets):
+def state_names(order, separate_droplets, drying=False):
     """Names of the state entries: wet granules' M_ij ("wet_M{i}{j}", i-major, i, j < order),
-    dry granules' M_k0 ("dry_M{k}0"), then "droplet_number_density" if droplets are separate."""
+    dry granules' M_k0 ("dry_M{k}0"), "droplet_number_density" if droplets are separate, then
+    "evaporated_liquid" with drying (the liquid evaporated so far, scaled as a mass moment;
+    the last entry)."""
     names = [f"wet_M{i}{j}" for i in range(order) for j in range(order)]
     names += [f"dry_M{k}0" for k in range(order)]
     if separate_droplets:
         names.append("droplet_number_density")
+    if drying:
+        names.append("evaporated_liquid")
     return names
 
 

@@ -44,7 +44,7 @@ from .layout import (AUX_CHECK_LEVEL, AUX_FOLLOWING, AUX_MASS_SCALE, AUX_NPAIR, 
                      AUX_OFF_QDD, AUX_OFF_SUPPORT, AUX_OFF_X, AUX_OFF_XL, AUX_ORDER, AUX_P_MAX,
                      AUX_SEPARATE, _corner, state_names, state_size, weight_corner,
                      weight_corners, wet_support)
-from .breakage import add_laguerre_breakage
+from .drying import add_linear_terms
 from .tensor import (basis_values, build_aux, dry_particles, dry_support_functionals,
                      escaped_mass_share, fraction_basis_values, initial_state, projection_matrix,
                      theta_to_u0, univariate_values, unpack_basis, wet_particles)
@@ -325,9 +325,9 @@ def laguerre_rhs(state, out, cell, aux, params, config, work=None):
                                         _weight_position(state, aux, m), i0, t)
         if separate:
             out[K + m] = -loss
-    if config[P.BREAKAGE] == 1:          # a linear term, laguerre_breakage
-        add_laguerre_breakage(state, out, cell, aux, params, config,
-                              _weight_position(state, aux, m))
+    if config[P.BREAKAGE] == 1 or config[P.DRYING] == 1:     # laguerre_breakage, _drying
+        add_linear_terms(state, out, cell, aux, params, config,
+                         _weight_position(state, aux, m))
     inj = cell[P.INJECTION]
     if separate:
         out[K + m] += inj / nref
@@ -446,7 +446,7 @@ def laguerre_conserved(config, params, pivots, coefs):
     """Linear invariants of the ROM state for the time integrator: rows c of ``coefs``
     (n_inv, N_STATE) with c . d(state)/dt independent of the state (the injection only):
     granule mass M10 = W10 + D1 (wet and dry classes) and binder mass M01 = W01 (the dry
-    class holds none), each plus the free droplets' mass x_d n_d (x_d = p_d / p_ref).
+    class holds none), each plus the droplets' x_d n_d (x_d = p_d / p_ref) and drying's E.
     ``pivots[r]`` is the entry with coefficient 1 (W10, W01). Returns the count."""
     m = config[P.ORDER]
     n = config[P.N_STATE]
@@ -461,6 +461,7 @@ def laguerre_conserved(config, params, pivots, coefs):
             coefs[r, K + 1] = 1.0               # dry D1
         if config[P.SEPARATE_DROPLETS] == 1 and n > K + m:
             coefs[r, K + m] = xd
+        coefs[r, n - 1] += config[P.DRYING]     # E, the last entry, with drying
     return 2
 
 

@@ -46,7 +46,7 @@ def initial_state(moments, params, config, n_droplets=0.0, dry=False):
     nref = params[P.NUMBER_SCALE]
     pref = params[P.MASS_SCALE]
     pd = params[P.DROPLET_MASS]
-    out = np.zeros(state_size(m, sep))
+    out = np.zeros(state_size(m, sep, int(config[P.DRYING]) == 1))
     for i in range(m):
         for j in range(m):
             val = moments(i, j) if callable(moments) else moments.get(f"M{i}{j}", 0.0)
@@ -342,9 +342,22 @@ def scene_keys(t, defaults):
 
 
 def scene_columns(scene, arrays, states, aux, populations=None):
-    """SI output columns of a scene's scaled states (``output_columns``)."""
-    return output_columns(states, aux, arrays, scene.bivariate, scene.material.density,
-                          populations)
+    """SI output columns of a scene's scaled states (``output_columns``); with drying also the
+    liquid inventory [kg/m3] (evaporated: the last state entry; held by free droplets, pure
+    liquid; held by granules) and the moisture content M01 / (M10 - M01) [-], as the other
+    methods' (docs/physics.md section 15)."""
+    out = output_columns(states, aux, arrays, scene.bivariate, scene.material.density,
+                         populations)
+    if int(arrays.config[P.DRYING]) == 1:
+        states = np.atleast_2d(states)
+        droplets = out.get("droplet_number_density", 0.0 * out["M01"]) * arrays.droplet_mass
+        out["liquid_evaporated"] = states[:, -1] * arrays.number_scale * arrays.mass_scale
+        out["liquid_droplets"] = droplets
+        out["liquid_granules"] = out["M01"] - droplets
+        dry = out["M10"] - out["M01"]
+        out["moisture_content"] = np.where(dry > 0, out["M01"] / np.where(dry > 0, dry, 1.0),
+                                           0.0)
+    return out
 
 
 def output_columns(states, aux, arrays, bivariate, density, populations=None):

@@ -1,0 +1,64 @@
+"""Drying of the cNMC box's granules (docs/physics.md section 15): between events every
+granule's liquid drifts at db/dt = dp/dt = -e(p, b) (``physics.drying``), integrated per
+particle over the interval (``physics.drying.advance_liquid``: exact in the skeleton period);
+the events see the box as dried to the last drift (operator splitting, see ``DRIFT_TRIALS``).
+Free droplets of their own do not dry (their mass is p_d in every method). Masses in kg."""
+import numba as nb
+import numpy as np
+
+from ...physics import parameters as P
+from ...physics.drying import advance_liquid
+
+#: the box drifts at every output time and after every N / DRIFT_TRIALS event proposals
+#: (N particles), so an event sees a particle dried to within ~1/DRIFT_TRIALS of the mean
+#: time between two events of that particle; O(DRIFT_TRIALS) work per proposal
+DRIFT_TRIALS = 32
+
+
+@nb.njit(cache=True)
+def dry_box(p, b, isdrop, dt, params):
+    """Dry every granule of the box (masses p, liquid b [kg]; isdrop 1 for a free droplet)
+    for dt [s], in place; returns the liquid evaporated [kg]."""
+    lost = 0.0
+    slip = params[P.DRY_SLIP]
+    for k in range(p.size):
+        if isdrop[k] != 0 or not b[k] > 0.0:
+            continue
+        bk = advance_liquid(p[k], b[k], dt, slip, params)
+        loss = b[k] - bk
+        p[k] -= loss
+        b[k] = bk
+        lost += loss
+    return lost
+
+
+@nb.njit(cache=True)
+def drift_due(trials_since, n, t_next):
+    """True if the box should drift before the event at t_next [s]: N / DRIFT_TRIALS event
+    proposals since its last drift, and an event to come."""
+    return trials_since * DRIFT_TRIALS >= n and t_next < 1e300
+
+
+@nb.njit(cache=True, inline="always")
+def drift_box(p, b, isdrop, t, conc0, mass_rate, dry, ptot, params):
+    """Dry the box from its last drift (dry[1] [s]) to t [s] in its volume at t, V = P / (C0 +
+    rate t - E) (``methods.cnmc``, E = dry[0] the evaporated liquid [kg/m3], P = ptot [kg]);
+    adds the loss to E, resets the proposal count dry[2]; returns the box's total mass [kg]."""
+    vol = ptot / (conc0 + mass_rate * t - dry[0])
+    lost = dry_box(p, b, isdrop, t - dry[1], params)
+    dry[0] += lost / vol
+    dry[1] = t
+    dry[2] = 0.0
+    return ptot - lost
+
+
+def evaporated_columns(evaporated, t_factor, config):
+    """{"liquid_evaporated", + "_lo", "_hi"} [kg/m3] of the replicas' rows ``evaporated``
+    (replicas, times): their mean -+ t_factor x their standard deviation (the ensemble's 95%
+    band); empty without drying (config[DRYING] == 0)."""
+    if int(config[P.DRYING]) != 1:
+        return {}
+    mean = evaporated.mean(axis=0)
+    half = t_factor * evaporated.std(axis=0, ddof=1) if len(evaporated) > 1 else 0.0 * mean
+    return {"liquid_evaporated": mean, "liquid_evaporated_lo": mean - half,
+            "liquid_evaporated_hi": mean + half}

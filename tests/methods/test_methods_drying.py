@@ -1,0 +1,188 @@
+"""Drying (docs/physics.md section 15) in every method that carries it: CQMOM, EQMOM and the
+cNMC, beside QMOM (tests/physics/test_drying.py).
+
+Closed forms: no aggregation, a monodisperse wet population is one point of every quadrature
+(one size node, one conditional point, one degenerate gamma kernel) and a box of identical
+particles in the cNMC, so the drift's quadrature is exact and the moments follow the liquid
+b(t) of one granule (linear in the constant-rate period, exponential in the falling-rate
+period): M_ij = N0 (m_s + b)^i b^j, E = N0 (b0 - b). Tolerance 1e-8 as there (rtol 1e-11
+over ~10^2 steps); the cNMC integrates each particle in closed form (skeleton period), so its
+moments are exact to round-off of the box sums.
+"""
+import numpy as np
+import pytest
+
+from conftest import make_scene
+from test_drying import AIR, N0, P0, RHO_S, TOL, _constant_rate, _liquid, _scene
+from pbe_cfd.runs.simulate import run_well_mixed
+
+METHODS = {
+    "cqmom": {"name": "cqmom", "nodes": 2, "binder_nodes": 2},
+    "eqmom": {"name": "eqmom", "nodes": 2},
+    "cnmc": {"name": "cnmc", "particles": 64, "replicas": 2, "seed": 3},
+}
+BALANCED = METHODS
+
+
+def _check(res, y0, x_cr, x_eq, rtol):
+    c = res.columns
+    ms = P0 * (1.0 - y0)
+    ec = _constant_rate(P0, y0)
+    b = np.array([_liquid(t, y0 * P0, ms, ec, x_cr, x_eq) for t in c["time_s"]])
+    p = ms + b
+    for name, expected in (("M00", N0 + 0 * b), ("M10", N0 * p), ("M01", N0 * b),
+                           ("M20", N0 * p * p), ("M11", N0 * p * b), ("M02", N0 * b * b)):
+        if name in c:
+            assert np.allclose(c[name], expected, rtol=rtol, atol=0.0), name
+    assert np.allclose(c["liquid_evaporated"], N0 * (y0 * P0 - b), rtol=rtol,
+                       atol=rtol * N0 * y0 * P0)
+    return b
+
+
+@pytest.mark.parametrize("method", sorted(METHODS))
+def test_constant_rate_then_falling_rate_closed_form(method):
+    y0, x_cr = 0.2, 0.05                          # X0 = 0.25 > X_cr: both periods
+    ec = _constant_rate(P0, y0)
+    t_c = (y0 * P0 - x_cr * P0 * (1 - y0)) / ec
+    res = run_well_mixed(_scene(y0, 3.0 * t_c, x_cr, method=METHODS[method]))
+    # the cNMC's moments are box sums of identical particles: round-off of N additions
+    b = _check(res, y0, x_cr, 0.0, 1e-12 if method == "cnmc" else TOL)
+    t = res.columns["time_s"]
+    assert (t < t_c).sum() >= 5 and (t > t_c).sum() >= 5
+    assert np.all(np.diff(b) < 0)
+
+
+@pytest.mark.parametrize("method", sorted(METHODS))
+def test_falling_rate_is_first_order_and_dry_stays_dry(method):
+    y0, x_cr, x_eq = 0.05, 0.2, 0.01              # falling from the start
+    ms = P0 * (1 - y0)
+    tau = (x_cr - x_eq) * ms / _constant_rate(P0, y0)
+    res = run_well_mixed(_scene(y0, 8.0 * tau, x_cr, x_eq, method=METHODS[method]))
+    b = _check(res, y0, x_cr, x_eq, 1e-12 if method == "cnmc" else TOL)
+    assert np.all(b >= x_eq * ms) and np.all(res.columns["M01"] >= N0 * x_eq * ms * (1 - TOL))
+
+
+def _spray_dry(method):
+    """Spray a solution (s = 0.1) for 20 s, dry for 2 s, constant-kernel aggregation, droplets
+    as ordinary particles (the scene of tests/physics/test_drying.py's balance test)."""
+    return make_scene(scene={"end_time": 22.0, "output_interval": 0.5},
+                      material={"density": RHO_S, "binder_density": 1000.0},
+                      initial={"mean_mass": P0, "number_density": N0, "binder_fraction": 0.02},
+                      aggregation={"kernel": "constant", "rate": 2.0e-11},
+                      binder_injection={"rate": 8.8e7, "droplet_diameter": 60e-6,
+                                        "solids_fraction": 0.1, "start": 0.0, "stop": 20.0},
+                      drying={**AIR, "critical_moisture": 0.05},
+                      method={"_replace": True, "rtol": 1e-8, **BALANCED[method]})
+
+
+@pytest.mark.parametrize("method", ["cqmom"])
+def test_liquid_and_binder_solids_balance(method):
+    """Sprayed liquid = held + evaporated to 1e-8, the binder solids M10 - M01 = s p_d I(t)
+    (plus their start) to 1e-10: the invariants M10 + E and M01 + E have state-free
+    derivatives (the spray), kept by the integrator to round-off."""
+    c = run_well_mixed(_spray_dry(method)).columns
+    total = c["M01"][0] + c["liquid_sprayed"]
+    assert np.allclose(c["M01"] + c["liquid_evaporated"], total, rtol=1e-8, atol=0.0)
+    solids = (c["M10"] - c["M01"]) - (c["M10"][0] - c["M01"][0])
+    expected = c["liquid_sprayed"] * 0.1 / 0.9
+    assert np.allclose(solids, expected, rtol=1e-10, atol=1e-10 * expected[-1])
+    after = (c["time_s"] >= 20.0) & (c["M01"] > 1e-6 * c["M01"].max())
+    assert c["liquid_evaporated"][-1] > 0.5 * c["liquid_sprayed"][-1]
+    assert after.sum() >= 2 and np.all(np.diff(c["M01"][after]) < 0)
+    assert np.all(c["M01"] >= 0)
+
+
+# ---- against the independent cNMC with drying and aggregation ---------------------------------
+#: the spray-then-dry scene (fixed before any method was run on it): the granules start wet
+#: (y0 = 0.1, X = 0.11 < X_cr = 0.2: falling rate, tau = X_cr m_s / e_c = 5.8 s in air at
+#: 30 C, humidity 0.022), a solution (s = 0.1) is sprayed for 20 s, then the bed dries for 10 s;
+#: constant kernel k0 N0 = 0.2 1/s, droplets (60 um) as ordinary particles
+SPRAY_DRY = dict(end=30.0, air={"air_temperature": 303.15, "air_humidity": 0.022,
+                                "slip_velocity": 0.1, "critical_moisture": 0.2},
+                 k0=2.0e-11, y0=0.1, rate=8.8e7, d_drop=60e-6, solids=0.1, stop=20.0)
+#: reference ensemble: N particles x R replicas, seed (fixed before looking)
+REF_PARTICLES, REF_REPLICAS, REF_SEED = 2000, 8, 2026
+COMPARED = {"qmom": {"name": "qmom", "nodes": 3},
+            "cqmom": {"name": "cqmom", "nodes": 3, "binder_nodes": 2},
+            "laguerre": {"name": "laguerre", "order": 3, "support_mass": 8e-8,
+                         "grid_mass": 80}}
+
+
+def _spray_dry_scene(method):
+    s = SPRAY_DRY
+    return make_scene(scene={"end_time": s["end"], "output_interval": 1.0},
+                      material={"density": RHO_S, "binder_density": 1000.0},
+                      initial={"mean_mass": P0, "number_density": N0, "binder_fraction": s["y0"]},
+                      aggregation={"kernel": "constant", "rate": s["k0"]},
+                      binder_injection={"rate": s["rate"], "droplet_diameter": s["d_drop"],
+                                        "solids_fraction": s["solids"], "start": 0.0,
+                                        "stop": s["stop"]},
+                      drying=s["air"],
+                      method={"_replace": True, "rtol": 1e-8, **method})
+
+
+@pytest.fixture(scope="module")
+def reference():
+    """(times [s], mean, 95% half-width) of the reference's NAMES over the scene."""
+    import math
+
+    from references import cnmc_drying
+    from pbe_cfd.physics import drying
+    s = SPRAY_DRY
+    air = s["air"]
+    rho, mu, diffusivity, _, driving = drying.gas_state(air["air_temperature"],
+                                                        air["air_humidity"], 101325.0)
+    case = dict(gas=dict(rho=rho, mu=mu, diffusivity=diffusivity, driving=driving),
+                slip=air["slip_velocity"], rho_s=RHO_S, rho_l=1000.0,
+                x_cr=air["critical_moisture"], x_eq=0.0, k0=s["k0"], n0=N0, p0=P0, y0=s["y0"],
+                droplet_mass=1000.0 * math.pi / 6.0 * s["d_drop"] ** 3,
+                solids_fraction=s["solids"], rate=s["rate"], start=0.0, stop=s["stop"])
+    times = np.arange(0.0, s["end"] + 0.5, 1.0)
+    mean, half = cnmc_drying.ensemble(case, REF_PARTICLES, REF_REPLICAS, REF_SEED, times)
+    return times, dict(zip(cnmc_drying.NAMES, mean.T)), dict(zip(cnmc_drying.NAMES, half.T))
+
+
+@pytest.mark.slow
+@pytest.mark.study
+@pytest.mark.parametrize("method", sorted(COMPARED))
+def test_spray_then_dry_against_the_independent_cnmc(method, reference):
+    """Every carried moment (that the reference has: M_ij, i < 6, j < 4) and the evaporated
+    liquid within 3% of the reference's mean plus its 95% band, at every output time.
+
+    Measured (reference 2000 particles x 4 replicas, seed 2026): QMOM N = 3 and CQMOM 3 x 2
+    hold M00 .. M50 and E, but M01 runs 4-7% below the reference from t ~ 10 s on (band
+    0.8-1.8%), with more nodes further (QMOM N = 4: -8%, CQMOM 4 x 2: -10% at 20 s); without
+    aggregation the same scene agrees to 1% (QMOM N = 3, 4) with the reference and with the
+    semi-analytic sum over injection times. Red, reported; not tuned."""
+    times, mean, half = reference
+    c = run_well_mixed(_spray_dry_scene(COMPARED[method])).columns
+    assert np.allclose(c["time_s"], times, rtol=0.0, atol=1e-9)
+    carried = _carried(method)
+    worst = {}
+    for name in carried + ["liquid_evaporated"]:
+        dev = np.abs(c[name] - mean[name])
+        worst[name] = float(np.max(dev / np.abs(mean[name])))
+        assert np.all(dev <= 0.03 * np.abs(mean[name]) + half[name]), (name, worst[name])
+
+
+def _carried(method):
+    """The moments the method carries that the reference computes."""
+    scene = _spray_dry_scene(COMPARED[method])
+    from pbe_cfd.methods.registry import METHOD_REGISTRY
+    entry = next(m for m in METHOD_REGISTRY if m.name == method)
+    names = [n.replace("wet_", "") for n in entry.state_names(scene)]
+    return [n for n in names if len(n) == 3 and n[0] == "M" and int(n[1]) < 6 and int(n[2]) < 4]
+
+
+@pytest.mark.parametrize("schedule", ["start-stop", "segments"])
+def test_eqmom_switched_injection_of_a_solution_matches_the_closed_form(schedule):
+    """EQMOM's droplets as ordinary particles carry the solution's liquid (1 - s) p_d, not
+    p_d: M01 = (1 - s) p_d I(t), piecewise linear (tests/methods/test_spray.py's closed
+    forms, the drying scenes' sprayed solution)."""
+    import test_spray as S
+    scene = S._scene({"name": "eqmom", "nodes": 2}, **S.SCHEDULES[schedule])
+    res = run_well_mixed(scene)
+    m00, m10, m01 = S._closed_form(scene.binder_injection, res.columns["time_s"])
+    assert np.allclose(res.columns["M10"], m10, rtol=S.TOL, atol=0.0)
+    assert np.allclose(res.columns["M01"], m01, rtol=S.TOL, atol=1e-30)
+    assert np.allclose(res.columns["M00"], m00, rtol=S.TOL, atol=0.0)
