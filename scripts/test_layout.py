@@ -56,6 +56,8 @@ RULES = (
     ("test_resource_limits", "scene"),
     # runs: model, domain, coupling, plan, executors
     ("test_couple", "runs"),
+    ("test_air", "runs"),
+    ("test_batch", "runs"),
     ("test_coupling", "runs"),
     ("test_run_", "runs"),
     ("test_plan", "runs"),

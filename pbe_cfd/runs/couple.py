@@ -20,7 +20,9 @@ from . import model
 from .batch import CellBatch, SimulationError, check_physics, output_times
 from .domain import (PACKING_MARGIN, Domain, build_cells, coupled_scales, initial_states,
                      spray_zone_cut, theta_grid)
+from .air import coupled_air
 from .executor import SerialExecutor
+from .inventory import inventory
 from ..methods import registry
 from ..methods.registry import method_of
 from ..physics import parameters as P
@@ -79,6 +81,7 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     batch = CellBatch.for_scene(scene, arrays, aux, np.ascontiguousarray(rows[idx]),
                                 initial_states(scene, arrays, rows[idx, P.ALPHA]),
                                 cell_ids=idx)
+    batch.air = coupled_air(scene, arrays, cells, idx, executor)
     times = output_times(scene)
     transport = None
     if scene.transport is not None:
@@ -93,8 +96,14 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     history = executor.run(batch, times, transport, progress=progress)
     solve_end = _time.perf_counter()
     wall = solve_end - start
+    per_time = []
     cell_fields, bed, mixtures = _outputs(scene, arrays, aux, cells, active, spray, idx, times,
-                                          history, warnings)
+                                          history, warnings, per_time)
+    if "evaporated_liquid" in arrays.state_names:
+        bed.update(inventory(scene, arrays, times, per_time, batch.rows,
+                             np.asarray(cells.cell_volume, dtype=float)[idx]))
+    if batch.air is not None:
+        bed.update(batch.air.columns(times))
     st = batch.stats()
     run_stats = {"cells": int(cells.n_cells), "active_cells": int(idx.size),
                  "spray_cells": int(np.count_nonzero(spray)), **st,
@@ -165,11 +174,13 @@ def _domain_warnings(scene, spray, notes, cells, active) -> list:
     return out
 
 
-def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history, warnings):
+def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history, warnings,
+             per_time=None):
     """Per output time: the cell fields (every mesh cell; inactive cells 0) and the bed
     columns (volume averages of the moments [per m3 of bed], d32, d43 [m] of the whole bed's
     population, binder fraction, bed mass [kg]), the cells' d10/d50/d90/span, and per output
-    time the bed's size distribution (``distribution.reconstruct.Mixture``)."""
+    time the bed's size distribution (``distribution.reconstruct.Mixture``). ``per_time``
+    (a list) receives the active cells' SI columns of each output time."""
     from ..distribution.reconstruct import Mixture
     mixtures = []
     n = cells.n_cells
@@ -183,6 +194,8 @@ def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history, warn
     for k, states in enumerate(history):
         populations = []
         cols = model.moment_outputs(scene, arrays, states, aux, populations=populations)
+        if per_time is not None:
+            per_time.append(cols)
         fields = {"alpha": np.asarray(cells.alpha, dtype=float),
                   "Theta": np.asarray(cells.theta, dtype=float),
                   "active": active.astype(float), "spray_zone": spray.astype(float)}
