@@ -388,7 +388,8 @@ def bench_command(args):
         print((out / "peer.md").read_text())
     else:
         study_of = {"cnmc": bench.cnmc_study, "laguerre": bench.laguerre_study,
-                    "couple": bench.couple_study, "integrators": bench.integrator_study}
+                    "couple": bench.couple_study, "integrators": bench.integrator_study,
+                    "batch": bench.batch_study}
         study_of[study](out, quick=quick)
         files = f"{study}.csv, {study}.md"
         print((out / f"{study}.md").read_text())
@@ -515,7 +516,7 @@ def build_parser():
 
     p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")
     p.add_argument("study", choices=("accuracy", "throughput", "cnmc", "laguerre", "couple",
-                                     "integrators", "peer"))
+                                     "integrators", "peer", "batch"))
     p.add_argument("scene", nargs="?", help="scene for the accuracy study")
     p.add_argument("--out", default="bench-out")
     p.add_argument("--quick", action="store_true", help="a tiny configuration (plumbing check)")

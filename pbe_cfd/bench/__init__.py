@@ -54,6 +54,7 @@ from .accuracy_report import accuracy_markdown, pareto_front, plot_pareto
 from .analytic import (analytic_applicable, analytic_moments, analytic_reference,
                        smoluchowski_d43)
 from .cnmc import cnmc_study, seed_scenario_benchmark, seed_scenario_setup
+from .batch import batch_study
 from .common import STUDY_FILES, failure_status, machine_info
 from .couple import couple_study, replicated_domain
 from .integrators import integrator_markdown, integrator_study, stiff_scene

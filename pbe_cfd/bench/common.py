@@ -97,6 +97,6 @@ STUDY_FILES = {
     "throughput": ["throughput.csv", "throughput.md", "throughput.png", "throughput.json",
                    "machine.json"],
     **{name: [f"{name}.csv", f"{name}.md", f"{name}.json"]
-       for name in ("cnmc", "laguerre", "couple", "integrators")},
+       for name in ("cnmc", "laguerre", "couple", "integrators", "batch")},
     "peer": ["peer.csv", "peer.md", "peer.png", "peer.json"],
 }

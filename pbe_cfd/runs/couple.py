@@ -259,6 +259,10 @@ def write_coupled(out_dir: Path, scene, domain: Domain, result: CoupledResult,
         bed = (plot_bed_moments, (out_dir / "bed_moments.csv", png / "bed_moments.png"),
                {"title": scene.name}, BED_MOMENTS_COST)
         extra = [bed]
+        if "moisture_content" in result.bed_columns:
+            from ..viz.moisture import MOISTURE_COST, plot_moisture
+            extra.append((plot_moisture, (out_dir / "bed_moments.csv", png / "moisture.png"),
+                          {"title": f"{scene.name}: moisture"}, MOISTURE_COST))
         if result.psd is not None:
             from ..viz.psd_figure import PSD_COST, plot_psd
             extra.append((plot_psd, (png / "psd.png", out_dir / "psd.csv"),
