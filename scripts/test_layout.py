@@ -77,6 +77,7 @@ RULES = (
     ("test_paraview", "io"),
     # viz: pictures and their drawing processes
     ("test_pictures", "viz"),
+    ("test_moisture", "viz"),
     ("test_render", "viz"),
     ("test_vtk", "viz"),
     ("test_drawing", "viz"),
