@@ -35,7 +35,7 @@ def hard_scene(method, theta, alpha, width, rtol, particles=2000, replicas=4):
     s = load_scene("study-ktgf")
     m = load_scene(SOURCES[method]).method
     if method == "cnmc":
-        m = dataclasses.replace(m, particles=particles, replicas=replicas)
+        m = m.replaced(particles=particles, replicas=replicas)
     return dataclasses.replace(
         s, end_time=20.0, output_interval=2.0,
         domain=dataclasses.replace(s.domain, solids_fraction=alpha, granular_temperature=theta),

@@ -9,11 +9,11 @@ Nothing here lists a key by hand. Every TOML table is a dataclass reachable from
 holding dataclasses, is a table; the others are keys of ``[scene]``); a key's type and default
 are the field's, its description the field's comment (the comment lines just above it and the
 comment at the end of its line) or attribute docstring, and a table's description its class
-docstring. Method options: besides the dataclasses the scene reaches, every dataclass a method
-registry entry holds is listed under that method, and where an entry reads its keys through a
+docstring. Method options: a field whose metadata names it a ``table`` (``Method.options``) is
+no key; every dataclass a method registry entry holds (its options class) is listed as that
+method's ``[method]`` keys, and where an entry reads its keys through a
 ``scene_keys(table, defaults)`` function, that function is run against a recording table, so
-the reference says which method reads which ``[method]`` key, with the default and the limits
-the reader applies.
+each key's row gives the limits the reader applies.
 """
 from __future__ import annotations
 
@@ -152,6 +152,8 @@ def _table_of(name, cls, seen) -> list:
     notes = _field_comments(cls)
     keys, nested = [], []
     for f in dataclasses.fields(cls):
+        if f.metadata.get("table"):      # a table of its own (the method's options): no key
+            continue
         inner = _dataclasses_in(hints.get(f.name))
         keys.append(Key(f.name, written.get(f.name, ""), _default_text(f), notes.get(f.name, "")))
         for sub in inner:
@@ -243,10 +245,11 @@ def method_options(method_cls=None) -> list:
                 held.append(value)
         asked = []
         reader = getattr(entry, "scene_keys", None)
+        defaults = getattr(entry, "options_class", None) or method_cls
         if callable(reader):
             table = _RecordingTable()
             try:
-                reader(table, method_cls)
+                reader(table, defaults)
             except Exception:          # a reader that needs more than defaults: keys unknown
                 pass
             asked = table.asked
@@ -355,13 +358,18 @@ def _cell(text) -> str:
     return str(text).replace("|", "\\|")
 
 
-def _key_rows(table, readers) -> list:
-    rows = ["| key | type | default | unit | meaning |", "|---|---|---|---|---|"]
+def _key_rows(table, readers, asked=None) -> list:
+    """The rows of a table's keys; ``asked``: key -> limits its method's reader applies (a
+    method's options table: a column of limits)."""
+    if asked is not None:
+        rows = ["| key | type | default | unit | limits | meaning |", "|---|---|---|---|---|---|"]
+    else:
+        rows = ["| key | type | default | unit | meaning |", "|---|---|---|---|---|"]
     read = readers.get(table.name.split(".")[-1] if table.name.count(".") else table.name, {})
     keys = list(table.keys)
     fields = {k.name for k in keys}
     # keys a reader accepts that are no field of the dataclass (converted on reading)
-    keys += [Key(name, info.get("kind", "value"), "-", "read and converted by the scene reader")
+    keys += [] if asked is not None else [Key(name, info.get("kind", "value"), "-", "read and converted by the scene reader")
              for name, info in read.items() if name not in fields]
     for k in keys:
         info = read.get(k.name, {})
@@ -369,9 +377,12 @@ def _key_rows(table, readers) -> list:
         if info.get("choices"):
             text = (text + "; " if text else "") + "one of " + ", ".join(
                 f'"{v}"' for v in info["choices"])
-        unit = info.get("unit") or _unit_in(table.doc, k.name)
+        limits = dict((asked or {}).get(k.name, {}))
+        unit = info.get("unit") or limits.pop("unit", "") or _unit_in(table.doc, k.name)
+        limits.pop("unit", None)
+        lim = f"{_cell(_limits_text(limits))} | " if asked is not None else ""
         rows.append(f"| `{k.name}` | `{_cell(k.type)}` | {_cell(k.default)} | "
-                    f"{_cell(unit)} | {_cell(text)} |")
+                    f"{_cell(unit)} | {lim}{_cell(text)} |")
     return rows
 
 
@@ -405,22 +416,25 @@ def render(tables=None, methods=None) -> str:
             out += [t.doc, ""]
         out += _key_rows(t, readers) + [""]
         if t.name == "method" and methods:
-            out += ["Which method reads which key (the default and limits its reader applies):",
-                    "", "| `name` | key | kind | default | limits |", "|---|---|---|---|---|"]
-            for name, asked, _ in methods:
-                for key, kind, default, limits in asked:
-                    lim = _limits_text(limits)
-                    out.append(f"| `\"{name}\"` | `{key}` | {kind} | {_cell(_value_text(default))} "
-                               f"| {_cell(lim)} |")
-            out.append("")
-    held = [(name, cls) for name, _, classes in methods for cls in classes]
-    for name, cls in held:
-        for t in _table_of("method", cls, set()):
-            out += [f"## [{t.name}] with name = \"{name}\" ({cls.__name__})", ""]
-            if t.doc:
-                out += [t.doc, ""]
-            out += _key_rows(t, readers) + [""]
+            out += ["Besides these, each method reads its own keys (the tables below, one per "
+                    "method; a key of another method is refused):", ""]
+            out += _method_sections(methods, readers)
     return "\n".join(out).rstrip() + "\n"
+
+
+def _method_sections(methods, readers) -> list:
+    """One section per method: its options dataclass's keys with the limits its reader
+    applies."""
+    out = []
+    for name, asked, classes in methods:
+        limits = {key: lim for key, _, _, lim in asked}
+        for cls in classes:
+            for t in _table_of("method", cls, set()):
+                out += [f"## [{t.name}] with name = \"{name}\" ({cls.__name__})", ""]
+                if t.doc:
+                    out += [t.doc, ""]
+                out += _key_rows(t, readers, limits) + [""]
+    return out
 
 
 def main(argv=None) -> int:

@@ -18,6 +18,8 @@ PENDING = {
     "bench/peer.py": 5, "bench/peer_report.py": 2, "bench/throughput.py": 25,
     "cli.py": 4,
 }
+#: the registry lists the method packages by name (each imported when its entry is first used)
+REGISTRY = "methods/registry.py"
 
 
 def name_literals(root=PACKAGE, names=None):
@@ -29,7 +31,8 @@ def name_literals(root=PACKAGE, names=None):
         rel = path.relative_to(root).as_posix()
         for node in ast.walk(ast.parse(path.read_text())):
             if (isinstance(node, ast.Constant) and isinstance(node.value, str)
-                    and node.value in names and not rel.startswith(f"methods/{node.value}/")):
+                    and node.value in names and not rel.startswith(f"methods/{node.value}/")
+                    and rel != REGISTRY):
                 found[rel] += 1
     return found
 

@@ -165,8 +165,8 @@ def laguerre_build_time(scene, variant):
     weights, support = LT.scene_weights_support(sc)
     u0 = float(model.well_mixed_cell(sc)[0, P.COLLISION_VELOCITY])
     t0 = time.perf_counter()
-    LT.build_aux(arrays.params, arrays.config, sc.method.order, weights=weights,
-                 support=support, consistent=sc.method.consistent,
+    LT.build_aux(arrays.params, arrays.config, sc.method.options.order, weights=weights,
+                 support=support, consistent=sc.method.options.consistent,
                  collision_velocity=u0 if u0 > 0 else None, use_cache=False)
     return time.perf_counter() - t0
 

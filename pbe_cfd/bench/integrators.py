@@ -58,7 +58,7 @@ def stiff_scene(end_time=2.0):
 
 
 def _with(scene, **method):
-    return dataclasses.replace(scene, method=dataclasses.replace(scene.method, **method))
+    return scene.with_method(**method)
 
 
 def _error(columns, ref) -> float:

@@ -19,9 +19,6 @@ import math
 
 import numpy as np
 
-from ..methods.cnmc import box as cnmc_box
-from ..methods.laguerre.rhs import reconstruct, reconstruct_dry
-from ..methods.laguerre.layout import AUX_B_MAX, AUX_ORDER, AUX_P_MAX
 from ..physics import parameters as P
 from .quantiles import bisect_quantiles, check_fractions, interpolated_cdf
 
@@ -216,7 +213,7 @@ class ClassTable:
     def quantiles(self, fractions):
         """Diameters [m] at the mass fractions per row (0 in an empty row)."""
         f = check_fractions(fractions)
-        if self.exact is not None and tuple(f) == cnmc_box.PSD_FRACTIONS:
+        if self.exact is not None and tuple(f) == _cnmc_box().PSD_FRACTIONS:
             return np.asarray(self.exact, dtype=float)
         q = bisect_quantiles(self.cdf, f, self.rows, lo=math.exp(self.log_edges[0]),
                              hi=math.exp(self.log_edges[-1]))
@@ -232,8 +229,15 @@ class ClassTable:
         return np.where(dm > 0, db / np.where(dm > 0, dm, 1.0), 0.0)
 
 
+def _cnmc_box():
+    """The cNMC's box module (its lattice), imported by a scene that uses it only."""
+    from ..methods.cnmc import box
+    return box
+
+
 def cnmc_lattice_edges() -> np.ndarray:
     """ln d [m] of the cNMC's size-class lattice edges (``methods.cnmc_box``)."""
+    cnmc_box = _cnmc_box()
     k = np.arange(cnmc_box.PSD_BINS + 1)
     return (cnmc_box.PSD_LOG10_LO + k / cnmc_box.PSD_PER_DECADE) * math.log(10.0)
 
@@ -254,6 +258,8 @@ def laguerre_table(states, aux, arrays, bivariate, labels=str) -> ClassTable:
     [0, min(p, b_max)] by Gauss-Legendre in b / min(p, b_max). Negative class masses (the
     expansion dips below zero) are set to 0; a row whose negative share exceeds
     NEGATIVE_SHARE_NOTE of its mass is named."""
+    from ..methods.laguerre.layout import AUX_B_MAX, AUX_ORDER, AUX_P_MAX
+    from ..methods.laguerre.rhs import reconstruct, reconstruct_dry
     params, config = arrays.params, arrays.config
     p_max, b_max = float(aux[AUX_P_MAX]), float(aux[AUX_B_MAX])
     m = int(aux[AUX_ORDER])

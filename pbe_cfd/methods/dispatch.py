@@ -14,9 +14,10 @@ Two ways in:
   (numba prunes no branch on literal integers; the choice is made at typing time here, from
   the registry as it is then: a method registered at run time is seen).
 * ``method_rhs``, ``method_realizable``, ``method_project`` choose by ``config[METHOD]`` at run
-  time (a chain of inlined branches, one per method registered at import, as
-  ``physics.registry`` builds the kernels' dispatch; every method is compiled); for callers
-  that do not know the method at compile time (benchmarks, the transport's repair pass).
+  time (a chain of inlined branches, one per method registered when one of them is first
+  named, as ``physics.registry`` builds the kernels' dispatch; every method is compiled); for
+  callers that do not know the method at compile time (benchmarks). They are built on first
+  use (this module's ``__getattr__``), since building them imports every method package.
 """
 import numba as nb
 import numpy as np
@@ -25,13 +26,13 @@ from numba.extending import overload
 
 from ..physics import parameters as P
 from .entry import WORK_SIZE  # noqa: F401 - the per-cell work array's length
-from .registry import METHOD_REGISTRY, entry_of_code
+from . import registry
 
 
 def _entry(method):
     """The registry entry of a literal method code (a numba type), or None."""
     if isinstance(method, types.IntegerLiteral):
-        return entry_of_code(method.literal_value)
+        return registry.entry_of_code(method.literal_value)
     return None
 
 
@@ -132,29 +133,38 @@ def _state_link(code, function, rest):
 
 def _chain(field, unknown, link):
     chain = unknown
-    for entry in reversed([m for m in METHOD_REGISTRY if m.integrated]):
+    for entry in reversed([m for m in registry.METHOD_REGISTRY if m.integrated]):
         chain = link(entry.code, getattr(entry, field), chain)
     return chain
 
 
-_rhs_chain = _chain("rhs", _unknown_rhs, _rhs_link)
-_realizable_chain = _chain("realizable", _unknown_realizable, _state_link)
-_project_chain = _chain("project", _unknown_project, _state_link)
+def _run_time_dispatch() -> dict:
+    """The run-time dispatch functions over the methods registered now (name -> function)."""
+    rhs_chain = _chain("rhs", _unknown_rhs, _rhs_link)
+    realizable_chain = _chain("realizable", _unknown_realizable, _state_link)
+    project_chain = _chain("project", _unknown_project, _state_link)
+
+    @nb.njit(cache=True)
+    def method_rhs(state, out, cell, aux, params, config, work):
+        """d(state)/dt [scaled units per s] of one cell for the method config[METHOD]."""
+        rhs_chain(state, out, cell, aux, params, config, work)
+
+    @nb.njit(cache=True)
+    def method_realizable(state, aux, params, config, work):
+        """True if the state is a realizable moment set for the method config[METHOD]."""
+        return realizable_chain(state, aux, params, config, work)
+
+    @nb.njit(cache=True)
+    def method_project(state, aux, params, config, work):
+        """Re-project an accepted state onto the method's realizable set, in place."""
+        project_chain(state, aux, params, config, work)
+
+    return {"method_rhs": method_rhs, "method_realizable": method_realizable,
+            "method_project": method_project}
 
 
-@nb.njit(cache=True)
-def method_rhs(state, out, cell, aux, params, config, work):
-    """d(state)/dt [scaled units per s] of one cell for the method config[METHOD]."""
-    _rhs_chain(state, out, cell, aux, params, config, work)
-
-
-@nb.njit(cache=True)
-def method_realizable(state, aux, params, config, work):
-    """True if the state is a realizable moment set for the method config[METHOD]."""
-    return _realizable_chain(state, aux, params, config, work)
-
-
-@nb.njit(cache=True)
-def method_project(state, aux, params, config, work):
-    """Re-project an accepted state onto the method's realizable set, in place."""
-    _project_chain(state, aux, params, config, work)
+def __getattr__(name):
+    if name in ("method_rhs", "method_realizable", "method_project"):
+        globals().update(_run_time_dispatch())
+        return globals()[name]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -3,6 +3,7 @@ defaults of its fields. Each method package builds its entry from its own module
 registry (``methods.registry``) lists the entries."""
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable, NamedTuple
 
 import numpy as np
@@ -20,10 +21,13 @@ class MethodEntry(NamedTuple):
     name            the scene's ``[method] name``
     code            config[P.METHOD] (unique); NOT_INTEGRATED for a method with a run of its
                     own (cNMC)
-    scene_keys      f(table, defaults) -> dict of its ``scene.Method`` fields, read from the
+    scene_keys      f(table, defaults) -> dict of its ``options`` fields, read from the
                     ``[method]`` table by the scene's table reader (``t.number``,
-                    ``t.boolean``, ...); defaults: the ``Method`` class (its field defaults)
-    order_key       the ``Method`` field of its accuracy order (config[P.ORDER]): "nodes",
+                    ``t.boolean``, ...); defaults: the ``options`` class (its field defaults)
+    options         its frozen options dataclass (``methods/<m>/options.py``): the
+                    ``[method]`` keys only it reads; the scene holds one as
+                    ``scene.method.options`` (``NoOptions``: none)
+    order_key       the ``options`` field of its accuracy order (config[P.ORDER]): "nodes",
                     "order", or None (0)
     order_label     how studies name that order ("QMOM N")
     state_names     f(scene) -> names of the state entries ("M{i}{j}", then
@@ -47,8 +51,8 @@ class MethodEntry(NamedTuple):
                     [s], progress) -> dict of result columns and statistics (cNMC:
                     ``cnmc.simulate_ensemble``)
     config_slots    f(scene) -> {config slot: value} of further knobs (CQMOM: BINDER_NODES)
-    table_bytes     f(method) -> peak memory [bytes] its tables take to build (``aux``), from
-                    the scene's ``Method``; table_keys the ``[method]`` keys that set it
+    table_bytes     f(options) -> peak memory [bytes] its tables take to build (``aux``), from
+                    the scene's ``method.options``; table_keys the ``[method]`` keys that set it
     rhs, realizable, project, conserved
                     its numba functions (``methods.dispatch`` calls them; None if not
                     integrated): rhs(state, out, cell, aux, params, config, work),
@@ -82,6 +86,7 @@ class MethodEntry(NamedTuple):
     diagnostics: Callable
     plan_line: Callable
 
+    options: type | None = None
     repairs_mixture: Callable = lambda scene: False
     ensemble: Callable | None = None
     config_slots: Callable = lambda scene: {}
@@ -103,13 +108,28 @@ class MethodEntry(NamedTuple):
     solute_droplets: bool = True
 
     def order(self, method) -> int:
-        """config[P.ORDER] of the scene's ``Method`` (nodes, order; 0)."""
-        return int(getattr(method, self.order_key)) if self.order_key else 0
+        """config[P.ORDER] of the scene's ``Method`` (its options' nodes, order; 0)."""
+        return int(getattr(method.options, self.order_key)) if self.order_key else 0
+
+    @property
+    def options_class(self) -> type:
+        """The dataclass of its ``[method]`` keys (``NoOptions`` if it declares none)."""
+        return self.options or NoOptions
 
     @property
     def integrated(self) -> bool:
         """True if the per-cell integrator runs it (a moment method)."""
         return self.code != NOT_INTEGRATED
+
+
+@dataclass(frozen=True)
+class NoOptions:
+    """A method without ``[method]`` keys of its own."""
+
+
+def no_keys(t, defaults):
+    """Reads no ``[method]`` key of its own."""
+    return {}
 
 
 def no_aux(scene, arrays, theta_grid=None):

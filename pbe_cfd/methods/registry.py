@@ -2,7 +2,8 @@
 ``methods.entry``).
 
 Every part of the program that depends on the method asks its entry here, never compares the
-method's name: the scene parses ``[method]`` with the entry's ``scene_keys``; ``model.pack``
+method's name: the scene parses ``[method]`` with the entry's ``scene_keys`` into its
+``options``; ``model.pack``
 writes its ``code``, ``order`` and ``config_slots`` into ``config``, names the state entries
 with ``state_names`` and checks ``work_size``; ``methods.dispatch`` builds the numba dispatch
 (by code, literal and run-time) from ``rhs``/``realizable``/``project``/``conserved``; the runs
@@ -17,12 +18,20 @@ Adding a method ``foo`` (the contract):
    params, config, work)``, ``conserved(config, params, pivots, coefs)``), plain functions of
    arrays and floats with ``cache=True``, using at most ``WORK_SIZE`` floats of ``work``;
 2. in ``methods/foo/__init__.py`` (or a module it imports) ``ENTRY = MethodEntry(name="foo",
-   code=<unused integer>, ...)``: its scene keys (``scene_keys(t, defaults)`` reading the
-   ``[method]`` table; a new key also needs its field and default in ``scene.Method``), state
-   names, plan line, and its Python hooks (``population``, optional ``aux``, ...);
-3. one line in ``METHOD_REGISTRY`` below (or ``register(ENTRY)`` at run time, as the test
+   code=<unused integer>, options=FooOptions, ...)``: its own ``[method]`` keys (a frozen
+   dataclass ``FooOptions`` in ``methods/foo/options.py`` with their defaults, and
+   ``scene_keys(t, defaults)`` reading them from the table with their limits; the scene
+   holds them as ``scene.method.options``), state names, plan line, and its Python hooks
+   (``population``, optional ``aux``, ...);
+3. its package name in ``PACKAGES`` below (or ``register(ENTRY)`` at run time, as the test
    suite does for its toy method: the literal dispatch, and so the integrator, see it; the
-   run-time dispatch ``method_rhs`` ... is built at import from the entries listed here).
+   run-time dispatch ``method_rhs`` ... is built on its first use from the methods listed
+   then).
+
+A method's package is imported when its entry is first asked for (``METHODS[name]``,
+``method_of``): a scene imports (and so defines the numba functions of) its own method only.
+``METHOD_NAMES`` needs no import; ``METHOD_REGISTRY``, ``MOMENT_METHODS`` and a code no loaded
+entry owns (``entry_of_code``) import every package.
 
 Entries take the scene and the packed arrays (``model.Arrays``: params, config, number and mass
 scales, droplet mass, state names) as arguments; the units are those of ``model``: SI outside,
@@ -30,63 +39,139 @@ scaled moments in the state.
 """
 from __future__ import annotations
 
-from . import cnmc, cqmom, eqmom, laguerre, qmom
+import importlib
+from collections.abc import Mapping, Sequence
+
 from .entry import NOT_INTEGRATED, MethodEntry  # noqa: F401
-from .laguerre import laguerre_state_names  # noqa: F401
 
-#: the registered methods, in the order the scene lists them
-METHOD_REGISTRY = [qmom.ENTRY, laguerre.ENTRY, cnmc.ENTRY, cqmom.ENTRY, eqmom.ENTRY]
+#: the method packages ``methods/<name>/`` (each one's ``ENTRY`` is named ``<name>``), in the
+#: order the scene lists them
+PACKAGES = ("qmom", "laguerre", "cnmc", "cqmom", "eqmom")
 
+_NAMES: list[str] = list(PACKAGES)          # the registered names, in order
+_ENTRIES: dict[str, MethodEntry] = {}       # name -> entry, of the names loaded so far
+
+
+def _clash(entry: MethodEntry) -> str | None:
+    """Why ``entry`` cannot join the loaded entries (a name or a code taken), or None."""
+    for other in _ENTRIES.values():
+        if other.name == entry.name and other is not entry:
+            return f"two methods share the name {entry.name!r}"
+        if entry.integrated and other.integrated and other.code == entry.code \
+                and other is not entry:
+            return f"methods {other.name!r} and {entry.name!r} share the code {entry.code}"
+    return None
+
+
+def _load(name: str) -> MethodEntry:
+    """The entry of a registered name, importing its package on first use; KeyError for a
+    name not registered."""
+    entry = _ENTRIES.get(name)
+    if entry is not None:
+        return entry
+    if name not in _NAMES or name not in PACKAGES:
+        raise KeyError(name)
+    entry = importlib.import_module(f"{__package__}.{name}").ENTRY
+    if entry.name != name:
+        raise ValueError(f"methods/{name}/ declares the method {entry.name!r}")
+    clash = _clash(entry)
+    if clash:
+        raise ValueError(clash)
+    _ENTRIES[name] = entry
+    return entry
+
+
+def _all() -> tuple:
+    return tuple(_load(n) for n in _NAMES)
+
+
+class _View(Sequence):
+    """A read-only sequence computed on use (``of()``), so that naming it imports nothing."""
+
+    def __init__(self, of):
+        self._of = of
+
+    def __getitem__(self, i):
+        return self._of()[i]
+
+    def __len__(self):
+        return len(self._of())
+
+    def __eq__(self, other):
+        return isinstance(other, (Sequence, _View)) and tuple(self) == tuple(other)
+
+    __hash__ = None
+
+    def __repr__(self):
+        return repr(self._of())
+
+
+class _Methods(Mapping):
+    """name -> entry of every registered method; an entry is loaded when asked for."""
+
+    def __getitem__(self, name):
+        return _load(name)
+
+    def __iter__(self):
+        return iter(tuple(_NAMES))
+
+    def __len__(self):
+        return len(_NAMES)
+
+    def __contains__(self, name):
+        return name in _NAMES
+
+
+#: the registered methods' entries, in the order the scene lists them (iterating imports every
+#: method package)
+METHOD_REGISTRY = _View(_all)
 #: name -> entry
-METHODS = {}
-#: the names a scene accepts, in registry order
-METHOD_NAMES = ()
-#: the methods the per-cell integrator runs (a coupled run needs one)
-MOMENT_METHODS = ()
+METHODS = _Methods()
+#: the methods the per-cell integrator runs (a coupled run needs one); using it imports every
+#: method package
+MOMENT_METHODS = _View(lambda: tuple(m.name for m in _all() if m.integrated))
 
 
-def _index():
-    global METHOD_NAMES, MOMENT_METHODS
-    codes = [m.code for m in METHOD_REGISTRY if m.integrated]
-    if len(set(codes)) != len(codes) or len({m.name for m in METHOD_REGISTRY}) != len(
-            METHOD_REGISTRY):
-        raise ValueError("two methods share a name or a code")
-    METHODS.clear()
-    METHODS.update((m.name, m) for m in METHOD_REGISTRY)
-    METHOD_NAMES = tuple(METHODS)
-    MOMENT_METHODS = tuple(m.name for m in METHOD_REGISTRY if m.integrated)
+def __getattr__(attr):
+    if attr == "METHOD_NAMES":          # the names a scene accepts, in order (no import)
+        return tuple(_NAMES)
+    if attr == "laguerre_state_names":
+        from .laguerre import laguerre_state_names
+        return laguerre_state_names
+    raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")
 
 
 def register(entry: MethodEntry) -> MethodEntry:
     """Add a method at run time (a test's toy method); a name or code already taken is an
     error. Returns the entry."""
-    METHOD_REGISTRY.append(entry)
-    try:
-        _index()
-    except ValueError:
-        METHOD_REGISTRY.pop()
-        _index()
-        raise
+    if entry.name in _NAMES:
+        raise ValueError(f"two methods share the name {entry.name!r}")
+    _all()                              # every code is known before a new one joins
+    clash = _clash(entry)
+    if clash:
+        raise ValueError(clash)
+    _NAMES.append(entry.name)
+    _ENTRIES[entry.name] = entry
     return entry
 
 
 def unregister(name: str) -> None:
     """Remove a method registered at run time."""
-    METHOD_REGISTRY[:] = [m for m in METHOD_REGISTRY if m.name != name]
-    _index()
+    if name in _NAMES:
+        _NAMES.remove(name)
+    _ENTRIES.pop(name, None)
 
 
 def entry_of_code(code: int) -> MethodEntry | None:
-    """The integrated method with config[P.METHOD] = code, or None."""
-    for m in METHOD_REGISTRY:
-        if m.integrated and m.code == code:
-            return m
+    """The integrated method with config[P.METHOD] = code, or None (the loaded entries are
+    asked first; only a code none of them owns imports the other packages)."""
+    for entries in (tuple(_ENTRIES[n] for n in _NAMES if n in _ENTRIES), _all()):
+        for m in entries:
+            if m.integrated and m.code == code:
+                return m
     return None
 
 
 def method_of(scene) -> MethodEntry:
     """The registry entry of the scene's method."""
-    return METHODS[scene.method.name]
-
-
-_index()
+    return _load(scene.method.name)

@@ -239,38 +239,26 @@ def write_coupled(out_dir: Path, scene, domain: Domain, result: CoupledResult,
     the run's (``result.phases``) and this function's (write, render) into summary.json's
     ``phases``; returns that dict."""
     from ..io import output
-    from ..io.vtk import VtkSeries
     from ..scene.scene import describe
+    from ..viz import figure_pool
 
     t0 = _time.perf_counter()
     phases = {**(phases or {}), **result.phases}
-    with VtkSeries(out_dir / "vtk", domain.cells, name="pbe") as series:
-        for t, fields in zip(result.times, result.cell_fields):
-            series.write(t, fields)
     output.write_columns_csv(out_dir / "bed_moments.csv", result.bed_columns)
     if result.psd is not None:
         output.write_columns_csv(out_dir / "psd.csv", result.psd)
         output.write_json(out_dir / "columns.json", result.labels)
-    phases["write_s"] = _time.perf_counter() - t0
+    extra, started = [], None
     if render:
-        from ..viz.render import BED_MOMENTS_COST, plot_bed_moments, render_series
-        t1 = _time.perf_counter()
-        png = out_dir / "png"
-        bed = (plot_bed_moments, (out_dir / "bed_moments.csv", png / "bed_moments.png"),
-               {"title": scene.name}, BED_MOMENTS_COST)
-        extra = [bed]
-        if "moisture_content" in result.bed_columns:
-            from ..viz.moisture import MOISTURE_COST, plot_moisture
-            extra.append((plot_moisture, (out_dir / "bed_moments.csv", png / "moisture.png"),
-                          {"title": f"{scene.name}: moisture"}, MOISTURE_COST))
-        if result.psd is not None:
-            from ..viz.psd_figure import PSD_COST, plot_psd
-            extra.append((plot_psd, (png / "psd.png", out_dir / "psd.csv"),
-                          {"title": f"{scene.name}: the bed's granules"}, PSD_COST))
-        render_series(out_dir / "vtk", times=[result.times[0], result.times[-1]], png_dir=png,
-                      info={"name": scene.name, "alpha_min": scene.domain.alpha_min},
-                      extra_tasks=extra)
-        phases["render_s"] = _time.perf_counter() - t1
+        extra = _bed_figures(out_dir, scene, result)
+        if figure_pool.drawing_elsewhere():     # drawn while the VTK series is written
+            started, extra = figure_pool.start_tasks(extra), []
+    try:
+        _write_and_render(out_dir, scene, domain, result, render, extra, started, phases, t0)
+    except BaseException:
+        if started is not None:      # nothing may still be drawing into a directory removed
+            _quietly(figure_pool.finish_tasks, started)
+        raise
     t2 = _time.perf_counter()
     summary = {"scene": describe(scene), "method": scene.method.name,
                "domain": domain.description, "wall_time_s": result.wall_time_s,
@@ -280,6 +268,54 @@ def write_coupled(out_dir: Path, scene, domain: Domain, result: CoupledResult,
     output.write_json(out_dir / "summary.json", summary)
     phases["write_s"] += _time.perf_counter() - t2
     return phases
+
+
+def _write_and_render(out_dir, scene, domain, result, render, extra, started, phases, t0):
+    """The VTK series, then the field pictures (with ``extra`` drawing tasks) and the
+    collection of the ``started`` ones; the write and render seconds go into ``phases``."""
+    from ..io.vtk import VtkSeries
+    from ..viz import figure_pool
+    with VtkSeries(out_dir / "vtk", domain.cells, name="pbe") as series:
+        for t, fields in zip(result.times, result.cell_fields):
+            series.write(t, fields)
+    phases["write_s"] = _time.perf_counter() - t0
+    if render:
+        from ..viz.render import render_series
+        t1 = _time.perf_counter()
+        render_series(out_dir / "vtk", times=[result.times[0], result.times[-1]],
+                      png_dir=out_dir / "png",
+                      info={"name": scene.name, "alpha_min": scene.domain.alpha_min},
+                      extra_tasks=extra)
+        if started is not None:
+            figure_pool.finish_tasks(started)
+        phases["render_s"] = _time.perf_counter() - t1
+
+
+def _quietly(fn, *args):
+    """fn(*args), its own failure ignored (while another failure is being raised)."""
+    try:
+        fn(*args)
+    except Exception:  # noqa: BLE001 - the first failure is the one reported
+        pass
+
+
+def _bed_figures(out_dir: Path, scene, result: CoupledResult) -> list:
+    """The drawing tasks (``viz.figure_pool``) of the bed's pictures: bed_moments.png,
+    moisture.png where the run dries, and psd.png where the run has a size distribution; they
+    read the CSV files already written."""
+    from ..viz.render import BED_MOMENTS_COST, plot_bed_moments
+    png = out_dir / "png"
+    tasks = [(plot_bed_moments, (out_dir / "bed_moments.csv", png / "bed_moments.png"),
+              {"title": scene.name}, BED_MOMENTS_COST)]
+    if "moisture_content" in result.bed_columns:
+        from ..viz.moisture import MOISTURE_COST, plot_moisture
+        tasks.append((plot_moisture, (out_dir / "bed_moments.csv", png / "moisture.png"),
+                      {"title": f"{scene.name}: moisture"}, MOISTURE_COST))
+    if result.psd is not None:
+        from ..viz.psd_figure import PSD_COST, plot_psd
+        tasks.append((plot_psd, (png / "psd.png", out_dir / "psd.csv"),
+                      {"title": f"{scene.name}: the bed's granules"}, PSD_COST))
+    return tasks
 
 
 #: OpenFOAM dimensions of the fields written back into a case

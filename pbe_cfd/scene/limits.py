@@ -28,7 +28,8 @@ def scene_refusals(scene, entry) -> list:
     out = [("scene.output_interval", output_count_refusal(scene.end_time, scene.output_interval,
                                                           scene.domain.type)),
            (f"method.{(entry.table_keys or ('name',))[0]}",
-            table_memory_refusal(scene.method, entry.table_bytes, entry.table_keys))]
+            table_memory_refusal(scene.method.options, entry.table_bytes,
+                                 entry.table_keys))]
     out += [(f"method.{key}", text)
             for key, text in tolerance_refusals(scene.method.rtol, scene.method.atol)]
     return [(key, text) for key, text in out if text]
@@ -60,13 +61,14 @@ def machine_memory() -> int:
         return 0
 
 
-def table_memory_refusal(method, table_bytes, keys):
-    """Refusal of a method whose tables (``table_bytes(method)`` [bytes], set by the
-    ``[method]`` ``keys``) need more than MEMORY_SHARE of the machine's memory."""
-    need = table_bytes(method)
+def table_memory_refusal(options, table_bytes, keys):
+    """Refusal of a method whose tables (``table_bytes(options)`` [bytes] of the scene's
+    ``method.options``, set by the ``[method]`` ``keys``) need more than MEMORY_SHARE of the
+    machine's memory."""
+    need = table_bytes(options)
     total = machine_memory()
     if need and total and need > MEMORY_SHARE * total:
-        asked = " x ".join(f"{k} = {getattr(method, k)}" for k in keys)
+        asked = " x ".join(f"{k} = {getattr(options, k)}" for k in keys)
         return (f"{asked} needs {need / 2**30:.3g} GiB for the method's tables, more than "
                 f"{MEMORY_SHARE:.0%} of this machine's {total / 2**30:.3g} GiB: expected a "
                 f"smaller grid")

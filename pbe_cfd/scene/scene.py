@@ -14,6 +14,7 @@ from typing import Any
 
 from . import coupling as scene_coupling, limits, spray
 from .drying import Drying, drying_refusals, parse_drying
+from .method import COMMON_METHOD_KEYS, Method
 from .spray import BinderInjection, Zone  # noqa: F401 (part of the scene API)
 from ..io.openfoam import case_keys
 from ..methods import registry
@@ -116,41 +117,6 @@ class Breakage:
 
 
 @dataclass(frozen=True)
-class Method:
-    """Numerical method and its accuracy knobs (which method reads which: docs/scene-keys.md)."""
-    name: str
-    nodes: int = 3
-    binder_nodes: int = 2
-    order: int = 3
-    particles: int = 10000
-    replicas: int = 8
-    seed: int = 1
-    rtol: float = 1.0e-8
-    atol: float = 1.0e-14
-    integrator: str = "auto"
-    consistent: bool = True
-    weight_mean_mass: float = 1.0e-9
-    weight_mean_binder: float = 1.0e-9
-    # the wet class's gamma weights vanish at p = 0 and b = 0 (shape 2): with the Laguerre dry
-    # class holding every granule at b = 0, a wet granule carries at least one droplet
-    weight_shape_mass: float = 2.0
-    weight_shape_binder: float = 2.0
-    support_mass: float = 1.0e-8
-    support_binder: float = 4.0e-9
-    grid_mass: int = 20
-    grid_binder: int = 20
-    grid_spacing: str = "fraction"
-    dry_class: bool = True
-    dry_weight_mean_mass: float | None = None     # kg; None: the initial mean mass
-    dry_weight_shape_mass: float = 10.0
-    dry_grid_mass: int = 200
-    adaptive_weights: bool = True
-    adaptive_points: int = 9
-    following_support: bool = False               # Laguerre: the support follows the wet class
-    following_growth: float = 1000.0              # its range: up to this x the initial mean mass
-
-
-@dataclass(frozen=True)
 class Transport:
     """Transport of the population by the granular flux (OpenFOAM domains): courant [-] (CFL
     limit of the upwind substeps, <= 1), split_step [s] (operator-splitting step; None: the
@@ -192,8 +158,9 @@ class Scene:
                 and self.bivariate)
 
     def with_method(self, **changes) -> "Scene":
-        """A copy with method fields replaced (used by studies and tests)."""
-        return dataclasses.replace(self, method=dataclasses.replace(self.method, **changes))
+        """A copy with ``[method]`` keys replaced, common or the method's own
+        (``Method.replaced``; used by studies and tests)."""
+        return dataclasses.replace(self, method=self.method.replaced(**changes))
 
 
 # ------------------------------------------------------------------------------ validation
@@ -501,16 +468,32 @@ def _initial(path, data, material, domain):
 
 
 def _method(path, data):
+    """The [method] table: the common keys, then the method's own (its entry's ``scene_keys``
+    into its options dataclass). A key of another method, or of none, is refused naming the
+    method and the keys it takes."""
     t = _Table(path, "method", data)
     name = t.choice("name", registry.METHOD_NAMES)
+    entry = registry.METHODS[name]
     kw = dict(name=name)
     kw["rtol"] = t.number("rtol", 1.0e-8, positive=True, high=0.1)
     kw["atol"] = t.number("atol", 1.0e-14, positive=True)
     # per-cell time integrator of the moment methods (pbe_cfd.integrate); cnmc ignores it
     kw["integrator"] = t.choice("integrator", ("explicit", "implicit", "auto"), "auto")
-    kw.update(registry.METHODS[name].scene_keys(t, Method))
-    t.finish()
-    return Method(**kw)
+    options = entry.options_class(**entry.scene_keys(t, entry.options_class))
+    unknown = sorted(set(t.data) - t.used)
+    if unknown:
+        key = unknown[0]
+        takes = ", ".join(COMMON_METHOD_KEYS + _option_keys(entry))
+        owners = [m.name for m in registry.METHOD_REGISTRY if key in _option_keys(m)]
+        what = (f"a key of the {', '.join(owners)} method{'s' * (len(owners) > 1)}, not of "
+                f"{name}" if owners else f"unknown key for the {name} method")
+        raise SceneError(path, f"method.{key}", f"{what}; {name} takes: {takes}")
+    return Method(**kw, options=options)
+
+
+def _option_keys(entry) -> tuple:
+    """The [method] keys of a method's own options, in field order."""
+    return tuple(f.name for f in dataclasses.fields(entry.options_class))
 
 
 def _cross_checks(path, scene: Scene):
@@ -569,5 +552,8 @@ def resolve_scene_path(source) -> Path:
 
 
 def describe(scene: Scene) -> dict[str, Any]:
-    """The scene as plain data (for summary.json)."""
-    return dataclasses.asdict(scene) | {"raw": None}
+    """The scene as plain data (for summary.json); the method as its flat ``[method]`` table
+    (the common keys, then the method's own)."""
+    out = dataclasses.asdict(scene) | {"raw": None}
+    out["method"] = out["method"] | out["method"].pop("options")
+    return out

@@ -84,9 +84,9 @@ def stop_processes() -> None:
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _run_in_pool(pool, tasks: Sequence[Task]) -> list:
-    """Every task by the started processes, costliest first; a task they could not take or
-    finish because a process died is drawn here (and the broken pool is let go)."""
+def _submit(pool, tasks: Sequence[Task]) -> dict:
+    """Hand every task to the started processes, costliest first; index -> future of those
+    they took."""
     order = sorted(range(len(tasks)), key=lambda k: -tasks[k][3])
     futures = {}
     for i in order:
@@ -94,6 +94,12 @@ def _run_in_pool(pool, tasks: Sequence[Task]) -> list:
             futures[i] = pool.submit(_run_all, [tasks[i]])
         except BrokenProcessPool:
             break
+    return futures
+
+
+def _collect(tasks: Sequence[Task], futures: dict) -> list:
+    """The results of submitted tasks; a task the processes could not take or finish because
+    one died is drawn here (and the broken pool is let go)."""
     results: list = [None] * len(tasks)
     broken = len(futures) < len(tasks)
     for i in range(len(tasks)):
@@ -107,6 +113,27 @@ def _run_in_pool(pool, tasks: Sequence[Task]) -> list:
     if broken:
         stop_processes()
     return results
+
+
+def _run_in_pool(pool, tasks: Sequence[Task]) -> list:
+    """Every task by the started processes (``_submit``, ``_collect``)."""
+    return _collect(tasks, _submit(pool, tasks))
+
+
+def start_tasks(tasks: Sequence[Task]):
+    """Hand tasks to the started drawing processes now, to draw while this process goes on;
+    ``finish_tasks`` returns their results. Without started processes nothing is drawn
+    before ``finish_tasks``, which then runs them as ``run_tasks`` does."""
+    tasks = list(tasks)
+    return tasks, (_submit(_POOL, tasks) if _POOL is not None else None)
+
+
+def finish_tasks(started) -> list:
+    """The results, in the order given, of the tasks ``start_tasks`` handed out."""
+    tasks, futures = started
+    if futures is None:
+        return run_tasks(tasks)
+    return _collect(tasks, futures)
 
 
 def split_by_cost(tasks: Sequence[Task]) -> tuple[list[int], list[int]]:

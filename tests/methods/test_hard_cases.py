@@ -199,7 +199,7 @@ def extreme_scene(inject, **method):
     # no friction cap: g0 at alpha_max - 1e-6 is ~2e6
     scene = dataclasses.replace(scene, end_time=20.0, output_interval=5.0,
                                 domain=dataclasses.replace(scene.domain, alpha_min_friction=None),
-                                method=dataclasses.replace(scene.method, **method))
+                                method=scene.method.replaced(**method))
     if inject:
         return dataclasses.replace(scene, binder_injection=dataclasses.replace(
             scene.binder_injection, zone=None))

@@ -1,12 +1,16 @@
 """A method is one package plus one registration: a toy method defined here (numba functions
 and a ``MethodEntry``, nothing else) and registered from the test suite is picked up by the
-scene parser, ``model.pack``, the per-cell integrator (literal dispatch), ``pbe-cfd plan`` and
-the bench's method list, with no edit of the package.
+scene parser (its own ``[method]`` key into its own options dataclass), ``model.pack``, the
+per-cell integrator (literal dispatch), ``pbe-cfd plan`` and the bench's method list, with no
+edit of the package.
 
 The toy is the monodisperse two-moment closure of constant-kernel aggregation: state
 (m0, m1) = (M0 / N_ref, M1 / (N_ref p_ref)), dm0/dt = -k0 N_ref m0^2 / 2, dm1/dt = 0. For the
 constant kernel that closure is exact for M0 and M1 (Smoluchowski: dM0/dt = -k0 M0^2 / 2,
-dM1/dt = 0), so the run must follow M0(t) = M0(0) / (1 + k0 M0(0) t / 2) and keep M1."""
+dM1/dt = 0), so the run must follow M0(t) = M0(0) / (1 + k0 M0(0) t / 2) and keep M1. The
+toy's own key ``rate_factor`` f [-] scales its kernel (k0 -> f k0, handed to the kernel
+through its aux), so the same run at f = 2 follows M0(0) / (1 + f k0 M0(0) t / 2)."""
+import dataclasses
 import inspect
 import zlib
 
@@ -15,7 +19,7 @@ import numpy as np
 import pytest
 
 from pbe_cfd.methods import registry
-from pbe_cfd.methods.entry import MethodEntry, no_aux, no_diagnostics, no_hint
+from pbe_cfd.methods.entry import MethodEntry, no_diagnostics, no_hint
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.scene.scene import load_scene, scene_from_dict
 
@@ -23,7 +27,7 @@ from pbe_cfd.scene.scene import load_scene, scene_from_dict
 @nb.njit(cache=False)
 def toy_rhs(state, out, cell, aux, params, config, work):
     """d(m0, m1)/dt [1/s] of the constant kernel, k0 = params[RATE] [m3/s]."""
-    out[0] = -0.5 * params[P.RATE] * params[P.NUMBER_SCALE] * state[0] * state[0]
+    out[0] = -0.5 * aux[0] * params[P.RATE] * params[P.NUMBER_SCALE] * state[0] * state[0]
     out[1] = 0.0
 
 
@@ -61,9 +65,24 @@ _SOURCE = "".join(inspect.getsource(f.py_func) for f in (toy_rhs, toy_realizable
                                                           toy_conserved))
 TOY_CODE = 1000 + zlib.crc32(_SOURCE.encode()) % 1_000_000
 
+@dataclasses.dataclass(frozen=True)
+class ToyOptions:
+    """The toy's own [method] key: rate_factor [-], the factor on the kernel's rate."""
+    rate_factor: float = 1.0
+
+
+def _toy_keys(t, defaults):
+    return {"rate_factor": t.number("rate_factor", defaults.rate_factor, positive=True)}
+
+
+def _toy_aux(scene, arrays, theta_grid=None):
+    """[rate_factor]: the toy's method data."""
+    return np.array([scene.method.options.rate_factor])
+
+
 TOY = MethodEntry(
-    name="toy", code=TOY_CODE, scene_keys=lambda t, defaults: {}, order_key=None,
-    order_label="toy", state_names=lambda scene: ["M00", "M10"], aux=no_aux,
+    name="toy", code=TOY_CODE, scene_keys=_toy_keys, options=ToyOptions, order_key=None,
+    order_label="toy", state_names=lambda scene: ["M00", "M10"], aux=_toy_aux,
     tabulates_theta=False, population=_population, failure_hint=no_hint,
     diagnostics=no_diagnostics, plan_line=lambda scene: "toy two-moment closure",
     rhs=toy_rhs, realizable=toy_realizable, project=toy_project, conserved=toy_conserved,
@@ -77,15 +96,17 @@ def toy():
     registry.unregister(TOY.name)
 
 
-def _toy_scene():
+def _toy_scene(**keys):
     data = dict(load_scene("constant-kernel").raw)
-    data["method"] = {"name": "toy", "rtol": 1e-9}
+    data["method"] = {"name": "toy", "rtol": 1e-9} | keys
     return scene_from_dict(data)
 
 
 def test_the_scene_parser_and_pack_take_a_registered_method(toy):
     scene = _toy_scene()
     assert scene.method.name == "toy"
+    assert scene.method.options == ToyOptions(rate_factor=1.0)
+    assert _toy_scene(rate_factor=2.5).method.options == ToyOptions(rate_factor=2.5)
     from pbe_cfd.runs import model
     arrays = model.pack(scene)
     assert arrays.config[P.METHOD] == TOY_CODE
@@ -99,6 +120,25 @@ def test_an_unregistered_method_is_refused(toy):
     with pytest.raises(SceneError, match="toy"):
         _toy_scene()
     registry.register(TOY)
+
+
+def test_the_scene_routes_method_keys_to_the_toy_and_refuses_the_others(toy):
+    """A key of another method (QMOM's nodes) given to the toy, and the toy's key given to
+    the QMOM, are refused naming the key, the method that owns it and the keys it takes."""
+    from pbe_cfd.scene.scene import SceneError
+    with pytest.raises(SceneError, match=r"\[method.nodes\] a key of the qmom, cqmom, eqmom "
+                       r"methods, not of toy; toy takes: name, rtol, atol, integrator, "
+                       r"rate_factor"):
+        _toy_scene(nodes=3)
+    data = dict(load_scene("constant-kernel").raw)
+    data["method"] = {"name": "qmom", "rate_factor": 2.0}
+    with pytest.raises(SceneError, match=r"\[method.rate_factor\] a key of the toy method, not "
+                       r"of qmom; qmom takes: name, rtol, atol, integrator, nodes"):
+        scene_from_dict(data)
+    with pytest.raises(SceneError, match=r"\[method.rate_factr\] unknown key for the toy "
+                       r"method; toy takes: .*rate_factor"):
+        _toy_scene(rate_factr=2.0)
+    assert _toy_scene().with_method(rate_factor=3.0).method.options.rate_factor == 3.0
 
 
 def test_plan_and_bench_list_name_the_registered_method(toy):
@@ -122,3 +162,16 @@ def test_the_integrator_runs_the_registered_method_to_the_analytic_solution(toy)
     m1 = n0 * scene.initial.mean_mass
     assert res.columns["M10"] == pytest.approx(np.full_like(t, m1), rel=1e-12, abs=0.0)
     assert res.stats["accepted_steps"] > 0
+
+
+@pytest.mark.parametrize("factor", [2.0])
+def test_the_toys_own_key_reaches_its_kernel(toy, factor):
+    """rate_factor f, read by the toy's options only, scales the decay: M0 follows
+    M0(0) / (1 + f k0 M0(0) t / 2) (same error budget as above)."""
+    from pbe_cfd.runs.simulate import run_well_mixed
+    scene = _toy_scene(rate_factor=factor)
+    res = run_well_mixed(scene)
+    t = res.columns["time_s"]
+    n0, k0 = scene.initial.number_density, scene.aggregation.rate
+    exact = n0 / (1.0 + 0.5 * factor * k0 * n0 * t)
+    assert res.columns["M00"] == pytest.approx(exact, rel=1e-6, abs=0.0)

@@ -90,7 +90,7 @@ def test_laguerre_tables_of_a_400_x_400_grid_are_refused(tmp_path, capsys):
 def test_laguerre_table_bytes_bound_the_pair_rate_matrix_and_the_limit_is_the_share():
     """table_bytes is at least the two N x N pair-rate matrices it holds at once; the scene
     is refused exactly when that exceeds MEMORY_SHARE of the machine (memory patched)."""
-    base = load_scene("seed-wurster-laguerre").method
+    base = load_scene("seed-wurster-laguerre").method.options
     for n_p, n_b in ((20, 20), (50, 40), (400, 400)):
         m = dataclasses.replace(base, grid_mass=n_p, grid_binder=n_b)
         assert laguerre_tensor.table_bytes(m) >= 2 * 8 * (n_p * n_b) ** 2

@@ -140,3 +140,30 @@ def test_started_drawing_processes_draw_every_task_and_lose_none(tmp_path):
     finally:
         figure_pool.stop_processes()
     assert not figure_pool.drawing_elsewhere()
+
+
+def test_tasks_started_early_finish_with_their_results_and_lose_none(tmp_path):
+    """``start_tasks`` hands tasks out while the caller goes on; ``finish_tasks`` returns their
+    results in order, draws here what a dying process could not, and without started
+    processes runs them as ``run_tasks`` does."""
+    parent = os.getpid()
+    tasks = [(_write, (tmp_path / f"e{k}.txt", str(k)), {}, 1.0 + k) for k in range(3)]
+    here = figure_pool.finish_tasks(figure_pool.start_tasks(tasks))   # no processes started
+    assert [r[0] for r in here] == [str(tmp_path / f"e{k}.txt") for k in range(3)]
+    if not figure_pool._two_processes_allowed():
+        pytest.skip("one core or no fork: drawing stays in this process")
+    try:
+        assert figure_pool.start_processes()
+        started = figure_pool.start_tasks(
+            [(_write, (tmp_path / f"s{k}.txt", str(k)), {}, 1.0 + k) for k in range(4)])
+        (tmp_path / "meanwhile.txt").write_text("the caller went on")
+        results = figure_pool.finish_tasks(started)
+        assert [r[0] for r in results] == [str(tmp_path / f"s{k}.txt") for k in range(4)]
+        assert parent not in {r[1] for r in results}
+        dying = figure_pool.start_tasks(
+            [(_write, (tmp_path / f"x{k}.txt", str(k)), {"die_in_child_of": parent}, 1.0)
+             for k in range(3)])
+        figure_pool.finish_tasks(dying)
+        assert all((tmp_path / f"x{k}.txt").read_text() == str(k) for k in range(3))
+    finally:
+        figure_pool.stop_processes()

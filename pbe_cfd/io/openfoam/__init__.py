@@ -18,7 +18,7 @@ from .case import (RunResult, copy_case, default_case_dir, pick_time, run_case, 
 from .fields import CellData, cell_volumes_and_centres, read_cell_fields
 from .flux import FaceFlux, read_face_flux
 from .install import (ALPHA_FIELDS, FLUX_FIELDS, THETA_FIELDS, TOOLS, OpenFOAMError,
-                      OpenFOAMInstall, find_openfoam, have_openfoam)
+                      OpenFOAMInstall, bound_to_parent, find_openfoam, have_openfoam)
 from .snapshot import (FLUX_NAME, SNAPSHOT_NAME, default_flux_path, default_snapshot_path,
                        load_snapshot, write_snapshot)
 from .write import check_foam_fields, write_foam_fields
@@ -31,6 +31,7 @@ __all__ = [
     "FaceFlux",
     "find_openfoam",
     "have_openfoam",
+    "bound_to_parent",
     "default_case_dir",
     "copy_case",
     "run_case",

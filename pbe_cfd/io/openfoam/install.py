@@ -94,6 +94,18 @@ def find_openfoam(tools: tuple[str, ...] = TOOLS + ("postProcess",)) -> OpenFOAM
         f"WM_PROJECT_DIR (tried {', '.join(candidates)})")
 
 
+def bound_to_parent(argv: list[str]) -> list[str]:
+    """``argv`` run so that the tool dies with pbe-cfd: a tool started in a session of its own
+    (so that Ctrl-C reaches pbe-cfd, which then stops it) would otherwise outlive a pbe-cfd
+    killed outright (SIGKILL, OOM) and go on writing into a case that a resume cleans up.
+    util-linux ``setpriv --pdeathsig KILL`` sets the parent-death signal and execs the tool;
+    without setpriv the command is unchanged."""
+    setpriv = shutil.which("setpriv")
+    if setpriv is None:
+        return list(argv)
+    return [setpriv, "--pdeathsig", "KILL", "--", *argv]
+
+
 def have_openfoam() -> bool:
     """True when find_openfoam() succeeds."""
     try:

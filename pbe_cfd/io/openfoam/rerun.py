@@ -128,8 +128,8 @@ def _run_tool(case: Path, tool: str, args: list, env: dict, say, target: float |
     the tail of its log. Stops the tool on Ctrl-C or SIGTERM."""
     log_path = case / f"log.{tool}"
     with open(log_path, "w") as log:
-        proc = subprocess.Popen([tool, *args], cwd=case, env=env, stdout=log,
-                                stderr=subprocess.STDOUT, start_new_session=True)
+        proc = subprocess.Popen(of.bound_to_parent([tool, *args]), cwd=case, env=env,
+                                stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         last = None
         try:
             while True:

@@ -3,23 +3,26 @@ not integrated per cell; ``methods.registry`` lists it)."""
 import dataclasses
 
 from ..entry import NOT_INTEGRATED, MethodEntry, no_aux, no_diagnostics, no_hint
+from .options import CnmcOptions
 
 
 def _keys(t, defaults):
-    return {"particles": t.number("particles", 10000, integer=True, low=2, high=10_000_000),
-            "replicas": t.number("replicas", 8, integer=True, low=1, high=100_000),
-            "seed": t.number("seed", 1, integer=True, low=0)}
+    return {"particles": t.number("particles", defaults.particles, integer=True, low=2,
+                                  high=10_000_000),
+            "replicas": t.number("replicas", defaults.replicas, integer=True, low=1,
+                                 high=100_000),
+            "seed": t.number("seed", defaults.seed, integer=True, low=0)}
 
 
 def _plan(scene):
-    m = scene.method
+    m = scene.method.options
     return (f"constant-number Monte Carlo, {m.particles} particles x {m.replicas} replicas, "
             f"seed {m.seed}")
 
 
 def _ensemble(scene, arrays, cell, times, progress=None):
     from .ensemble import simulate_ensemble
-    m = scene.method
+    m = scene.method.options
     initial = dataclasses.asdict(scene.initial)     # the keys simulate_ensemble reads
     return simulate_ensemble(arrays.params, arrays.config, cell, initial, times,
                                   m.particles, m.replicas, m.seed, progress=progress)
@@ -30,7 +33,7 @@ def _population(state, aux, arrays):
 
 
 ENTRY = MethodEntry(
-    name="cnmc", code=NOT_INTEGRATED, scene_keys=_keys, order_key=None,
+    name="cnmc", code=NOT_INTEGRATED, scene_keys=_keys, options=CnmcOptions, order_key=None,
     order_label="cNMC particles", state_names=lambda s: [], aux=no_aux,
     tabulates_theta=False, population=_population, failure_hint=no_hint,
     diagnostics=no_diagnostics, plan_line=_plan, ensemble=_ensemble,

@@ -5,6 +5,7 @@ from ..entry import MethodEntry, no_aux, no_diagnostics, no_hint
 from .cqmom import (MAX_BINDER_NODES, MAX_SIZE_NODES, cqmom_conserved, cqmom_project,
                     cqmom_realizable, quadrature_of as cqmom_quadrature_of,
                     state_names as cqmom_state_names, work_size as cqmom_work_size)
+from .options import CqmomOptions
 from .sources import cqmom_rhs
 
 #: config[P.METHOD] of the CQMOM
@@ -12,13 +13,14 @@ CODE = 2
 
 
 def _keys(t, defaults):
-    return {"nodes": t.number("nodes", 2, integer=True, low=1, high=MAX_SIZE_NODES),
-            "binder_nodes": t.number("binder_nodes", 2, integer=True, low=1,
+    return {"nodes": t.number("nodes", defaults.nodes, integer=True, low=1,
+                              high=MAX_SIZE_NODES),
+            "binder_nodes": t.number("binder_nodes", defaults.binder_nodes, integer=True, low=1,
                                      high=MAX_BINDER_NODES)}
 
 
 def _state_names(scene):
-    m = scene.method
+    m = scene.method.options
     return cqmom_state_names(m.nodes, m.binder_nodes, scene.bivariate, scene.separate_droplets)
 
 
@@ -28,9 +30,9 @@ def _population(state, aux, arrays):
 
 
 def _plan(scene):
-    m = scene.method
+    m = scene.method.options
     return (f"CQMOM with {m.nodes} size nodes x {m.binder_nodes} binder-fraction nodes; "
-            f"state {', '.join(_state_names(scene))}; rtol {m.rtol:g}")
+            f"state {', '.join(_state_names(scene))}; rtol {scene.method.rtol:g}")
 
 
 def _bench_orders(text):
@@ -40,11 +42,11 @@ def _bench_orders(text):
 
 
 ENTRY = MethodEntry(
-    name="cqmom", code=CODE, scene_keys=_keys, order_key="nodes", order_label="CQMOM N1",
+    name="cqmom", code=CODE, scene_keys=_keys, options=CqmomOptions, order_key="nodes", order_label="CQMOM N1",
     state_names=_state_names, aux=no_aux, tabulates_theta=False, population=_population,
     failure_hint=no_hint, diagnostics=no_diagnostics, plan_line=_plan,
     repairs_mixture=lambda scene: scene.bivariate,
-    config_slots=lambda scene: {P.BINDER_NODES: scene.method.binder_nodes},
+    config_slots=lambda scene: {P.BINDER_NODES: scene.method.options.binder_nodes},
     rhs=cqmom_rhs, realizable=cqmom_realizable, project=cqmom_project,
     conserved=cqmom_conserved,
     work_size=lambda config: cqmom_work_size(config[P.ORDER], config[P.BINDER_NODES]),

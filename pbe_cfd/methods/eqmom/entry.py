@@ -13,6 +13,7 @@ from ...physics import parameters as P
 from ..entry import MethodEntry
 import pbe_cfd.methods.eqmom.inversion as I
 import pbe_cfd.methods.eqmom.state as S
+from .options import EqmomOptions
 from .sources import eqmom_conserved, eqmom_project, eqmom_realizable, eqmom_rhs
 
 #: config[P.METHOD] of the EQMOM
@@ -21,17 +22,17 @@ CODE = 3
 
 def scene_keys(t, defaults):
     """The ``[method]`` keys of EQMOM: ``nodes`` (kernels N, 1..5)."""
-    return {"nodes": t.number("nodes", 2, integer=True, low=1, high=I.MAX_KERNELS)}
+    return {"nodes": t.number("nodes", defaults.nodes, integer=True, low=1, high=I.MAX_KERNELS)}
 
 
 def state_names(scene):
     """State entry names of the scene's EQMOM."""
-    return S.state_names(scene.method.nodes, scene.bivariate, scene.separate_droplets)
+    return S.state_names(scene.method.options.nodes, scene.bivariate, scene.separate_droplets)
 
 
 def aux(scene, arrays, theta_grid=None):
     """[secondary Gauss nodes per kernel] (``state.secondary_nodes``)."""
-    return np.array([float(S.secondary_nodes(scene.method.nodes))])
+    return np.array([float(S.secondary_nodes(scene.method.options.nodes))])
 
 
 def population(state, aux_, arrays):
@@ -50,10 +51,10 @@ def kernels_si(state, aux_, arrays):
 
 def plan_line(scene):
     """The method's line of ``pbe-cfd plan``."""
-    m = scene.method
-    return (f"gamma EQMOM with {m.nodes} kernels ({S.secondary_nodes(m.nodes)} secondary "
+    n = scene.method.options.nodes
+    return (f"gamma EQMOM with {n} kernels ({S.secondary_nodes(n)} secondary "
             f"Gauss nodes each, binder fraction per kernel); state "
-            f"{', '.join(state_names(scene))}; rtol {m.rtol:g}")
+            f"{', '.join(state_names(scene))}; rtol {scene.method.rtol:g}")
 
 
 def failure_hint(scene, arrays, state, aux_):
@@ -82,7 +83,7 @@ def diagnostics(states, aux_, arrays):
 
 
 ENTRY = MethodEntry(
-    name="eqmom", code=CODE, scene_keys=scene_keys, order_key="nodes", order_label="EQMOM N",
+    name="eqmom", code=CODE, scene_keys=scene_keys, options=EqmomOptions, order_key="nodes", order_label="EQMOM N",
     state_names=state_names, aux=aux, tabulates_theta=False, population=population,
     failure_hint=failure_hint, diagnostics=diagnostics, plan_line=plan_line,
     repairs_mixture=lambda scene: True,

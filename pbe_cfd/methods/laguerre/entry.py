@@ -1,6 +1,7 @@
 """The Laguerre ROM's registry entry: its scene keys, state names, tables, populations, plan
 line and its numba functions (``methods.registry`` lists it)."""
 from ..entry import MethodEntry
+from .options import LaguerreOptions
 from .tensor import (aux_for_scene, escaped_share_report, failure_hint, population_for_output,
                      scene_columns, scene_initial_state, scene_keys, state_names, table_bytes)
 from .rhs import laguerre_conserved, laguerre_project, laguerre_realizable, laguerre_rhs
@@ -15,15 +16,15 @@ def laguerre_state_names(order, separate_droplets):
 
 
 def _keys(t, defaults):
-    kw = {"order": t.number("order", 3, integer=True, low=2, high=5),
-          "consistent": t.boolean("consistent", True)}
+    kw = {"order": t.number("order", defaults.order, integer=True, low=2, high=5),
+          "consistent": t.boolean("consistent", defaults.consistent)}
     for key, unit in (("weight_mean_mass", "kg"), ("weight_mean_binder", "kg"),
                       ("weight_shape_mass", ""), ("weight_shape_binder", ""),
                       ("support_mass", "kg"), ("support_binder", "kg")):
         kw[key] = t.number(key, getattr(defaults, key), positive=True, unit=unit)
     for key in ("grid_mass", "grid_binder"):
         kw[key] = t.number(key, getattr(defaults, key), integer=True, low=4, high=400)
-    kw["grid_spacing"] = t.choice("grid_spacing", ("fraction", "uniform"), "fraction")
+    kw["grid_spacing"] = t.choice("grid_spacing", ("fraction", "uniform"), defaults.grid_spacing)
     kw.update(scene_keys(t, defaults))
     return kw
 
@@ -42,7 +43,7 @@ def _diagnostics(states, aux, arrays):
 
 
 def _plan(scene):
-    m = scene.method
+    m = scene.method.options
     n_state = len(laguerre_state_names(m.order, scene.separate_droplets))
     return (f"Laguerre ROM of order {m.order} "
             f"({'moment-consistent' if m.consistent else 'plain projection'}"
@@ -53,8 +54,8 @@ def _plan(scene):
 
 
 ENTRY = MethodEntry(
-    name="laguerre", code=CODE, scene_keys=_keys, order_key="order", order_label="Laguerre m",
-    state_names=lambda s: laguerre_state_names(s.method.order, s.separate_droplets),
+    name="laguerre", code=CODE, scene_keys=_keys, options=LaguerreOptions, order_key="order", order_label="Laguerre m",
+    state_names=lambda s: laguerre_state_names(s.method.options.order, s.separate_droplets),
     aux=_aux, tabulates_theta=True, population=population_for_output,
     failure_hint=_hint, diagnostics=_diagnostics, plan_line=_plan,
     initial_state=scene_initial_state, columns=scene_columns,

@@ -230,7 +230,7 @@ def scene_weights_support(scene):
     """(weights, support) dicts of build_aux from the scene's [method] table (SI). The dry
     class's weight has the mean ``dry_weight_mean_mass`` (default: the initial granules' mean
     mass, where dry granules sit) and shape ``dry_weight_shape_mass``."""
-    m = scene.method
+    m = scene.method.options
     weights = dict(c=m.weight_mean_mass, d=m.weight_mean_binder, lam=m.weight_shape_mass,
                    gam=m.weight_shape_binder,
                    c_dry=getattr(m, "dry_weight_mean_mass", None) or scene.initial.mean_mass,
@@ -260,13 +260,13 @@ def aux_for_scene(scene, arrays, theta_grid=None, cache_dir=None):
                                    0.0)))
     if not (u0 is None or u0 > 0):
         u0 = None
-    points = int(getattr(scene.method, "adaptive_points", 0) or 0)
-    adaptive = dict(points=points) if getattr(scene.method, "adaptive_weights", False) else None
-    if getattr(scene.method, "following_support", False):
+    points = int(getattr(scene.method.options, "adaptive_points", 0) or 0)
+    adaptive = dict(points=points) if getattr(scene.method.options, "adaptive_weights", False) else None
+    if getattr(scene.method.options, "following_support", False):
         adaptive = following_spec(scene, arrays)
         support["p_max"] = max(support["p_max"], FOLLOWING_SPAN * weights["c_dry"])
-    return build_aux(arrays.params, arrays.config, scene.method.order, weights=weights,
-                     support=support, consistent=scene.method.consistent,
+    return build_aux(arrays.params, arrays.config, scene.method.options.order, weights=weights,
+                     support=support, consistent=scene.method.options.consistent,
                      theta_grid=theta_grid, cache_dir=cache_dir, collision_velocity=u0,
                      adaptive=adaptive)
 
@@ -278,11 +278,11 @@ def following_spec(scene, arrays):
     c0 = float(scene.initial.mean_mass)
     pd = float(arrays.params[P.DROPLET_MASS])
     low = 0.25 * (min(c0, pd) if pd > 0 else c0)
-    return dict(following=True, c=(low, c0 * float(scene.method.following_growth)))
+    return dict(following=True, c=(low, c0 * float(scene.method.options.following_growth)))
 
 
 def table_bytes(method) -> int:
-    """Peak memory [bytes] of building the ROM's tables for a scene's ``Method``
+    """Peak memory [bytes] of building the ROM's tables for a scene's ``method.options``
     (``laguerre_build``): on N = grid_mass x grid_binder wet nodes and n = dry_grid_mass dry
     nodes, the pair-rate matrices of two collision-velocity slices held at once (2 (N^2 + n N
     + n^2) doubles), the aggregation tensor's two N x K^2 products (K = order^2) and one
@@ -301,7 +301,7 @@ def scene_initial_state(scene, arrays, granule_moment):
     granules (free droplets excluded); granules without binder (initial.binder_fraction = 0)
     start in the dry class unless the scene's [method] sets dry_class = false (then they are
     a bivariate population at b = 0, the formulation before the dry class)."""
-    dry = bool(getattr(scene.method, "dry_class", True)) and scene.initial.binder_fraction == 0.0
+    dry = bool(getattr(scene.method.options, "dry_class", True)) and scene.initial.binder_fraction == 0.0
     return initial_state(granule_moment, arrays.params, arrays.config,
                          n_droplets=scene.initial.droplet_number_density, dry=dry)
 
@@ -309,7 +309,7 @@ def scene_initial_state(scene, arrays, granule_moment):
 def scene_keys(t, defaults):
     """The dry-class, adaptive-weight and following-support keys of a scene's ``[method]``
     table (read with the
-    scene's table reader ``t``; ``defaults``: the ``scene.Method`` class)."""
+    scene's table reader ``t``; ``defaults``: the ``LaguerreOptions`` class)."""
     kw = {"dry_class": t.boolean("dry_class", defaults.dry_class)}
     if t.has("dry_weight_mean_mass"):
         kw["dry_weight_mean_mass"] = t.number("dry_weight_mean_mass", positive=True, unit="kg")

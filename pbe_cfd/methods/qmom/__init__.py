@@ -1,5 +1,6 @@
-"""Quadrature method of moments with node-wise binder: the numba functions (``qmom``) and the
-registry entry (``entry``)."""
+"""Quadrature method of moments with node-wise binder: the numba functions (``qmom``) its ``[method]``
+keys (``options``) and the registry entry (``entry``)."""
 from .entry import ENTRY  # noqa: F401
+from .options import QmomOptions  # noqa: F401
 from .qmom import (qmom_conserved, qmom_project, qmom_realizable, qmom_rhs,  # noqa: F401
                    quadrature_of, state_names, work_size)

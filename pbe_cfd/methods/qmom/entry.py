@@ -2,6 +2,7 @@
 numba functions (``methods.registry`` lists it)."""
 from ...physics import parameters as P
 from ..entry import MethodEntry, no_aux, no_diagnostics, no_hint
+from .options import QmomOptions
 from .qmom import (qmom_conserved, qmom_project, qmom_realizable, qmom_rhs,
                    quadrature_of as qmom_quadrature_of, state_names as qmom_state_names,
                    work_size as qmom_work_size)
@@ -11,11 +12,11 @@ CODE = 0
 
 
 def _keys(t, defaults):
-    return {"nodes": t.number("nodes", 3, integer=True, low=1, high=5)}
+    return {"nodes": t.number("nodes", defaults.nodes, integer=True, low=1, high=5)}
 
 
 def _state_names(scene):
-    return qmom_state_names(scene.method.nodes, scene.bivariate, scene.separate_droplets,
+    return qmom_state_names(scene.method.options.nodes, scene.bivariate, scene.separate_droplets,
                             getattr(scene, "drying", None) is not None)
 
 
@@ -26,12 +27,12 @@ def _population(state, aux, arrays):
 
 def _plan(scene):
     m = scene.method
-    return (f"QMOM with {m.nodes} nodes; state {', '.join(_state_names(scene))}"
+    return (f"QMOM with {m.options.nodes} nodes; state {', '.join(_state_names(scene))}"
             f"; rtol {m.rtol:g}")
 
 
 ENTRY = MethodEntry(
-    name="qmom", code=CODE, scene_keys=_keys, order_key="nodes", order_label="QMOM N",
+    name="qmom", code=CODE, scene_keys=_keys, options=QmomOptions, order_key="nodes", order_label="QMOM N",
     state_names=_state_names, aux=no_aux, tabulates_theta=False, population=_population,
     failure_hint=no_hint, diagnostics=no_diagnostics, plan_line=_plan,
     repairs_mixture=lambda scene: scene.bivariate,

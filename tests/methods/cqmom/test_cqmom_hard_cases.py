@@ -66,7 +66,7 @@ def assert_follows_tight_run(scene, columns):
     tight = dataclasses.replace(scene, method=dataclasses.replace(
         scene.method, rtol=scene.method.rtol / 100, atol=scene.method.atol / 100))
     ref = run_well_mixed(tight).columns
-    names = [f"M{k}0" for k in range(2 * scene.method.nodes)]
+    names = [f"M{k}0" for k in range(2 * scene.method.options.nodes)]
     if "M11" in columns:
         names.append("M11")
     assert_close_to_reference(columns, ref, scene.method.rtol, names)
@@ -88,7 +88,7 @@ def assert_invariants(scene, columns, injected_mass_rate=0.0, pure_aggregation=F
     # independent of the package's realizability test: the size moments (free droplets
     # included, a positive measure too) pass the Hankel test, and the binder moments keep
     # 0 <= M_k1 <= M_(k+1)0 (every particle's binder within its mass)
-    n1 = scene.method.nodes
+    n1 = scene.method.options.nodes
     for r in range(len(t)):
         assert hankel_realizable(size_moments(columns, r, 2 * n1)), r
         for k in range(n1):

@@ -1,0 +1,33 @@
+"""The Laguerre ROM's own ``[method]`` keys (``scene.method.options`` of a Laguerre scene)."""
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class LaguerreOptions:
+    """Bivariate Laguerre ROM: order m (m x m wet moments), the moment-consistent or plain
+    projection, the gamma weights weight_mean_mass [kg], weight_mean_binder [kg] and their
+    shapes [-], the quadrature support support_mass [kg], support_binder [kg] on grid_mass x
+    grid_binder points, the dry class of granules without binder (its weight
+    dry_weight_mean_mass [kg] and shape, dry_grid_mass points), adaptive wet weights and the
+    following support (docs/physics.md section 9)."""
+    order: int = 3
+    consistent: bool = True
+    weight_mean_mass: float = 1.0e-9
+    weight_mean_binder: float = 1.0e-9
+    # the wet class's gamma weights vanish at p = 0 and b = 0 (shape 2): with the Laguerre dry
+    # class holding every granule at b = 0, a wet granule carries at least one droplet
+    weight_shape_mass: float = 2.0
+    weight_shape_binder: float = 2.0
+    support_mass: float = 1.0e-8
+    support_binder: float = 4.0e-9
+    grid_mass: int = 20
+    grid_binder: int = 20
+    grid_spacing: str = "fraction"
+    dry_class: bool = True
+    dry_weight_mean_mass: float | None = None     # kg; None: the initial mean mass
+    dry_weight_shape_mass: float = 10.0
+    dry_grid_mass: int = 200
+    adaptive_weights: bool = True
+    adaptive_points: int = 9
+    following_support: bool = False               # the support follows the wet class
+    following_growth: float = 1000.0              # its range: up to this x the initial mean mass
