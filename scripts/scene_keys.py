@@ -233,7 +233,7 @@ def method_options(method_cls=None) -> list:
     except ImportError:
         return []
     entries = getattr(registry, "METHODS", {})
-    entries = entries.values() if isinstance(entries, dict) else entries
+    entries = entries.values() if hasattr(entries, "values") else entries
     out = []
     for entry in entries:
         name = getattr(entry, "name", None)
