@@ -232,8 +232,7 @@ def method_options(method_cls=None) -> list:
         from pbe_cfd.methods import registry
     except ImportError:
         return []
-    entries = getattr(registry, "METHODS", {})
-    entries = entries.values() if hasattr(entries, "values") else entries
+    entries = getattr(registry, "METHOD_REGISTRY", ())      # every method (imports them all)
     out = []
     for entry in entries:
         name = getattr(entry, "name", None)

@@ -44,6 +44,7 @@ RULES = (
     ("test_eqmom", "methods/eqmom"),
     ("test_laguerre", "methods/laguerre"),
     ("test_cnmc", "methods/cnmc"),
+    ("test_registry_imports", "methods"),
     ("test_toy_method", "methods"),
     ("test_breakage", "methods"),
     ("test_hard_cases", "methods"),
@@ -83,6 +84,8 @@ RULES = (
     ("test_drawing", "viz"),
     # size distributions
     ("test_distribution", "distribution"),
+    ("test_reference_particles", "distribution"),
+    ("test_psd_against_particles", "distribution"),
     # studies and their result documents
     ("test_bench", "bench"),
     ("test_peer", "bench"),

@@ -24,7 +24,7 @@ from .accuracy_report import write_accuracy
 from .common import _git_describe, _say, machine_info
 
 #: quantities compared by the accuracy study (columns of RunResult)
-QUANTITIES = ("M00", "M20", "M11", "M02", "d43_m", "binder_fraction")
+QUANTITIES = ("M00", "M20", "M11", "M02", "d43_m", "binder_fraction", "d50_m")
 #: chosen comparison times as fractions of the scene's end time (snapped to output times)
 TIME_FRACTIONS = (0.1, 0.5, 1.0)
 DEFAULT_ACCURACY_SCENE = "study-seed"
@@ -98,6 +98,8 @@ def accuracy_variants(quick=False) -> list:
     out = []
     for n in ((1, 2, 3) if quick else (1, 2, 3, 4)):
         out.append(Variant("qmom", f"N={n}", {"name": "qmom", "nodes": n}))
+    for n in ((2, 3) if quick else (2, 3, 4)):
+        out.append(Variant("eqmom", f"N={n}", {"name": "eqmom", "nodes": n}))
     for n1, n2 in (((2, 2),) if quick else ((2, 2), (3, 2), (3, 3), (4, 2))):
         out.append(Variant("cqmom", f"N1={n1} N2={n2}",
                            {"name": "cqmom", "nodes": n1, "binder_nodes": n2}))

@@ -6,7 +6,7 @@ import math
 from .common import _machine_line, _write_csv
 
 #: quantities compared by the accuracy study (columns of RunResult)
-QUANTITIES = ("M00", "M20", "M11", "M02", "d43_m", "binder_fraction")
+QUANTITIES = ("M00", "M20", "M11", "M02", "d43_m", "binder_fraction", "d50_m")
 
 
 def _fmt_err(e):
@@ -54,7 +54,7 @@ def accuracy_markdown(result) -> str:
     lines = [f"Scene `{result['scene']}`; errors are max |relative error| over t = {times} s "
              f"against the reference: {ref['text']}.", ""]
     names = {"M00": "M00", "M20": "M20", "M11": "M11", "M02": "M02", "d43_m": "d43",
-             "binder_fraction": "binder fr."}
+             "binder_fraction": "binder fr.", "d50_m": "d50"}
     head = "| method | knob | " + " | ".join(names[q] for q in QUANTITIES) + \
         " | max | wall [s] | first call [s] |"
     lines += [head, "|" + "---|" * (head.count("|") - 1)]
@@ -118,7 +118,7 @@ def plot_pareto(path, result):
 
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
     style = {"qmom": ("o", "C0"), "laguerre": ("s", "C1"), "cnmc": ("^", "C2"),
-             "cqmom": ("D", "C3")}
+             "cqmom": ("D", "C3"), "eqmom": ("v", "C4")}
     for ax, quantities, what in ((axes[0], QUANTITIES,
                                   "M00, M20, M11, M02, d43, binder fraction"),
                                  (axes[1], SIZE_QUANTITIES, "M00, M20, d43")):

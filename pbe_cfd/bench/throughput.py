@@ -250,11 +250,12 @@ def throughput_study(out_dir="bench-out", quick=False, cells=None, threads=None,
     cells = cells or ((100, 1000) if quick else (100, 1000, 10_000, 100_000))
     max_threads = nb.config.NUMBA_NUM_THREADS
     threads = threads or tuple(t for t in (1, 2) if t <= max_threads)
-    methods = methods or ((("qmom", 2), ("qmom", 3), ("laguerre", 2), ("laguerre", 3),
-                           ("cqmom", (2, 2))) if quick
-                          else (("qmom", 2), ("qmom", 3), ("qmom", 4), ("laguerre", 2),
-                                ("laguerre", 3), ("laguerre", 4), ("cqmom", (2, 2)),
-                                ("cqmom", (3, 2)), ("cqmom", (3, 3))))
+    methods = methods or ((("qmom", 2), ("qmom", 3), ("eqmom", 3), ("laguerre", 2),
+                           ("laguerre", 3), ("cqmom", (2, 2))) if quick
+                          else (("qmom", 2), ("qmom", 3), ("qmom", 4), ("eqmom", 2),
+                                ("eqmom", 3), ("laguerre", 2), ("laguerre", 3),
+                                ("laguerre", 4), ("cqmom", (2, 2)), ("cqmom", (3, 2)),
+                                ("cqmom", (3, 3))))
     interval = interval or (0.05 if quick else 0.1)
     repeats = 1 if quick else 3
     target = 20_000 if quick else 300_000

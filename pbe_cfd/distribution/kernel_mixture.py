@@ -105,3 +105,91 @@ def of_states(states, aux, arrays, rho, bivariate, labels=str) -> KernelMixture:
     return KernelMixture(kernels, rho, bivariate, inversion.STATUS_TEXT,
                          reported=(inversion.CLOSEST, inversion.FAILED),
                          failed=inversion.FAILED, labels=labels)
+
+
+#: the branch names of ``of_nodes`` rows (after the EQMOM inversion's own)
+ONE_KERNEL_FALLBACK = "not invertible with n - 1 kernels: one gamma kernel on M00, M10, M20"
+DELTA_FALLBACK = "not realizable (M20 < M10^2/M00): a delta at the mean mass"
+NOT_FINITE = "a node not finite: no granules drawn, d10/d50/d90 = 0 there"
+
+
+def _size_nodes(w, p):
+    """(masses [kg], number weights [1/m3]) of one row's distinct size nodes (CQMOM's binder
+    nodes of one size node merged), nodes with w <= 0 or p <= 0 left out."""
+    ok = (w > 0) & (p > 0)
+    masses, inverse = np.unique(p[ok], return_inverse=True)
+    return masses, np.bincount(inverse, weights=w[ok], minlength=masses.size)
+
+
+def _fit_row(x, w, kernels):
+    """EQMOM with ``kernels`` gamma kernels of the moments m_0 .. m_2kernels of the nodes
+    (x [kg], w [1/m3]): (sigma [kg], centres [kg], weights [1/m3], status)."""
+    from ..methods.eqmom import inversion as I
+    m0 = w.sum()
+    mean = (w * x).sum() / m0
+    u = np.array([(w * (x / mean) ** k).sum() / m0 for k in range(2 * kernels + 1)])
+    nodes, weights = np.zeros(kernels), np.zeros(kernels)
+    work, result = np.zeros(I.work_length(kernels, 0)), np.zeros(2)
+    if not np.all(np.isfinite(u)):
+        return 0.0, nodes[:0], weights[:0], I.FAILED
+    status, n = I.invert_normalised(u, kernels, nodes, weights, work, result)
+    return result[0] * mean, nodes[:n] * mean, weights[:n] * m0, status
+
+
+def of_nodes(populations, rho, bivariate, labels=str) -> KernelMixture:
+    """QMOM and CQMOM: per row the gamma EQMOM of n - 1 kernels (n the row's distinct size
+    nodes, one kernel at least) fitted to the size moments M00 .. M(2n-2)0 the nodes carry
+    exactly (docs/physics.md section 11.1; M(2n-1)0 is not used). Populations: (w [1/m3],
+    p [kg], b [kg]) per row. One node: a delta. A row the n - 1 kernels cannot invert takes
+    one kernel on M00, M10, M20; a row not realizable even so a delta at its mean; both are
+    named in ``notes``, as are a closest-sigma fit and a row with a node not finite (drawn
+    empty). The binder fraction per size class is
+    interpolated in ln p between the nodes' binder fractions (``reconstruct.node_binder``)."""
+    from ..methods.eqmom import inversion as I
+    from .reconstruct import node_binder, padded_rows
+    w_all, p_all = (padded_rows(populations, k) for k in range(2))
+    kernels, one, delta, bad = [], [], [], []
+    for r in range(w_all.shape[0]):
+        if not (np.all(np.isfinite(w_all[r])) and np.all(np.isfinite(p_all[r]))):
+            kernels.append((0.0, np.zeros(0), np.zeros(0), np.zeros(0), I.FAILED))
+            bad.append(r)
+            continue
+        x, w = _size_nodes(w_all[r], p_all[r])
+        if x.size <= 1:
+            kernels.append((0.0, x, w, np.zeros(x.size), I.DISCRETE))
+            continue
+        sigma, c, cw, status = _fit_row(x, w, x.size - 1)
+        if status == I.FAILED and x.size > 2:
+            sigma, c, cw, status = _fit_row(x, w, 1)
+            one.append(r)
+        if status == I.FAILED:
+            mean = (w * x).sum() / w.sum()
+            sigma, c, cw, status = 0.0, np.array([mean]), np.array([w.sum()]), I.DISCRETE
+            delta.append(r)
+        kernels.append((sigma, c, cw, np.zeros(c.size), status))
+    mix = NodeMixture(kernels, rho, bivariate, I.STATUS_TEXT, reported=(I.CLOSEST,),
+                      labels=labels)
+    for rows, text in ((one, ONE_KERNEL_FALLBACK), (delta, DELTA_FALLBACK), (bad, NOT_FINITE)):
+        if rows:
+            mix.notes.append(f"size distribution: {text} at "
+                             f"{_rows_text(np.array(rows), labels)}")
+    mix.node_binder = node_binder(populations) if bivariate else None
+    return mix
+
+
+class NodeMixture(KernelMixture):
+    """A KernelMixture fitted to quadrature nodes (``of_nodes``): its binder fraction per
+    class comes from the nodes (``node_binder``: (node masses [kg], fractions [-]) per row, or
+    None for a univariate scene)."""
+
+    node_binder = None
+
+    def class_binder(self, d_lo, d_hi):
+        """Binder fraction [-] at each class's geometric centre, interpolated in ln p between
+        the nodes (constant beyond the outer nodes)."""
+        from .reconstruct import interpolate_rows
+        if self.node_binder is None:
+            return None
+        centre = np.sqrt(np.asarray(d_lo, float) * np.asarray(d_hi, float))
+        x, y = self.node_binder
+        return interpolate_rows(np.log(mass_of_diameter(centre, self.rho)), x, y)

@@ -35,8 +35,8 @@ def reconstruction_of(scene, arrays, states, aux, populations, labels=str):
         return kernel_mixture.of_states(states, aux, arrays, scene.material.density,
                                         scene.bivariate, labels)
     if kind == "gamma":
-        return R.gamma_of_populations(populations, scene.material.density, scene.bivariate,
-                                      labels)
+        return kernel_mixture.of_nodes(populations, scene.material.density, scene.bivariate,
+                                       labels)
     raise DistributionError(f"method {scene.method.name!r}: no size-distribution "
                             "reconstruction")
 

@@ -53,7 +53,8 @@ ENTRY = MethodEntry(
     bench_orders=_bench_orders,
     bench_scene=lambda scene, order: scene.with_method(nodes=order[0], binder_nodes=order[1]),
     distribution="gamma",
-    distribution_text="gamma density in granule mass fitted to the carried M00, M10, M20 "
-                      "(one-kernel gamma EQMOM); binder fraction per size class interpolated "
-                      "in ln p between the size nodes' mass-mean binder fractions",
+    distribution_text="gamma EQMOM of N - 1 kernels of one width fitted to the carried "
+                      "M00 .. M(2N-2)0 (one kernel for N = 2; M(2N-1)0 not used); binder "
+                      "fraction per size class interpolated in ln p between the "
+                      "size nodes' mass-mean binder fractions",
     moments_text="from the quadrature nodes (one binder value per size node)")

@@ -40,8 +40,9 @@ ENTRY = MethodEntry(
     conserved=qmom_conserved, work_size=lambda config: qmom_work_size(config[P.ORDER]),
     bench_orders=int, bench_scene=lambda scene, order: scene.with_method(nodes=order),
     distribution="gamma",
-    distribution_text="gamma density in granule mass fitted to the carried M00, M10, M20 "
-                      "(one-kernel gamma EQMOM); binder fraction per size class interpolated "
-                      "in ln p between the nodes' binder values",
+    distribution_text="gamma EQMOM of N - 1 kernels of one width fitted to the carried "
+                      "M00 .. M(2N-2)0 (one kernel for N = 2; M(2N-1)0 not used); binder "
+                      "fraction per size class interpolated in ln p between the "
+                      "nodes' binder values",
     moments_text="from the quadrature nodes (one binder value per size node)",
     dries=True)
