@@ -379,7 +379,7 @@ def bench_command(args):
     else:
         study_of = {bench.CNMC_STUDY: bench.cnmc_study, bench.LAGUERRE_STUDY: bench.laguerre_study,
                     "couple": bench.couple_study, "integrators": bench.integrator_study,
-                    "cluster": bench.cluster_study}
+                    "cluster": bench.cluster_study, "batch": bench.batch_study}
         study_of[study](out, quick=quick)
         files = f"{study}.csv, {study}.md"
         print((out / f"{study}.md").read_text())
@@ -519,7 +519,7 @@ def build_parser():
 
     p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")
     p.add_argument("study", choices=("accuracy", "throughput", "cnmc", "laguerre", "couple",
-                                     "integrators", "peer", "cluster"))
+                                     "integrators", "peer", "cluster", "batch"))
     p.add_argument("scene", nargs="?", help="scene for the accuracy study")
     p.add_argument("--out", default="bench-out")
     p.add_argument("--quick", action="store_true", help="a tiny configuration (plumbing check)")

@@ -57,6 +57,8 @@ RULES = (
     ("test_resource_limits", "scene"),
     # runs: model, domain, coupling, plan, executors
     ("test_couple", "runs"),
+    ("test_air", "runs"),
+    ("test_batch", "runs"),
     ("test_coupling", "runs"),
     ("test_run_", "runs"),
     ("test_plan", "runs"),
@@ -78,6 +80,7 @@ RULES = (
     ("test_paraview", "io"),
     # viz: pictures and their drawing processes
     ("test_pictures", "viz"),
+    ("test_moisture", "viz"),
     ("test_render", "viz"),
     ("test_vtk", "viz"),
     ("test_drawing", "viz"),

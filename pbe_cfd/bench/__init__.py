@@ -55,6 +55,7 @@ from .analytic import (analytic_applicable, analytic_moments, analytic_reference
                        smoluchowski_d43)
 from .cluster_3d import cluster_study
 from .cnmc import cnmc_study, seed_scenario_benchmark, seed_scenario_setup
+from .batch import batch_study
 from .common import CNMC_STUDY, LAGUERRE_STUDY, STUDY_FILES, failure_status, machine_info
 from .couple import couple_study, replicated_domain
 from .integrators import integrator_markdown, integrator_study, stiff_scene

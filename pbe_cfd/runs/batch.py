@@ -102,6 +102,8 @@ class CellBatch:
     #: spray schedule [(t0 [s], t1 [s], rate / peak rate [-])] (``spray.factors``): each
     #: segment runs with the rows' injection scaled by its factor; empty: the rows as given
     schedule: list = field(default_factory=list)
+    #: the bed's air balance (``runs.air.BedAir``): None, the scene's air at every cell
+    air: object = None
 
     def __post_init__(self):
         n = self.states.shape[0]
@@ -214,7 +216,23 @@ class CellBatch:
             self.rows = rows
 
     def _advance(self, states, t0, t1):
-        """``advance`` over [t0, t1] [s] with the batch's rows as they are."""
+        """``advance`` over [t0, t1] [s] with the batch's rows as they are (with an air
+        balance in its pieces, each at the bed's driving force: ``runs.air``)."""
+        if self.air is None:
+            self._advance_cells(states, t0, t1)
+        else:
+            self.air.advance(self, states, t0, t1, self._advance_cells)
+
+    def probe(self, states, t0, t1):
+        """Integrate ``states`` (a copy of the batch's) from t0 to t1 [s] with copies of the
+        step memory and counters: the batch is left as it was."""
+        integrate.integrate_cells(states, self.rows, self.aux, self.params, self.config, t0,
+                                  t1, self.steps.copy(), self.rtol, self.atol, self.max_steps,
+                                  np.zeros_like(self.stats_counts), self.status.copy(),
+                                  self.reached.copy())
+
+    def _advance_cells(self, states, t0, t1):
+        """The cells' integration over [t0, t1] [s] (sharp, then smooth Stokes switch)."""
         smoothed = self.smoothed.copy()
         sharp = integrate.sharp_stokes_switch(self.params, self.config)
         self._integrate(states, ~smoothed, self.params, t0, t1)

@@ -17,9 +17,11 @@ from pathlib import Path
 import numpy as np
 
 from . import model
+from .air import coupled_air
 from .batch import CellBatch, SimulationError, check_physics  # noqa: F401 (SimulationError: API)
 from .domain import PACKING_MARGIN, Domain, spray_zone_cut
 from .executor import SerialExecutor
+from .inventory import inventory
 from .problem import problem_of
 from ..methods import registry
 from ..methods.registry import method_of
@@ -69,6 +71,7 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     active, spray, notes = problem.active, problem.spray, problem.notes
     warnings = []
     batch = CellBatch.for_problem(problem)
+    batch.air = coupled_air(scene, arrays, cells, idx, executor)
     transport = None
     if scene.transport is not None:
         from ..transport.operator import build_transport
@@ -83,8 +86,14 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     history = executor.run(batch, times, transport, progress=progress)
     solve_end = _time.perf_counter()
     wall = solve_end - start
+    per_time = []
     cell_fields, bed, mixtures = _outputs(scene, arrays, aux, cells, active, spray, idx, times,
-                                          history, warnings)
+                                          history, warnings, per_time)
+    if "evaporated_liquid" in arrays.state_names:
+        bed.update(inventory(scene, arrays, times, per_time, batch.rows,
+                             np.asarray(cells.cell_volume, dtype=float)[idx]))
+    if batch.air is not None:
+        bed.update(batch.air.columns(times))
     st = batch.stats()
     run_stats = {"cells": int(cells.n_cells), "active_cells": int(idx.size),
                  "spray_cells": int(np.count_nonzero(spray)), **st,
@@ -155,11 +164,13 @@ def _domain_warnings(scene, spray, notes, cells, active) -> list:
     return out
 
 
-def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history, warnings):
+def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history, warnings,
+             per_time=None):
     """Per output time: the cell fields (every mesh cell; inactive cells 0) and the bed
     columns (volume averages of the moments [per m3 of bed], d32, d43 [m] of the whole bed's
     population, binder fraction, bed mass [kg]), the cells' d10/d50/d90/span, and per output
-    time the bed's size distribution (``distribution.reconstruct.Mixture``)."""
+    time the bed's size distribution (``distribution.reconstruct.Mixture``). ``per_time``
+    (a list) receives the active cells' SI columns of each output time."""
     from ..distribution.reconstruct import Mixture
     mixtures = []
     n = cells.n_cells
@@ -173,6 +184,8 @@ def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history, warn
     for k, states in enumerate(history):
         populations = []
         cols = model.moment_outputs(scene, arrays, states, aux, populations=populations)
+        if per_time is not None:
+            per_time.append(cols)
         fields = {"alpha": np.asarray(cells.alpha, dtype=float),
                   "Theta": np.asarray(cells.theta, dtype=float),
                   "active": active.astype(float), "spray_zone": spray.astype(float)}
@@ -277,12 +290,17 @@ def _quietly(fn, *args):
 
 
 def _bed_figures(out_dir: Path, scene, result: CoupledResult) -> list:
-    """The drawing tasks (``viz.figure_pool``) of the bed's pictures: bed_moments.png, and
-    psd.png where the run has a size distribution; they read the CSV files already written."""
+    """The drawing tasks (``viz.figure_pool``) of the bed's pictures: bed_moments.png,
+    moisture.png where the run dries, and psd.png where the run has a size distribution; they
+    read the CSV files already written."""
     from ..viz.render import BED_MOMENTS_COST, plot_bed_moments
     png = out_dir / "png"
     tasks = [(plot_bed_moments, (out_dir / "bed_moments.csv", png / "bed_moments.png"),
               {"title": scene.name}, BED_MOMENTS_COST)]
+    if "moisture_content" in result.bed_columns:
+        from ..viz.moisture import MOISTURE_COST, plot_moisture
+        tasks.append((plot_moisture, (out_dir / "bed_moments.csv", png / "moisture.png"),
+                      {"title": f"{scene.name}: moisture"}, MOISTURE_COST))
     if result.psd is not None:
         from ..viz.psd_figure import PSD_COST, plot_psd
         tasks.append((plot_psd, (png / "psd.png", out_dir / "psd.csv"),

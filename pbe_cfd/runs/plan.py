@@ -74,6 +74,7 @@ def describe_plan(scene) -> str:
         left_out.append("drying (no [drying] table)")
     else:
         lines.extend(_drying_lines(scene.drying))
+        lines.extend(air_lines(scene))
     if scene.transport is None:
         if dom.type == "openfoam":
             left_out.append("transport between cells (no [transport] table)")
@@ -200,6 +201,36 @@ def _drying_lines(dry) -> list[str]:
             f"Ranz-Marshall Sh at slip {dry.slip_velocity:g} m/s",
             f"    constant rate above X_cr = {dry.critical_moisture:g}, falling rate to X_eq = "
             f"{dry.equilibrium_moisture:g} (kg liquid per kg dry solids)"]
+
+
+def air_lines(scene) -> list[str]:
+    """The plan's lines on the bed's air: which values are the scene's, the air balance, its
+    flow and capacity, and how the bed's humidity is lagged (``runs.air``)."""
+    from ..physics.drying import gas_state
+    from .air import air_flow, case_inlet_velocity, domain_section
+    dry = scene.drying
+    out = ["    slip velocity and gas temperature: the scene's, in every cell (per-cell values "
+           "from the CFD are not read)"]
+    if dry.air_balance == "none":
+        return out + ["    air balance: none (every granule sees the inlet air, as an isolated "
+                      "granule would)"]
+    area = velocity = None
+    source = "air_mass_flow"
+    if dry.air_mass_flow is None:
+        if dry.bed_area is None:
+            from .domain import load_domain
+            area = domain_section(load_domain(scene).cells)
+        if dry.superficial_velocity is None:
+            velocity = case_inlet_velocity(scene)
+        source = (f"superficial velocity {dry.superficial_velocity or velocity:g} m/s "
+                  f"({'scene' if dry.superficial_velocity else 'the case gas inlet'}) x "
+                  f"{dry.bed_area or area:g} m2 x the inlet's dry-air density")
+    flow = air_flow(scene, area, velocity)
+    driving = gas_state(dry.air_temperature, dry.air_humidity, dry.pressure)[4]
+    return out + [f"    air balance: {dry.air_balance} gas; dry-air flow {flow:.4g} kg/s "
+                  f"({source}); capacity G dY_in = {flow * driving:.4g} kg water/s",
+                  f"    the bed's humidity: held {dry.air_interval:g} s at a time, from the "
+                  "evaporation of the interval before (first order in the interval)"]
 
 
 def _spray_lines(scene, inj) -> list[str]:

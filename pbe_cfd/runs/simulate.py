@@ -9,6 +9,7 @@ import numpy as np
 from . import model
 from ..physics.injection import droplet_liquid
 from ..scene import spray
+from .air import bed_air
 from .batch import CellBatch, SimulationError, check_physics, output_times
 from .problem import problem_of
 from ..methods.registry import method_of
@@ -46,6 +47,8 @@ def run_well_mixed(scene, progress=None) -> RunResult:
     states = np.zeros((len(times), problem.states.shape[1]))
     states[0] = problem.states[0]
     batch = CellBatch.for_problem(problem)
+    if scene.drying is not None:
+        batch.air = bed_air(scene, arrays, [scene.drying.bed_volume or 1.0])
     compile_s = batch.compile_announced(progress)
     start += compile_s                      # the run time excludes the compile
     for k in range(1, len(times)):
@@ -62,6 +65,8 @@ def run_well_mixed(scene, progress=None) -> RunResult:
         columns["liquid_sprayed"] = (np.array([spray.injected(inj, t) for t in times])
                                      * float(droplet_liquid(arrays.params))
                                      if inj is not None else np.zeros(len(times)))
+        if batch.air is not None:
+            columns.update(batch.air.columns(times))
     run_stats = batch.stats()
     extra, notes = method.diagnostics(states, aux, arrays)
     run_stats.update(extra)

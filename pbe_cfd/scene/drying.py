@@ -1,19 +1,41 @@
 """The [drying] table of a scene (docs/physics.md section 15): the fluidising air and the
-drying curve of the granules. Absent: nothing evaporates."""
+drying curve of the granules. Absent: nothing evaporates.
+
+The bed's air balance (``air_balance``, ``physics.air``): "none" (every granule sees the inlet
+air, as an isolated granule would), "well-mixed" or "plug-flow" (the dry-air flow carries the
+evaporated water away and the granules see the bed's humidity). The flow is ``air_mass_flow``
+[kg dry air / s], or ``superficial_velocity`` [m/s] times the bed's cross section (``bed_area``
+[m2], by default an OpenFOAM domain's volume over its height) times the inlet air's dry-air
+density; without either an OpenFOAM domain takes the superficial velocity of its case's gas
+inlet. A well-mixed domain stands for ``bed_volume`` [m3] of bed.
+"""
 from dataclasses import dataclass
+
+#: gas mixing of the bed's air balance; "none": the inlet air everywhere
+AIR_BALANCES = ("none", "well-mixed", "plug-flow")
 
 
 @dataclass(frozen=True)
 class Drying:
     """Drying of the liquid binder: air_temperature [K], air_humidity [kg water / kg dry air],
     pressure [Pa], slip_velocity [m/s] (gas-particle, for the Ranz-Marshall Sherwood number),
-    critical_moisture X_cr and equilibrium_moisture X_eq [kg liquid / kg dry solids]."""
+    critical_moisture X_cr and equilibrium_moisture X_eq [kg liquid / kg dry solids]; the
+    bed's air balance (module docstring): air_balance, air_mass_flow [kg/s],
+    superficial_velocity [m/s], bed_area [m2], bed_volume [m3] (None: not given), and
+    air_interval [s], the longest time over which the bed's humidity is held (it is updated
+    from the evaporation of the interval before)."""
     air_temperature: float
     air_humidity: float
     slip_velocity: float
     critical_moisture: float
     pressure: float = 101325.0
     equilibrium_moisture: float = 0.0
+    air_balance: str = "none"
+    air_mass_flow: float | None = None
+    superficial_velocity: float | None = None
+    bed_area: float | None = None
+    bed_volume: float | None = None
+    air_interval: float = 0.25
 
 
 def parse_drying(path, data, table, error):
@@ -30,8 +52,19 @@ def parse_drying(path, data, table, error):
                                    unit="kg liquid per kg dry solids"),
         pressure=t.number("pressure", 101325.0, positive=True, unit="Pa"),
         equilibrium_moisture=t.number("equilibrium_moisture", 0.0, non_negative=True,
-                                      unit="kg liquid per kg dry solids"))
+                                      unit="kg liquid per kg dry solids"),
+        air_balance=t.choice("air_balance", AIR_BALANCES, "none"),
+        air_mass_flow=t.number("air_mass_flow", None, positive=True, unit="kg dry air/s"),
+        superficial_velocity=t.number("superficial_velocity", None, positive=True,
+                                      unit="m/s"),
+        bed_area=t.number("bed_area", None, positive=True, unit="m2"),
+        bed_volume=t.number("bed_volume", None, positive=True, unit="m3"),
+        air_interval=t.number("air_interval", 0.25, positive=True, unit="s"))
     t.finish()
+    if values["air_mass_flow"] is not None and values["superficial_velocity"] is not None:
+        raise error(path, "drying.superficial_velocity",
+                    "give either air_mass_flow or superficial_velocity (with bed_area), not "
+                    "both")
     if not values["equilibrium_moisture"] < values["critical_moisture"]:
         raise error(path, "drying.equilibrium_moisture",
                     f"expected below critical_moisture ({values['critical_moisture']:g}), got "
@@ -53,10 +86,36 @@ def drying_refusals(scene, methods):
     if not scene.bivariate or scene.material.binder_density is None:
         return [("drying", "nothing to dry: expected a liquid binder ([binder_injection] or "
                            "initial.binder_fraction > 0) and material.binder_density (kg/m3)")]
+    air = _air_refusals(scene)
+    if air:
+        return air
     inj = scene.binder_injection
     if inj is not None and not scene.separate_droplets and inj.solids_fraction == 0.0:
         return [("binder_injection.solids_fraction",
                  "pure-liquid droplets among the particles would dry to particles of no mass: "
                  "expected solids_fraction > 0, or [aggregation] droplet_factor (droplets a "
                  "population of their own)")]
+    return []
+
+
+def _air_refusals(scene):
+    """[(key, refusal)] of the bed's air balance: what fixes the air flow and the bed."""
+    dry = scene.drying
+    if dry.air_balance == "none":
+        return []
+    if scene.coupling is not None:
+        return [("drying.air_balance", "the two-way coupling's segments run each at the inlet "
+                                       "air: expected air_balance = \"none\" with [coupling]")]
+    well_mixed = scene.domain.type == "well-mixed"
+    if well_mixed and dry.bed_volume is None:
+        return [("drying.bed_volume", f"air_balance = {dry.air_balance!r} in a well-mixed "
+                                      "domain: expected the bed volume (m3) the cell stands for")]
+    if not well_mixed and dry.bed_volume is not None:
+        return [("drying.bed_volume", "an OpenFOAM domain's bed is its cells: expected no "
+                                      "bed_volume")]
+    if dry.air_mass_flow is None and well_mixed and (dry.superficial_velocity is None
+                                                     or dry.bed_area is None):
+        return [("drying.air_mass_flow", "a well-mixed domain has no gas inlet: expected "
+                                         "air_mass_flow (kg/s), or superficial_velocity (m/s) "
+                                         "with bed_area (m2)")]
     return []

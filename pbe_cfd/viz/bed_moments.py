@@ -38,6 +38,14 @@ BED_PANELS = (
     ("mean diameters", ("d32_m", "d43_m"), "m"),
     ("binder fraction", ("binder_fraction",), "-"),
     ("granule and binder mass in the whole bed", ("bed_mass_kg", "bed_binder_mass_kg"), "kg"),
+    ("liquid in the whole bed", ("liquid_sprayed_kg", "liquid_granules_kg",
+                                 "liquid_droplets_kg", "liquid_evaporated_kg"), "kg"),
+    ("binder solids in the whole bed", ("solids_sprayed_kg", "solids_held_kg"), "kg"),
+    ("moisture content (liquid / dry mass)", ("moisture_content",), "-"),
+    ("evaporation rate of the bed", ("evaporation_rate_kg_s",), "kg/s"),
+    ("driving force Y_s(T_wb) - Y", ("air_driving_force",), "kg/kg"),
+    ("outlet air humidity", ("outlet_humidity",), "kg/kg"),
+    ("outlet air temperature", ("outlet_temperature_K",), "K"),
 )
 
 

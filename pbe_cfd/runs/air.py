@@ -1,0 +1,191 @@
+"""The bed's air balance of a run (docs/physics.md section 15, "The bed's air"; the physics in
+``physics.air``): the fluidising air's flow, and the bed humidity the granules dry against.
+
+Coupling and lag. The drying rate of every granule is linear in the driving force, which the
+packed ``params[DRY_DRIVING]`` carries for every cell at once, so the bed couples its cells
+through one number: the bed's conductance K = E / dY_eff [kg/s]. The per-cell integration runs
+in pieces of at most ``air_interval``; each piece runs at the driving force dY_eff(K) of the
+conductance measured over the piece before (the evaporated liquid it added, exact for that
+piece's mean since the rate is linear in dY), and the first piece's K is probed on a copy of
+the states over 1% of it. The lag is one piece: first order in the interval (measured in
+docs/results/batch.md); a constant K (constant-rate drying of a fixed population) is exact.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..physics import air as air_physics
+from ..physics import parameters as P
+from ..physics.drying import gas_state
+from ..scene.scene import SceneError
+
+#: share of the first piece over which the bed's conductance is probed
+PROBE_SHARE = 0.01
+
+
+@dataclass
+class BedAir:
+    """The bed's air over a run: ``volumes`` [m3] each batch row stands for, dry-air ``flow``
+    G [kg/s], ``inlet_driving`` dY_in = Y_s(T_wb) - Y_in [kg/kg], ``unit_driving`` D_v rho_g
+    [kg/(m s)] (params[DRY_DRIVING] = unit_driving x dY), ``mixing`` (``physics.air.MIXING``),
+    ``interval`` [s], the state entry of the evaporated liquid and its scale [kg/m3 per scaled
+    unit]; the inlet air (temperature [K], humidity [kg/kg], wet bulb [K]) for the outlet's.
+    ``pieces`` records (t_end [s], E [kg/s], dY_eff [kg/kg]) of every piece run."""
+    volumes: np.ndarray
+    flow: float
+    inlet_driving: float
+    unit_driving: float
+    mixing: str
+    interval: float
+    evaporated_index: int
+    scale: float
+    inlet_temperature: float
+    inlet_humidity: float
+    wet_bulb: float
+    conductance: float = math.nan
+    pieces: list = field(default_factory=list)
+
+    def evaporated(self, states) -> float:
+        """Liquid evaporated so far in the whole bed [kg]."""
+        return float(np.dot(self.volumes, states[:, self.evaporated_index]) * self.scale)
+
+    def advance(self, batch, states, t0, t1, run):
+        """Run ``run(states, a, b)`` (the batch's per-cell integration) over [t0, t1] [s] in
+        pieces of at most ``interval``, each at the bed's driving force (module docstring)."""
+        n = max(1, math.ceil((t1 - t0) / self.interval * (1.0 - 1e-12)))
+        for k in range(n):
+            a = t0 + (t1 - t0) * k / n
+            b = t1 if k == n - 1 else t0 + (t1 - t0) * (k + 1) / n
+            if math.isnan(self.conductance):
+                self._probe(batch, states, a, a + PROBE_SHARE * (b - a))
+            driving = air_physics.effective_driving(self.conductance, self.flow,
+                                                    self.inlet_driving, self.mixing)
+            batch.params[P.DRY_DRIVING] = self.unit_driving * driving
+            before = self.evaporated(states)
+            run(states, a, b)
+            rate = (self.evaporated(states) - before) / (b - a)
+            self.conductance = rate / driving if driving > 0.0 else 0.0
+            self.pieces.append((b, rate, driving))
+
+    def _probe(self, batch, states, a, b):
+        """The bed's conductance at time a [s]: a copy of the states run at the inlet's
+        driving force from a to b [s]."""
+        batch.params[P.DRY_DRIVING] = self.unit_driving * self.inlet_driving
+        trial = states.copy()
+        before = self.evaporated(trial)
+        batch.probe(trial, a, b)
+        self.conductance = ((self.evaporated(trial) - before) / (b - a) / self.inlet_driving
+                            if self.inlet_driving > 0.0 else 0.0)
+
+    def columns(self, times) -> dict:
+        """Per output time [s]: the bed's evaporation rate [kg/s], the driving force its
+        granules see [kg/kg], the outlet air's humidity [kg/kg dry air] and temperature [K]
+        (of the piece that ended there; time 0: the first piece's)."""
+        ends = np.array([p[0] for p in self.pieces])
+        out = {k: np.zeros(len(times)) for k in ("evaporation_rate_kg_s", "air_driving_force",
+                                                 "outlet_humidity", "outlet_temperature_K")}
+        for r, t in enumerate(times):
+            if not self.pieces:
+                rate, driving = 0.0, self.inlet_driving
+            else:
+                k = int(np.searchsorted(ends, t - 1e-9 * max(t, 1.0)))
+                _, rate, driving = self.pieces[min(k, len(self.pieces) - 1)]
+            y, temp = air_physics.outlet_air(rate, self.flow, self.inlet_temperature,
+                                             self.inlet_humidity, self.wet_bulb)
+            out["evaporation_rate_kg_s"][r] = rate
+            out["air_driving_force"][r] = driving
+            out["outlet_humidity"][r] = y
+            out["outlet_temperature_K"][r] = temp
+        return out
+
+
+def air_flow(scene, area=None, inlet_velocity=None) -> float:
+    """The dry-air mass flow G [kg/s] of the scene's [drying] table: ``air_mass_flow``, else
+    the superficial velocity (the table's, else ``inlet_velocity`` [m/s], the case's gas
+    inlet) times the cross section (``bed_area``, else ``area`` [m2], the domain's) times the
+    inlet air's dry-air density."""
+    dry = scene.drying
+    if dry.air_mass_flow is not None:
+        return dry.air_mass_flow
+    velocity = dry.superficial_velocity if dry.superficial_velocity is not None \
+        else inlet_velocity
+    section = dry.bed_area if dry.bed_area is not None else area
+    if velocity is None:
+        raise SceneError(scene.source, "drying.superficial_velocity",
+                         "the case's gas inlet velocity could not be read: expected "
+                         "superficial_velocity (m/s) or air_mass_flow (kg/s)")
+    if section is None:
+        raise SceneError(scene.source, "drying.bed_area",
+                         "expected the bed's cross section (m2) or air_mass_flow (kg/s)")
+    return air_physics.dry_air_flow(velocity, section, dry.air_temperature, dry.air_humidity,
+                                    dry.pressure)
+
+
+def bed_air(scene, arrays, volumes, area=None, inlet_velocity=None) -> BedAir | None:
+    """The ``BedAir`` of a scene whose [drying] table has an air balance (None without):
+    ``volumes`` [m3] of the batch rows; ``area`` [m2] and ``inlet_velocity`` [m/s] of the
+    domain where the table gives neither (``air_flow``)."""
+    dry = scene.drying
+    if dry is None or dry.air_balance == "none":
+        return None
+    rho, _, diffusivity, t_wb, driving = gas_state(dry.air_temperature, dry.air_humidity,
+                                                   dry.pressure)
+    return BedAir(volumes=np.asarray(volumes, dtype=float),
+                  flow=air_flow(scene, area, inlet_velocity), inlet_driving=driving,
+                  unit_driving=diffusivity * rho, mixing=dry.air_balance,
+                  interval=dry.air_interval,
+                  evaporated_index=arrays.state_names.index("evaporated_liquid"),
+                  scale=arrays.number_scale * arrays.mass_scale,
+                  inlet_temperature=dry.air_temperature, inlet_humidity=dry.air_humidity,
+                  wet_bulb=t_wb)
+
+
+def domain_section(cells) -> float:
+    """Cross section [m2] of an OpenFOAM domain layered in y (the bundled case's gravity
+    direction): its volume over its height, the height from the distinct cell-centre levels
+    (exact for a mesh uniform in y)."""
+    y = np.unique(np.round(np.asarray(cells.cell_centre, dtype=float)[:, 1], 12))
+    if y.size < 2:
+        raise ValueError("one layer of cells: expected [drying] bed_area")
+    height = (y[-1] - y[0]) * y.size / (y.size - 1)
+    return float(np.sum(cells.cell_volume)) / height
+
+
+def coupled_air(scene, arrays, cells, idx, executor=None) -> BedAir | None:
+    """The ``BedAir`` of a coupled run over the active cells ``idx`` of ``cells`` (None
+    without an air balance): the cross section of the domain, the superficial velocity of the
+    case's gas inlet (the template's for the bundled snapshot) where the table gives neither.
+    The bed's humidity is one number updated between the per-cell integrations, so the
+    cells must run in this process (``executor``: None or a ``SerialExecutor``)."""
+    dry = scene.drying
+    if dry is None or dry.air_balance == "none":
+        return None
+    from .executor import SerialExecutor
+    if executor is not None and not isinstance(executor, SerialExecutor):
+        raise SceneError(scene.source, "drying.air_balance",
+                         "the bed's air balance couples every cell between the per-cell "
+                         "integrations: expected a run in this process (no --cluster), or "
+                         "air_balance = \"none\"")
+    velocity = None
+    if dry.air_mass_flow is None and dry.superficial_velocity is None:
+        velocity = case_inlet_velocity(scene)
+    area = None
+    if dry.air_mass_flow is None and dry.bed_area is None:
+        area = domain_section(cells)
+    volumes = np.asarray(cells.cell_volume, dtype=float)[idx]
+    return bed_air(scene, arrays, volumes, area=area, inlet_velocity=velocity)
+
+
+def case_inlet_velocity(scene):
+    """Superficial velocity [m/s] of the gas inlet of the scene's case (the case template's
+    for the bundled snapshot), or None where it cannot be read."""
+    from ..io import openfoam as of
+    from ..io.openfoam import rerun
+    from .domain import case_path
+    case = case_path(scene)
+    if case is None or not case.is_dir():
+        case = of.default_case_dir()
+    return rerun.fluidisation_inputs(case, scene.domain.phase)["inlet_velocity"]
