@@ -25,6 +25,12 @@ COMPILED = ("__init__.py", "physics/", "methods/", "integrate/", "distribution/"
             "bench/breakdown.py", "bench/sweeps.py")
 
 
+def _compiled_sources(root: Path) -> list[Path]:
+    """The package's .py files that can change compiled code (those under COMPILED)."""
+    from .util.kernel_cache import compiled_sources
+    return compiled_sources(root, COMPILED)
+
+
 def _source_hash() -> str:
     from .util.kernel_cache import source_hash
     return source_hash(Path(__file__).resolve().parent, COMPILED)
