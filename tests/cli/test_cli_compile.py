@@ -4,6 +4,7 @@ integration kernel (a kernel of another type, integrator or method would be a ne
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -27,8 +28,10 @@ print(json.dumps({"compiled": compiled, "after": sorted(str(s) for s in kernel.s
 
 @pytest.mark.slow
 def test_compile_builds_the_one_kernel_that_run_and_couple_then_use(tmp_path):
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)}   # this checkout's code
     proc = subprocess.run([sys.executable, "-c", PROBE, str(tmp_path)], cwd=tmp_path,
-                          capture_output=True, text=True, timeout=1800)
+                          capture_output=True, text=True, timeout=1800, env=env)
     assert proc.returncode == 0, proc.stderr[-3000:]
     seen = json.loads(proc.stdout.strip().splitlines()[-1])
     assert len(seen["compiled"]) == 1
