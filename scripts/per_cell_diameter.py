@@ -50,7 +50,7 @@ def spread(out_dir) -> list[dict]:
         if not ok.any():
             continue
         p10, p50, p90 = _weighted_quantiles(d32[ok], mass[ok], [0.1, 0.5, 0.9])
-        t = float(grid.field_data["time_s"][0]) if "time_s" in grid.field_data else np.nan
+        t = float(grid.field_data["TimeValue"][0]) if "TimeValue" in grid.field_data else np.nan
         rows.append({"file": f.name, "time_s": t, "d32_p10_m": p10, "d32_p50_m": p50,
                      "d32_p90_m": p90, "p90_over_p10": p90 / p10, "cells": int(ok.sum())})
     return rows
