@@ -240,13 +240,15 @@ def run_on_workers(ex, part, batch, times, transport, shared, threads, progress)
     the history (states at every output time) and updates ``batch`` like the serial run."""
     states, steps, stats, status, reached = (batch.states, batch.steps, batch.stats_counts,
                                              batch.status, batch.reached)
-    history, k0 = [states.copy()], 0
+    from ...io.spool import Spool
+    history, k0 = Spool(), 0
+    history.append(states)
     store = ex.store
     if store is not None and ex.resume:
-        for k in store.stored_steps():
-            if k < len(times):
-                history.append(store.load_step(k)["states"].copy())
-                k0 = k
+        stored = [k for k in store.stored_steps() if k < len(times)]
+        k0 = max(stored, default=0)
+        for k in stored:
+            history.append(store.load_step(k)["states"])
         if k0 > 0:
             z = store.load_step(k0)
             for name, arr in (("states", states), ("steps", steps), ("stats", stats),
@@ -256,7 +258,6 @@ def run_on_workers(ex, part, batch, times, transport, shared, threads, progress)
                 batch.smoothed[...] = z["smoothed"]
             transport._count["repaired_cells"] = int(z.get("repaired", 0))
             transport._count["repair_max_rel_change"] = float(z.get("repair_max", 0.0))
-        history = history[:k0 + 1]
     run = HaloRun(ex, part, batch, times, transport, shared, threads)
     base_repaired = transport._count["repaired_cells"]
     try:
@@ -272,7 +273,7 @@ def run_on_workers(ex, part, batch, times, transport, shared, threads, progress)
                         + [float(b["repair_max"]) for b in blocks])
             transport._count["repaired_cells"] = repaired
             transport._count["repair_max_rel_change"] = worst
-            history.append(states.copy())
+            history.append(states)
             if store is not None:
                 store.save_step(k, {"states": states, "steps": steps, "stats": stats,
                                     "status": status, "reached": reached,
