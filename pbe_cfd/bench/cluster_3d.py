@@ -47,12 +47,14 @@ def _child(spec: dict) -> dict:
     if spec["workers"]:
         from ..runs import distributed as D
         client, cluster = D.start_local_cluster(spec["workers"])
-        chunks = spec["workers"] if spec["transport"] else None
+        chunks = spec.get("blocks") or spec["workers"] if spec["transport"] else None
+        halo = spec.get("halo_substeps")
         # warm-up: every worker loads the numba kernels (from the cache) before the timing
         warm = dataclasses.replace(scene, end_time=min(0.1, spec["end_time"]),
                                    output_interval=min(0.1, spec["end_time"]))
-        run_coupled(warm, domain, executor=D.ClusterExecutor(client=client, chunks=chunks))
-        executor = D.ClusterExecutor(client=client, chunks=chunks)
+        run_coupled(warm, domain, executor=D.ClusterExecutor(client=client, chunks=chunks,
+                                                             halo_substeps=halo))
+        executor = D.ClusterExecutor(client=client, chunks=chunks, halo_substeps=halo)
     t0 = time.perf_counter()
     try:
         res = run_coupled(scene, domain, executor=executor)
@@ -79,6 +81,11 @@ def _child(spec: dict) -> dict:
             "client_sent_bytes_per_split_step": tr.get("client_sent_bytes_per_split_step"),
             "gathered_bytes_per_output_time": tr.get("gathered_bytes_per_output_time"),
             "halo_cells": tr.get("halo_cells"), "halo_depth": tr.get("halo_depth_substeps"),
+            "substeps_per_part": tr.get("substeps_per_part"),
+            "block_compute_s": tr.get("block_compute_s"),
+            "phases": {k: float(v) for k, v in res.phases.items()},
+            "transport_wall_s": res.stats.get("transport", {}).get("transport_wall_s"),
+            "source_wall_s": res.stats.get("transport", {}).get("source_wall_s"),
             "halo_bytes_per_transport_part": tr.get("halo_bytes_per_transport_part"),
             "substeps_per_split_step": res.stats.get("transport", {}).get(
                 "substeps_per_split_step"),
