@@ -166,13 +166,17 @@ def _write_csv(path, runs):
 
 
 def multi_machine_model(runs, n_cells=1e7, sim_time=1800.0, split_step=0.25,
-                        network=NETWORK_BYTES_PER_S, hop=TASK_HOP_S) -> dict:
+                        network=NETWORK_BYTES_PER_S, hop=TASK_HOP_S,
+                        per_exchange=None) -> dict:
     """Machines for ``n_cells`` over ``sim_time`` [s] of process to finish in an hour, from
     the largest measured transport runs: the serial rate per machine [cell-steps/s], the
     accepted steps per cell per process second, the halo (cells, depth in substeps) per block
     boundary scaled to the bed of ``n_cells`` (section ~ n^(2/3), substeps ~ 1/cell size),
     ``network`` [bytes/s] and ``hop`` [s] per dependent task hop (4 per split step: two
-    transport parts, each a halo hop and a block task). An estimate, not a measurement."""
+    transport parts, each a halo hop and a block task, per exchange round). ``per_exchange``:
+    substeps per halo exchange (None: one exchange per transport part); the bytes are the
+    same either way (k layers of the cut per part), the rounds, and so the hops, are
+    k / per_exchange. An estimate, not a measurement."""
     tr = [r for r in runs if r["transport"]]
     if not tr:
         return {}
@@ -182,12 +186,18 @@ def multi_machine_model(runs, n_cells=1e7, sim_time=1800.0, split_step=0.25,
     rate = ser["cell_steps_per_s"]
     steps_per_cell_s = ser["accepted_steps"] / ser["active_cells"] / ser["end_time"]
     scale = (n_cells / n_meas) ** (1.0 / 3.0)
-    halo_one = (two["halo_cells"][0] if two.get("halo_cells") else 0) * scale ** 2 * scale
+    depth = two.get("halo_depth") or 1
+    k_meas = two.get("substeps_per_part") or depth
+    # the measured halo per boundary is `depth` layers; a part moves k layers of the cut
+    halo_one = ((two["halo_cells"][0] if two.get("halo_cells") else 0) * k_meas / depth
+                * scale ** 2 * scale)
+    k_big = k_meas * scale
+    rounds = 1 if per_exchange is None else math.ceil(k_big / per_exchange)
     n_state = two["halo_bytes_per_transport_part"] / max(1, sum(two["halo_cells"])) / 8
     bytes_split = 2 * 2 * halo_one * n_state * 8   # 2 sides, 2 transport parts
     compute = n_cells * sim_time * steps_per_cell_s / rate
     n_split = sim_time / split_step
-    comm = n_split * (bytes_split / network + 4 * hop)
+    comm = n_split * (bytes_split / network + 4 * rounds * hop)
     machines = None
     for m in range(1, 4097):
         if compute / m + comm <= 3600.0:
@@ -198,6 +208,7 @@ def multi_machine_model(runs, n_cells=1e7, sim_time=1800.0, split_step=0.25,
             "halo_bytes_per_split_step_per_boundary": bytes_split,
             "compute_s_one_machine": compute, "comm_s": comm, "machines_for_1_h": machines,
             "network_bytes_per_s": network, "task_hop_s": hop,
+            "substeps_per_part": k_big, "exchange_rounds_per_part": rounds,
             "measured_at_active_cells": n_meas}
 
 
