@@ -13,7 +13,7 @@ import numba as nb
 from ...physics import parameters as P
 from .layout import (AUX_FOLLOWING, AUX_MASS_SCALE, AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_NWL,
                      AUX_OFF_F43, AUX_OFF_F43D, AUX_OFF_LOGU, AUX_OFF_LOGW, AUX_ORDER,
-                     weight_corner)
+                     N_CORNERS, weight_corner)
 
 __all__ = ["laguerre_d43"]
 
@@ -60,14 +60,14 @@ def _weight_position(state, aux, m):
     class's mean mass W10/W00 and mean binder W01/W00 [kg] on the weight grid (following
     support: the mass-weighted mean mass W20 / W10 [kg], the binder fraction W01 / W10 [-]
     and the carried gamma shape W10^2 / (W00 W20 - W10^2) [-], all in logs; the shape index
-    is (0, 0.0) without a shape axis)."""
+    is (-1, 0.0) without a shape axis, which ``weight_corner`` reads as bilinear)."""
     nwc = int(aux[AUX_NWC])
     nwd = int(aux[AUX_NWD])
     if nwc * nwd <= 1 or not (state[0] > 0.0) or not (state[m] > 0.0):
         return 0, 0.0, 0, 0.0, 0, 0.0
     o = int(aux[AUX_OFF_LOGW])
     pref = aux[AUX_MASS_SCALE]
-    il, tl = 0, 0.0
+    il, tl = (0, 0.0) if int(aux[AUX_NWL]) > 1 else (-1, 0.0)
     if aux[AUX_FOLLOWING] == 1.0:          # mass-weighted mean mass W20 / W10
         if not (state[2 * m] > 0.0):
             return 0, 0.0, 0, 0.0, 0, 0.0
@@ -102,7 +102,7 @@ def laguerre_d43(state, aux, params, config):
     nwc = int(aux[AUX_NWC])
     nwd = int(aux[AUX_NWD])
     m43 = 0.0
-    for q in range(8):
+    for q in range(N_CORNERS):
         w, f = weight_corner(q, wpos, nwc, nwd)
         if f == 0.0:
             continue

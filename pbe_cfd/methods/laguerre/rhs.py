@@ -41,7 +41,7 @@ from .drying import add_linear_terms
 from .layout import (AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_OFF_CAPMAP, AUX_OFF_CD,
                      AUX_OFF_CD0, AUX_OFF_CDD, AUX_OFF_Q, AUX_OFF_QDD, AUX_OFF_X, AUX_OFF_XL,
                      AUX_ORDER, AUX_SEPARATE, _corner, state_names, state_size,  # noqa: F401
-                     weight_corner)
+                     N_CORNERS, weight_corner)
 from .moments import (moments_from_state, reconstruct, reconstruct_dry,  # noqa: F401
                       reconstructed_moment, support_share)
 from .position import (_log_position, _slice_position, _weight_position,  # noqa: F401
@@ -157,7 +157,7 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
                                      mult * ws * nd)
         if not wet:
             continue
-        for q in range(8):
+        for q in range(N_CORNERS):
             w, fw = weight_corner(q, wpos, nwc, nwd)
             f = ws * fw
             if f == 0.0:

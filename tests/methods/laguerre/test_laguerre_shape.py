@@ -4,7 +4,7 @@ section 9.2, ``[method] following_shape``, on by default with the following supp
 Checked without running a case: the shape read from the carried moments, the closure of a
 gamma population whose weight matches it (m = 3: the expansion is then the gamma itself, so
 the reconstruction's M30 is the gamma's), and that M10 and M01 stay exact while the RHS blends
-the eight corners in (c_m, y, lambda).
+the four corners of the simplex in (c_m, y, lambda) that holds the state.
 """
 import math
 
@@ -117,9 +117,10 @@ def test_the_closure_of_a_matching_gamma_is_the_gamma(built, k_index):
     assert got == pytest.approx(mom(3, 0), rel=0.01 + tail, abs=0), (k, got / mom(3, 0))
 
 
-def test_mass_and_binder_rates_are_exactly_zero_over_eight_corners(built):
+def test_mass_and_binder_rates_are_exactly_zero_over_a_full_simplex(built):
     """No droplets, no injection: the RHS's M10 and M01 rows are 0.0 for a state whose blend
-    has eight corners (aggregation rows D_a = 0 for i + j = 1, breakage F(1) = 1)."""
+    has all four corners of its simplex, each on another shape, mass and binder slice
+    (aggregation rows D_a = 0 for i + j = 1, breakage F(1) = 1)."""
     sc, arrays, aux = built
     cg, yg, lg = grids(aux)
     state = LT.scene_initial_state(sc, arrays, gamma_moments(N0, math.sqrt(lg[2] * lg[3]),
@@ -127,7 +128,7 @@ def test_mass_and_binder_rates_are_exactly_zero_over_eight_corners(built):
     state[1] *= 1.3                      # binder fraction between two grid points as well
     state[4] *= 1.3
     state[7] *= 1.3
-    assert len(weight_corners(state, aux)) == 8
+    assert len(weight_corners(state, aux)) == 4
     out = np.zeros_like(state)
     L.laguerre_rhs(state, out, np.zeros(P.N_CELL), aux, arrays.params, arrays.config)
     assert out[0] < 0.0 and out[6] != 0.0           # the other moments do move
