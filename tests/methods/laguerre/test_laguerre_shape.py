@@ -15,7 +15,8 @@ from scipy.special import gammaincc, gammaln
 from pbe_cfd.methods.laguerre import rhs as L
 from pbe_cfd.methods.laguerre import tensor as LT
 from pbe_cfd.methods.laguerre.layout import (AUX_NWC, AUX_NWD, AUX_NWL, AUX_OFF_LOGW,
-                                             carried_shape, weight_corners)
+                                             N_CORNERS, carried_shape, weight_corner,
+                                             weight_corners)
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.runs import model
 
@@ -146,3 +147,33 @@ def test_the_following_support_defaults_the_dry_shape_to_2():
     assert make_scene(method=set10).method.options.dry_weight_shape_mass == 10.0
     fixed = {"name": "laguerre", "order": 3, "_replace": True}
     assert make_scene(method=fixed).method.options.dry_weight_shape_mass == 10.0
+
+
+def test_the_simplex_blend_is_exact_for_linear_functions():
+    """weight_corner with a shape axis: four non-negative weights summing to one whose blend
+    of the corners' grid coordinates is the point itself (exact for any function linear in
+    the three logs), on random points, ties and faces; without it (il = -1) the bilinear
+    weights (1 - t or t per axis, multiplied)."""
+    rng = np.random.default_rng(26)
+    nwc, nwd, nwl = 7, 5, 6
+    for trial in range(500):
+        ic, jd, il = (int(x) for x in rng.integers(0, (nwc - 1, nwd - 1, nwl - 1)))
+        tc, td, tl = rng.random(3)
+        if trial % 5 == 0:
+            tl = 0.0                      # on a grid shape: a face of the cell
+        if trial % 7 == 0:
+            td = tc                       # a tie
+        total, point = 0.0, np.zeros(3)
+        for q in range(N_CORNERS):
+            w, f = weight_corner(q, (ic, tc, jd, td, il, tl), nwc, nwd)
+            assert f >= 0.0
+            g, rest = divmod(w, nwc * nwd)
+            total += f
+            point += f * np.array([rest // nwd, rest % nwd, g])
+        assert total == pytest.approx(1.0, rel=0, abs=4e-16)
+        assert np.allclose(point, [ic + tc, jd + td, il + tl], rtol=0, atol=1e-13)
+        bilinear = {(ic + a) * nwd + jd + b: (tc if a else 1 - tc) * (td if b else 1 - td)
+                    for a in (0, 1) for b in (0, 1)}
+        for q in range(N_CORNERS):
+            w, f = weight_corner(q, (ic, tc, jd, td, -1, 0.0), nwc, nwd)
+            assert f == bilinear[w]
