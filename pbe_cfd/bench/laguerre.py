@@ -18,7 +18,8 @@ from ..physics import parameters as P
 from .common import (LAGUERRE_STUDY, _git_describe, _machine_line, _say, _write_simple,
                      machine_info)
 from .sweeps import rhs_sweep
-from .throughput import cell_states, measure_rhs_rate, synthetic_cells, throughput_case
+from .throughput import (cell_states, measure_rhs_rate, synthetic_cells, throughput_case,
+                         throughput_scene, trajectory_states)
 
 #: the weight variants whose cost per RHS the study compares: (label, [method] keys)
 WEIGHT_VARIANTS = (("adaptive weights (default)", {}),
@@ -34,13 +35,15 @@ def weight_variant_costs(n_cells=2000, rounds=3, target_evals=100_000, order=3):
     median over rounds with each variant's ratio to the first."""
     from ..methods.registry import METHODS
     nb.set_num_threads(1)
-    base = throughput_case(LAGUERRE_STUDY, order)
     entry = METHODS[LAGUERRE_STUDY]
+    scene = throughput_scene(LAGUERRE_STUDY, order)
+    arrays = model.pack(scene)
     cells = synthetic_cells(n_cells, seed=0)
-    states = cell_states(base.trajectory, n_cells, seed=1)
+    states = cell_states(trajectory_states(scene, arrays, entry.aux(scene, arrays, None)),
+                         n_cells, seed=1)
     cases = []
     for label, keys in WEIGHT_VARIANTS:
-        sc = base.scene.with_method(**keys)
+        sc = scene.with_method(**keys)
         arrays = model.pack(sc)
         cases.append((label, arrays, entry.aux(sc, arrays, None)))
     reps = max(1, int(round(target_evals / n_cells)))
