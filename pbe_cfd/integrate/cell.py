@@ -456,7 +456,7 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
         return NOT_FINITE, t_start
     floor = local[P.STEP_FLOOR]
     t, taken, have_jac = t_start, 0, False
-    loc, switched_at = location_memory(saved)   # locating a Stokes switching time
+    loc = location_memory()           # locating a Stokes switching time
     cap = np.zeros(N_CAP, dtype=np.int64)   # what buf[GCOL] holds (CAP_* below)
     # the step proposed after this call's first accepted step [s]; whether that step was
     # rejected first or accepted with little margin
@@ -477,8 +477,7 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
         crossed = hold and outcome == ACCEPT and local[P.STOKES_CROSSED] != 0.0
         if crossed:
             outcome, err = located(method, t, state, h_try, buf, cell, aux, local, config,
-                                   work, rtol, atol, n, stats, saved, switched_at, loc,
-                                   outcome, err)
+                                   work, rtol, atol, n, stats, saved, loc, outcome, err)
         if outcome == ACCEPT:
             t = t_end if last else t + h_try
             for i in range(n):

@@ -6,11 +6,9 @@ property rows crosses St = St*. The integrator hands the rates a per-cell copy o
 with the switch memory of physics.parameters.HELD (``held_params``): each pair's decision is
 held as first evaluated until ``release``, so every step integrates smooth rates; a stage
 whose own decision differs sets STOKES_CROSSED. A step across a switch is kept if it locates
-the switching time closely enough (``located``; bisection of its bracket: ``locate_next``), or
-as it is where every pair that switched in it switched within the last N_SLIDE steps (that
-pair slides along its St = St*); the cell then restarts from its end with the decisions
-released. Sliding is recognised per pair: a different pair that switches shortly after one
-is located like any other switch.
+the switching time closely enough (``located``; bisection of its bracket: ``locate_next``),
+within N_SLIDE steps of the last switch (sliding) as it is; the cell then restarts from its
+end with the decisions released.
 """
 import math
 
@@ -72,68 +70,38 @@ def _switch_defect(method, state, h, buf, cell, aux, local, config, work, rtol, 
 # location memory of one cell's Stokes switch (float array of N_LOC)
 LOC_T_HI = 0             # end of the last step that crossed unlocated [s] (inf: none)
 LOC_H_NEED = 1           # crossing steps up to this long are kept [s] (0: not locating)
-LOC_STEP = 2             # accepted steps of the call so far
+LOC_SINCE = 2            # accepted steps since the last kept crossing
 N_LOC = 3
 
 
 @nb.njit(cache=True)
-def location_memory(saved):
-    """A cell's fresh location memory (LOC_*: no bracket, not locating) and, per held pair
-    (the slots of ``saved``, ``held_params``), the accepted step at which it last switched
-    (none yet: -inf)."""
+def location_memory():
+    """A cell's fresh location memory (LOC_*): no bracket, not locating, no recent switch."""
     loc = np.empty(N_LOC)
     loc[LOC_T_HI] = math.inf
     loc[LOC_H_NEED] = 0.0
-    loc[LOC_STEP] = 0.0
-    switched_at = np.full(saved.shape[0], -math.inf)
-    return loc, switched_at
-
-
-@nb.njit(cache=True)
-def _sliding(local, saved, switched_at, step):
-    """True if every pair whose decision at the step's end (``local``, after
-    ``_switch_defect``) differs from the held one (``saved``) switched within the last
-    N_SLIDE accepted steps (before ``step``): the trajectory slides along those pairs'
-    St = St*. False where no pair differs (the crossing happened within stages only)."""
-    changed = False
-    for k in range(saved.shape[0]):
-        old, new = saved[k], local[P.STOKES_HELD + k]
-        if old >= 0.0 and new >= 0.0 and new != old:
-            changed = True
-            if step - switched_at[k] > N_SLIDE:
-                return False
-    return changed
-
-
-@nb.njit(cache=True)
-def _mark_switched(local, saved, switched_at, step):
-    """Record ``step`` as the last switch of every pair whose decision changed in it."""
-    for k in range(saved.shape[0]):
-        old, new = saved[k], local[P.STOKES_HELD + k]
-        if old >= 0.0 and new >= 0.0 and new != old:
-            switched_at[k] = step
+    loc[LOC_SINCE] = N_SLIDE + 1.0
+    return loc
 
 
 @nb.njit(cache=True)
 def located(method, t, state, h, buf, cell, aux, local, config, work, rtol, atol, n, stats,
-            saved, switched_at, loc, outcome, err):
+             saved, loc, outcome, err):
     """An accepted step from t [s] of h [s] across which a sharp Stokes decision switched: kept
-    if every pair that switched in it slides (``_sliding``), if no longer than the locating
-    step loc[LOC_H_NEED], or if ``_switch_defect`` is within the tolerance; else REJECT_SWITCH
-    with the held decisions restored from ``saved`` and the switching time bracketed by t + h
+    within N_SLIDE steps of the last switch (sliding), if no longer than the locating step
+    loc[LOC_H_NEED], or if ``_switch_defect`` is within the tolerance; else REJECT_SWITCH with
+    the held decisions restored from ``saved`` and the switching time bracketed by t + h
     (loc[LOC_T_HI]; the first time, the step that would be close enough, h / defect, not
     below LOCATE_PRECISION h nor LOCATE_FLOOR step floors, is kept in loc[LOC_H_NEED]).
-    A kept step records its switched pairs in ``switched_at``. Returns (outcome, error
-    norm)."""
+    Returns (outcome, error norm)."""
+    if loc[LOC_SINCE] <= N_SLIDE or (loc[LOC_H_NEED] > 0.0 and h <= loc[LOC_H_NEED]):
+        return outcome, err
     for k in range(saved.shape[0]):
         saved[k] = local[P.STOKES_HELD + k]
     err_switch = _switch_defect(method, state, h, buf, cell, aux, local, config, work, rtol,
                                 atol, n)
     stats[RHS_CALLS] += 2
-    step = loc[LOC_STEP]
-    if (err_switch <= 1.0 or (loc[LOC_H_NEED] > 0.0 and h <= loc[LOC_H_NEED])
-            or _sliding(local, saved, switched_at, step)):
-        _mark_switched(local, saved, switched_at, step)
+    if err_switch <= 1.0:
         return outcome, err
     for k in range(saved.shape[0]):
         local[P.STOKES_HELD + k] = saved[k]
@@ -151,11 +119,12 @@ def locate_next(crossed, t, h, loc):
     next step [s], h as the controller proposes, shortened while a switching time is being
     located to halve its bracket (t, loc[LOC_T_HI]), or to reach it where it is no longer
     than the locating step (the step that ends there then crosses and is kept)."""
-    loc[LOC_STEP] += 1.0
     if crossed:
+        loc[LOC_SINCE] = 0.0
         loc[LOC_H_NEED] = 0.0
         loc[LOC_T_HI] = math.inf
         return h
+    loc[LOC_SINCE] += 1.0
     if loc[LOC_H_NEED] == 0.0:
         return h
     rest = loc[LOC_T_HI] - t
