@@ -343,7 +343,8 @@ def bench_command(args):
     out = Path(args.out)
     quick = bool(args.quick)
     study = args.study
-    refusal = _threads_refusal(args.threads)
+    refusal = _threads_refusal(args.threads) or (study == "integrators" and args.scene and
+                                                 bench.transport_cost.refusal(args.scene))
     if refusal:
         return _fail(refusal)
     if args.results_doc:
@@ -380,19 +381,8 @@ def bench_command(args):
         study_of = {bench.CNMC_STUDY: bench.cnmc_study, bench.LAGUERRE_STUDY: bench.laguerre_study,
                     "couple": bench.couple_study, "integrators": bench.integrator_study,
                     "cluster": bench.cluster_study, "batch": bench.batch_study}
-        if study == "integrators":
-            kw = {}
-            if args.baseline:
-                from .bench.transport_cost import check_baseline
-                try:
-                    kw["baseline"] = check_baseline(args.baseline)
-                except ValueError as exc:
-                    return _fail(str(exc))
-            if args.parts:
-                kw["parts"] = tuple(args.parts)
-            bench.integrator_study(out, quick=quick, **kw)
-        else:
-            study_of[study](out, quick=quick)
+        kw = {"baseline": Path(args.scene)} if study == "integrators" and args.scene else {}
+        study_of[study](out, quick=quick, **kw)
         files = f"{study}.csv, {study}.md"
         print((out / f"{study}.md").read_text())
     print(f"bench {study}: {time.perf_counter() - start:.1f} s; wrote {out}/{{{files}}}")
@@ -532,7 +522,8 @@ def build_parser():
     p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")
     p.add_argument("study", choices=("accuracy", "throughput", "cnmc", "laguerre", "couple",
                                      "integrators", "peer", "cluster", "batch"))
-    p.add_argument("scene", nargs="?", help="scene for the accuracy study")
+    p.add_argument("scene", nargs="?", help="scene for the accuracy study; integrators: a "
+                   "pbe_cfd source tree whose transport ratios are timed in the same run")
     p.add_argument("--out", default="bench-out")
     p.add_argument("--quick", action="store_true", help="a tiny configuration (plumbing check)")
     p.add_argument("--methods", type=_method_list, default=None, metavar="LIST",
@@ -542,12 +533,6 @@ def build_parser():
                    help="throughput: cell counts, e.g. 1000,100000")
     p.add_argument("--threads", type=_int_list, default=None, metavar="LIST",
                    help="throughput: thread counts, e.g. 1,2")
-    p.add_argument("--baseline", default=None, metavar="DIR",
-                   help="integrators: also time the transport scene with the pbe_cfd source "
-                        "tree in DIR (a checkout of another commit), before/after in one run")
-    p.add_argument("--parts", nargs="+", default=None,
-                   choices=("well_mixed", "transport", "splitting"),
-                   help="integrators: the parts to run (default: all)")
     p.add_argument("--results-doc", default=None, metavar="FILE",
                    help="write the study's report into FILE (docs/results/STUDY.md) between "
                         "its marker lines, keeping the rest of FILE as it is")

@@ -1,5 +1,5 @@
 """What transport costs, before and after a change, in one run (a part of
-``pbe-cfd bench integrators --baseline DIR``).
+``pbe-cfd bench integrators DIR``).
 
 The bundled ``fluid-bed-transport`` scene and the same scene without ``[transport]``, each
 run as a whole process (``python -m pbe_cfd.cli couple``: read, solve, VTK, CSV and PNGs
@@ -32,9 +32,18 @@ def check_baseline(path) -> Path:
     pbe_cfd package."""
     root = Path(path)
     if not (root / "pbe_cfd" / "__init__.py").is_file():
-        raise ValueError(f"--baseline {path}: expected a source tree holding "
+        raise ValueError(f"bench integrators {path}: expected a source tree holding "
                          "pbe_cfd/__init__.py (a checkout of another commit)")
     return root
+
+
+def refusal(path):
+    """None if ``path`` is a source tree holding pbe_cfd/, else the one-line error."""
+    try:
+        check_baseline(path)
+    except ValueError as exc:
+        return str(exc)
+    return None
 
 
 def _one_process(tree, scene_path, out_dir) -> dict:
