@@ -1,4 +1,5 @@
-"""The ``pbe-cfd`` command line: run | plan | scenes | compare | couple | case | render | bench.
+"""The ``pbe-cfd`` command line: run | plan | scenes | compare | couple | case | render | bench
+| compile.
 
 Argument parsing and one ``*_command`` function per verb, nothing else: each command reads its
 arguments, calls the runs, studies and writers below, and prints what it wrote.
@@ -506,6 +507,8 @@ def build_parser():
     p.set_defaults(func=couple_command)
 
     _add_case_parser(sub)
+    from .runs.precompile import add_compile_parser      # the parser only: nothing heavy
+    add_compile_parser(sub, (DEFAULT_WELL_MIXED, DEFAULT_COUPLED))
 
     p = sub.add_parser("render", help="render PNGs of a coupled run's VTK series")
     p.add_argument("dir", help="output directory of `pbe-cfd couple`")
