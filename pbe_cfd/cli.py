@@ -344,7 +344,8 @@ def bench_command(args):
     out = Path(args.out)
     quick = bool(args.quick)
     study = args.study
-    refusal = _threads_refusal(args.threads)
+    refusal = _threads_refusal(args.threads) or (study == "integrators" and args.scene and
+                                                 bench.transport_cost.refusal(args.scene))
     if refusal:
         return _fail(refusal)
     if args.results_doc:
@@ -381,7 +382,8 @@ def bench_command(args):
         study_of = {bench.CNMC_STUDY: bench.cnmc_study, bench.LAGUERRE_STUDY: bench.laguerre_study,
                     "couple": bench.couple_study, "integrators": bench.integrator_study,
                     "cluster": bench.cluster_study, "batch": bench.batch_study}
-        study_of[study](out, quick=quick)
+        kw = {"baseline": Path(args.scene)} if study == "integrators" and args.scene else {}
+        study_of[study](out, quick=quick, **kw)
         files = f"{study}.csv, {study}.md"
         print((out / f"{study}.md").read_text())
     print(f"bench {study}: {time.perf_counter() - start:.1f} s; wrote {out}/{{{files}}}")
@@ -523,7 +525,8 @@ def build_parser():
     p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")
     p.add_argument("study", choices=("accuracy", "throughput", "cnmc", "laguerre", "couple",
                                      "integrators", "peer", "cluster", "batch"))
-    p.add_argument("scene", nargs="?", help="scene for the accuracy study")
+    p.add_argument("scene", nargs="?", help="scene for the accuracy study; integrators: a "
+                   "pbe_cfd source tree whose transport ratios are timed in the same run")
     p.add_argument("--out", default="bench-out")
     p.add_argument("--quick", action="store_true", help="a tiny configuration (plumbing check)")
     p.add_argument("--methods", type=_method_list, default=None, metavar="LIST",

@@ -59,6 +59,7 @@ from .batch import batch_study
 from .common import CNMC_STUDY, LAGUERRE_STUDY, STUDY_FILES, failure_status, machine_info
 from .couple import couple_study, replicated_domain
 from .integrators import integrator_markdown, integrator_study, stiff_scene
+from . import transport_cost  # noqa: F401 - bench.transport_cost: the baseline check of bench integrators
 from .laguerre import laguerre_study
 from .numpy_baseline import NumpyQMOM
 from .peer import peer_study

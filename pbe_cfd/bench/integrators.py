@@ -131,7 +131,7 @@ def _process_seconds(scene_path, out_dir) -> tuple[float, float]:
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
-def transport_rows(repeats, quiet, quick=False) -> list:
+def transport_rows(repeats, quiet, quick=False, baseline=None) -> list:
     """Solve phase and whole-process time of fluid-bed-transport with and without [transport].
 
     Both scenes are loaded and run once first (kernels compiled or loaded from the cache),
@@ -170,6 +170,9 @@ def transport_rows(repeats, quiet, quick=False) -> list:
                 stats[label] = res.stats
                 if "transport" in res.stats:
                     source[label].append(res.stats["transport"]["source_wall_s"])
+        if baseline is not None:
+            from .transport_cost import before_after_rows
+            rows_ba = before_after_rows(baseline, paths, repeats, quiet)
         process = {k: [] for k in paths}
         if not quick:
             for _ in range(repeats):
@@ -194,6 +197,8 @@ def transport_rows(repeats, quiet, quick=False) -> list:
                          "exponential_steps": st.get("exponential_steps", 0)})
             _say(quiet, f"  {label}: solve {rows[-1]['solver_s']:.3g} s, process "
                  f"{rows[-1]['process_s']:.3g} s")
+    if baseline is not None:
+        rows.extend(rows_ba)
     return rows
 
 
@@ -213,7 +218,8 @@ def integrator_markdown(result) -> str:
         lines.append(f"| {r['scene']} | {r['integrator']} | {r['wall_s']:.3g} | "
                      f"{r['rhs_calls']} | {r['accepted_steps']} ({r['implicit_steps']}) | "
                      f"{r['error']:.1e} |")
-    rows = result["transport"]
+    rows = [r for r in result["transport"] if "tree" not in r]
+    before_after = [r for r in result["transport"] if "tree" in r]
     if rows:
         lines += ["", "| fluid-bed-transport | solve phase [s] | run CPU [s] | sources [s] "
                   "| process wall [s] | process CPU [s] | steps (implicit, exponential) "
@@ -233,6 +239,9 @@ def integrator_markdown(result) -> str:
                       f"{a['solver_cpu_s'] / b['solver_cpu_s']:.2f}, whole process wall "
                       f"{a['process_s'] / b['process_s']:.2f} (CPU "
                       f"{a['process_cpu_s'] / b['process_cpu_s']:.2f})."]
+    if before_after:
+        from .transport_cost import before_after_markdown
+        lines += before_after_markdown(before_after, result.get("baseline", "baseline"))
     if result.get("splitting"):
         plain = [r for r in rows if r["scene"] == "without [transport]"]
         lines += splitting_markdown(result["splitting"],
@@ -241,9 +250,12 @@ def integrator_markdown(result) -> str:
     return "\n".join(lines) + "\n"
 
 
-def integrator_study(out_dir="bench-out", quick=False, quiet=False, repeats=None) -> dict:
-    """Run both parts (quick: short scenes, one repeat, no subprocess timing) and write
-    integrators.csv, integrators.md and integrators.json into out_dir."""
+def integrator_study(out_dir="bench-out", quick=False, quiet=False, repeats=None,
+                     baseline=None, parts=("well_mixed", "transport", "splitting")) -> dict:
+    """Run the ``parts`` (quick: short scenes, one repeat, no subprocess timing) and write
+    integrators.csv, integrators.md and integrators.json into out_dir. ``baseline``: a source
+    tree (directory holding pbe_cfd/) whose transport ratios are measured in the same run
+    (``bench.transport_cost``)."""
     repeats = repeats or (1 if quick else 3)
     machine = machine_info()                 # its load average: when the study started
     end = 20.0 if quick else None
@@ -254,12 +266,13 @@ def integrator_study(out_dir="bench-out", quick=False, quiet=False, repeats=None
         ktgf = dataclasses.replace(ktgf, end_time=end, output_interval=end / 4)
     scenes = [("seed-wurster (QMOM)", seed), ("study-ktgf (QMOM)", ktgf),
               ("stiff: ktgf cell at packing, 1e4 x injection, 2 s", stiff_scene(2.0))]
-    well_mixed = well_mixed_rows(scenes, repeats, quiet)
-    transport = transport_rows(repeats, quiet, quick=quick)
-    splitting = splitting_rows(quiet, quick=quick)
+    well_mixed = well_mixed_rows(scenes, repeats, quiet) if "well_mixed" in parts else []
+    transport = transport_rows(repeats, quiet, quick=quick, baseline=baseline) \
+        if "transport" in parts else []
+    splitting = splitting_rows(quiet, quick=quick) if "splitting" in parts else []
     result = {"machine": machine, "commit": _git_describe(), "repeats": repeats,
               "quick": bool(quick), "well_mixed": well_mixed, "transport": transport,
-              "splitting": splitting,
+              "splitting": splitting, "baseline": str(baseline) if baseline else None,
               "load_average_at_end": [round(x, 2) for x in os.getloadavg()]}
     rows = [{"part": "well-mixed", **r} for r in well_mixed] + \
         [{"part": "transport", **r} for r in transport] + \

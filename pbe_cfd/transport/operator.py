@@ -26,8 +26,9 @@ Design (all SI):
   round-off (the extensive update moves exactly what leaves one cell into the next). The update
   is one scipy.sparse matrix acting on all cells and all state entries at once.
 * **Splitting.** Strang (default): transport dt_s/2, sources dt_s, transport dt_s/2, per split
-  step dt_s (``split_step``); or Lie (sources dt_s, then transport dt_s). Each transport part is
-  sub-stepped to respect the CFL limit.
+  step dt_s (``split_step``), the closing half of a split step joined with the opening half of
+  the next within an output interval (``Transport.plan``); or Lie (sources dt_s, then
+  transport dt_s). Each transport part is sub-stepped to respect the CFL limit.
 * **QMOM node-wise binder.** The size moments of a mixture stay realizable, but the node-wise
   binder solved from mixed M_k1 may fall outside [0, p_a]. Such cells are re-projected by the
   method's own projection, which keeps M00, M10, M01 and the droplets exactly (so number, mass
@@ -148,30 +149,53 @@ class Transport:
         self._count["transport_calls"] += 1
         return k
 
-    def advance(self, states: np.ndarray, t0: float, t1: float, source_step) -> None:
-        """Advance ``states`` (n, n_state; scaled moments per m3 of bed of the active cells)
-        from t0 to t1 [s] in place by operator splitting of transport and sources.
+    def plan(self, t0: float, t1: float) -> list:
+        """The parts of ``advance`` from t0 to t1 [s], in order: ("T", duration [s]) for a
+        transport part and ("S", ta [s], tb [s]) for a source part. The one place of the
+        split-step arithmetic (the distributed run follows the same list).
 
-        ``source_step(states, ta, tb)`` integrates the per-cell sources from ta to tb [s] in
-        place. Strang: transport h/2, sources h, transport h/2 per split step h <= split_step;
-        Lie: sources h, then transport h.
+        Split steps h = (t1 - t0) / n, n = ceil((t1 - t0) / split_step). Strang: transport
+        h/2, then per split step sources h followed by transport h (the closing half of
+        one split step joined with the opening half of the next: the transport is linear
+        and autonomous, so T(h/2) T(h/2) and T(h) are the same operator up to the CFL
+        substep length), the last transport part h/2. Lie: sources h, then transport h.
         """
         span = t1 - t0
         if span <= 0.0:
-            return
+            return []
         n_split = max(1, int(math.ceil(span / self.split_step * (1.0 - 1e-12))))
         h = span / n_split
-        for k in range(n_split):
-            ta = t0 + k * h
-            tb = t1 if k == n_split - 1 else t0 + (k + 1) * h
-            if self.splitting == "strang":
-                self.transport(states, 0.5 * (tb - ta))
-                self._source(source_step, states, ta, tb)
-                self.transport(states, 0.5 * (tb - ta))
+        bounds = [(t0 + k * h, t1 if k == n_split - 1 else t0 + (k + 1) * h)
+                  for k in range(n_split)]
+        parts = []
+        if self.splitting == "strang":
+            parts.append(("T", 0.5 * (bounds[0][1] - bounds[0][0])))
+            for k, (ta, tb) in enumerate(bounds):
+                parts.append(("S", ta, tb))
+                half = 0.5 * (tb - ta)
+                if k + 1 < n_split:
+                    nxt = bounds[k + 1]
+                    half += 0.5 * (nxt[1] - nxt[0])
+                parts.append(("T", half))
+        else:
+            for ta, tb in bounds:
+                parts += [("S", ta, tb), ("T", tb - ta)]
+        return parts
+
+    def advance(self, states: np.ndarray, t0: float, t1: float, source_step) -> None:
+        """Advance ``states`` (n, n_state; scaled moments per m3 of bed of the active cells)
+        from t0 to t1 [s] in place by operator splitting of transport and sources, part by
+        part as ``plan(t0, t1)`` lists them.
+
+        ``source_step(states, ta, tb)`` integrates the per-cell sources from ta to tb [s] in
+        place.
+        """
+        for part in self.plan(t0, t1):
+            if part[0] == "T":
+                self.transport(states, part[1])
             else:
-                self._source(source_step, states, ta, tb)
-                self.transport(states, tb - ta)
-            self._count["split_steps"] += 1
+                self._source(source_step, states, part[1], part[2])
+                self._count["split_steps"] += 1
 
     def _source(self, source_step, states, ta, tb):
         t = _time.perf_counter()
@@ -410,15 +434,25 @@ def _repair_cells(method, states, aux, params, config, changed, work, fix):
 _REPAIR_KERNELS = {}
 
 
+def _array_key(a):
+    """What numba's type of an argument depends on, read without typing it (typing every
+    argument costs more than the kernel on a few hundred cells)."""
+    if isinstance(a, np.ndarray):
+        f = a.flags
+        return (a.dtype.str, a.ndim, f.c_contiguous, f.f_contiguous, f.writeable, f.aligned)
+    return type(a)
+
+
 def _repair_kernel(method: int, args):
     """The compiled ``_repair_cells`` for the method code as a compile-time constant and the
     types of ``args`` (compiled, or loaded from numba's disk cache, on first use)."""
-    sig = (types.literal(int(method)),) + tuple(typeof(a) for a in args)
-    entry = _REPAIR_KERNELS.get(sig)
+    key = (int(method),) + tuple(_array_key(a) for a in args)
+    entry = _REPAIR_KERNELS.get(key)
     if entry is None:
+        sig = (types.literal(int(method)),) + tuple(typeof(a) for a in args)
         _repair_cells.compile(sig)
         entry = _repair_cells.overloads[sig].entry_point
-        _REPAIR_KERNELS[sig] = entry
+        _REPAIR_KERNELS[key] = entry
     return entry
 
 

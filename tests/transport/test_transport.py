@@ -329,6 +329,82 @@ def test_advance_splits_sources_and_reaches_t1(splitting):
     assert rep["max_courant_used"] <= scene.transport.courant + 1e-12
 
 
+@pytest.mark.parametrize("splitting", ["strang", "lie"])
+def test_plan_covers_the_interval_with_contiguous_source_parts(splitting):
+    """The plan of t0..t1: source parts tile [t0, t1] in order, the transport parts add up to
+    t1 - t0 (Strang: h/2 first and last, h between, one transport part per split step
+    and one more; Lie: h after each source part)."""
+    scene = bed_scene(transport={"split_step": 0.07, "splitting": splitting})
+    tr, *_ = setup(scene, ring(n=6))
+    t0, t1 = 0.3, 1.0
+    parts = tr.plan(t0, t1)
+    src = [p for p in parts if p[0] == "S"]
+    trn = [p[1] for p in parts if p[0] == "T"]
+    n = math.ceil((t1 - t0) / 0.07 - 1e-9)
+    h = (t1 - t0) / n
+    assert len(src) == n and src[0][1] == t0 and src[-1][2] == t1
+    assert all(a[2] == b[1] for a, b in zip(src, src[1:]))
+    assert sum(trn) == pytest.approx(t1 - t0, rel=0, abs=1e-12)
+    if splitting == "strang":
+        assert len(trn) == n + 1 and parts[0][0] == "T" and parts[-1][0] == "T"
+        assert trn[0] == pytest.approx(h / 2, rel=0, abs=1e-12)
+        assert trn[-1] == pytest.approx(h / 2, rel=0, abs=1e-12)
+        assert all(d == pytest.approx(h, rel=0, abs=1e-12) for d in trn[1:-1])
+    else:
+        assert len(trn) == n and [p[0] for p in parts[:2]] == ["S", "T"]
+    assert tr.plan(1.0, 1.0) == []
+
+
+def test_joined_strang_halves_equal_the_two_halves():
+    """Strang with the closing half of one split step joined to the opening half of the next
+    is the textbook Strang loop (transport h/2, sources h, transport h/2 per split step): with
+    a split step whose half holds a whole number of the joined part's CFL substeps (x = h / 2
+    / dt_max = 2.7: 3 substeps per half, 6 per joined part, the same substep length) the two
+    give the same states to round-off, droplets sprayed into one cell of a ring."""
+    scene0 = bed_scene(transport={"split_step": 0.05})
+    tr0, *_ = setup(scene0, ring(n=10))
+    h = 2 * 2.7 * tr0.dt_max
+    scene = bed_scene(transport={"split_step": h, "courant": scene0.transport.courant},
+                      injection={"rate": 1e9, "droplet_diameter": 60e-6},
+                      aggregation={"kernel": "constant", "rate": 1e-15,
+                                   "droplet_factor": 100.0})
+    tr, rows, active, arrays = setup(scene, ring(n=10))
+    assert tr.substeps(h)[0] == 2 * tr.substeps(h / 2)[0]
+    nd = arrays.state_names.index("droplet_number_density")
+    start = np.array([mono(arrays, a * RHO / P0, P0) for a in tr.alpha])
+
+    def sources(s, ta, tb):         # droplets into cell 0, then half of them leave cell 1
+        s[0, nd] += (tb - ta) * 1.0
+        s[1, nd] *= math.exp(-(tb - ta) / h)
+
+    joined = start.copy()
+    tr.advance(joined, 0.0, 8 * h, sources)
+    textbook = start.copy()
+    for k in range(8):
+        tr.transport(textbook, h / 2)
+        sources(textbook, k * h, (k + 1) * h)
+        tr.transport(textbook, h / 2)
+    assert np.count_nonzero(joined[:, nd] > 0) > 3
+    assert np.allclose(joined, textbook, rtol=1e-12, atol=1e-14 * np.abs(textbook).max())
+
+
+def test_the_repair_check_follows_the_array_layout():
+    """The compiled repair is looked up by the arguments' layout: a Fortran-ordered copy of
+    the same states gets the same count as the C-ordered one, before and after."""
+    scene = bed_scene(transport={}, initial={"binder_fraction": 0.01})
+    tr, rows, active, arrays = setup(scene, ring(n=3, alpha=[0.3, 0.3, 0.3]))
+    rng = np.random.default_rng(1)
+    mixes = np.array([sum(mono(arrays, rng.uniform(0.01, 1.0) * 1e11, q * P0,
+                               rng.uniform(0.0, 1.0) * q * P0 * (rng.random() < 0.5))
+                          for q in rng.uniform(1.0, 4.0, 3)) for _ in range(100)])
+    aux = np.zeros(1)
+    bad = unrealizable_cells(mixes, aux, arrays.params, arrays.config)[0]
+    assert bad > 5
+    fortran = np.asfortranarray(mixes)
+    assert unrealizable_cells(fortran, aux, arrays.params, arrays.config)[0] == bad
+    assert unrealizable_cells(mixes, aux, arrays.params, arrays.config)[0] == bad
+
+
 # ---------------------------------------------------------------------------- physics
 def test_fast_circulation_approaches_the_bed_averaged_well_mixed_run():
     """Circulation (period 0.5 s) much faster than aggregation (tens of s): the bed moments

@@ -34,21 +34,8 @@ POLL_S = 1.0
 
 def _interval_parts(transport, t0: float, t1: float) -> list:
     """The parts of ``Transport.advance`` from t0 to t1 [s], in order: ("T", duration [s])
-    and ("S", ta [s], tb [s]); the same arithmetic as the serial loop."""
-    span = t1 - t0
-    if span <= 0.0:
-        return []
-    n_split = max(1, int(math.ceil(span / transport.split_step * (1.0 - 1e-12))))
-    h = span / n_split
-    parts = []
-    for k in range(n_split):
-        ta = t0 + k * h
-        tb = t1 if k == n_split - 1 else t0 + (k + 1) * h
-        if transport.splitting == "strang":
-            parts += [("T", 0.5 * (tb - ta)), ("S", ta, tb), ("T", 0.5 * (tb - ta))]
-        else:
-            parts += [("S", ta, tb), ("T", tb - ta)]
-    return parts
+    and ("S", ta [s], tb [s]); the serial operator's own plan."""
+    return transport.plan(t0, t1)
 
 
 def _substeps(transport, duration):

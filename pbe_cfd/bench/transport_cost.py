@@ -1,0 +1,111 @@
+"""What transport costs, before and after a change, in one run (a part of
+``pbe-cfd bench integrators DIR``).
+
+The bundled ``fluid-bed-transport`` scene and the same scene without ``[transport]``, each
+run as a whole process (``python -m pbe_cfd.cli couple``: read, solve, VTK, CSV and PNGs
+written) by two source trees: the baseline tree DIR (a checkout of another commit, put first
+on PYTHONPATH) and this one. The runs alternate tree by tree and scene by scene, ``repeats``
+rounds, so a change of the machine's load hits all four alike. Per run: wall [s] and CPU [s]
+(user + system of the process and its children) of the process, and the solve phase [s] of
+its ``summary.json`` (first step to last: compile and outputs excluded). Medians, and per tree
+the ratios with / without transport.
+"""
+from __future__ import annotations
+
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from .common import _say
+
+SCENES = ("with [transport]", "without [transport]")
+
+
+def check_baseline(path) -> Path:
+    """The baseline tree as a Path; ValueError naming what is missing if DIR holds no
+    pbe_cfd package."""
+    root = Path(path)
+    if not (root / "pbe_cfd" / "__init__.py").is_file():
+        raise ValueError(f"bench integrators {path}: expected a source tree holding "
+                         "pbe_cfd/__init__.py (a checkout of another commit)")
+    return root
+
+
+def refusal(path):
+    """None if ``path`` is a source tree holding pbe_cfd/, else the one-line error."""
+    try:
+        check_baseline(path)
+    except ValueError as exc:
+        return str(exc)
+    return None
+
+
+def _one_process(tree, scene_path, out_dir) -> dict:
+    """Wall [s], CPU [s] and solve phase [s] of one ``couple`` process of ``tree`` (None:
+    this tree, as imported)."""
+    env = dict(os.environ)
+    if tree is not None:
+        env["PYTHONPATH"] = os.pathsep.join([str(tree)] + [p for p in env.get(
+            "PYTHONPATH", "").split(os.pathsep) if p])
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "pbe_cfd.cli", "couple", str(scene_path), "--out",
+                    str(out_dir), "--overwrite"], check=True, env=env,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    summary = json.loads((Path(out_dir) / "summary.json").read_text())
+    return {"wall_s": wall,
+            "cpu_s": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
+            "solve_s": float(summary["phases"]["solve_s"])}
+
+
+def before_after_rows(baseline, scene_paths, repeats, quiet=False) -> list:
+    """One row per (tree, scene): medians of wall, CPU and solve phase over ``repeats``
+    alternating rounds after one warm-up round (kernels loaded from each tree's cache).
+    ``scene_paths``: {label: path} for the two SCENES."""
+    trees = (("baseline", check_baseline(baseline)), ("this tree", None))
+    runs = {(t, s): [] for t, _ in trees for s in SCENES}
+    with tempfile.TemporaryDirectory() as tmp:
+        for rnd in range(repeats + 1):
+            for t, tree in trees:
+                for s in SCENES:
+                    res = _one_process(tree, scene_paths[s], Path(tmp) / "out")
+                    if rnd > 0:
+                        runs[(t, s)].append(res)
+                    _say(quiet, f"  {t}, {s}{' (warm-up)' if rnd == 0 else ''}: "
+                         f"{res['wall_s']:.3g} s wall, {res['cpu_s']:.3g} s CPU, solve "
+                         f"{res['solve_s']:.3g} s")
+    rows = []
+    for (t, s), got in runs.items():
+        rows.append({"tree": t, "scene": s, "repeats": len(got),
+                     **{k: statistics.median(r[k] for r in got)
+                        for k in ("wall_s", "cpu_s", "solve_s")},
+                     "solve_all_s": [round(r["solve_s"], 4) for r in got]})
+    return rows
+
+
+def before_after_markdown(rows, baseline_label) -> list:
+    """The table and the ratios (Markdown lines)."""
+    lines = ["", f"Before ({baseline_label}) and after (this tree), whole `couple` processes "
+             "alternating in one run; medians:", "",
+             "| tree | scene | process wall [s] | process CPU [s] | solve phase [s] |",
+             "|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['tree']} | {r['scene']} | {r['wall_s']:.3g} | {r['cpu_s']:.3g} | "
+                     f"{r['solve_s']:.3g} |")
+    lines.append("")
+    for tree in dict.fromkeys(r["tree"] for r in rows):
+        a = next(r for r in rows if r["tree"] == tree and r["scene"] == SCENES[0])
+        b = next(r for r in rows if r["tree"] == tree and r["scene"] == SCENES[1])
+        lines.append(f"- {tree}: with / without transport: solve phase "
+                     f"{a['solve_s'] / b['solve_s']:.2f}, process wall "
+                     f"{a['wall_s'] / b['wall_s']:.2f}, process CPU "
+                     f"{a['cpu_s'] / b['cpu_s']:.2f}")
+    return lines
