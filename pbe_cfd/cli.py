@@ -301,7 +301,7 @@ def _couple_recorded(args, scene, out, phases, t_read, caught):
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
     with output.atomic_directory(out, args.overwrite, kind="couple") as tmp:
-        phases = write_coupled(tmp, scene, domain, result, phases=phases)
+        phases = write_coupled(tmp, domain, result, phases=phases)
         if args.foam_fields:
             written = write_foam_fields(scene, domain, result, args.overwrite)
             written = list(written) + list(executor.mirror_to_processors(written,
@@ -357,32 +357,26 @@ def bench_command(args):
     start = time.perf_counter()
     if study == "accuracy":
         res = bench.accuracy_study(args.scene, out, quick=quick)
-        files = "accuracy.csv, accuracy.md, pareto.png"
         print(bench.accuracy_markdown(res))
     elif study == "throughput":
         res = bench.throughput_study(out, quick=quick, cells=args.cells, threads=args.threads,
                                      methods=args.methods,
                                      scene_name=args.scene or bench.DEFAULT_THROUGHPUT_SCENE)
-        files = "throughput.csv, throughput.md, throughput.png, machine.json"
         print(bench.throughput_markdown(res))
     elif study == "peer":
         try:
             bench.peer_study(out, quick=quick)
-        except bench.PeerUnavailable as exc:
+        except (bench.PeerUnavailable, bench.PeerRunError) as exc:
             print(f"pbe-cfd: error: {exc}", file=sys.stderr)
-            return 2
-        except bench.PeerRunError as exc:
-            print(f"pbe-cfd: error: {exc}", file=sys.stderr)
-            return 1
-        files = "peer.csv, peer.md, peer.png, peer.json"
+            return 2 if isinstance(exc, bench.PeerUnavailable) else 1
         print((out / "peer.md").read_text())
     else:
         study_of = {bench.CNMC_STUDY: bench.cnmc_study, bench.LAGUERRE_STUDY: bench.laguerre_study,
                     "couple": bench.couple_study, "integrators": bench.integrator_study,
                     "cluster": bench.cluster_study, "batch": bench.batch_study}
         study_of[study](out, quick=quick)
-        files = f"{study}.csv, {study}.md"
         print((out / f"{study}.md").read_text())
+    files = ", ".join(bench.STUDY_FILES[study])
     print(f"bench {study}: {time.perf_counter() - start:.1f} s; wrote {out}/{{{files}}}")
     if args.results_doc:
         done = results_doc.refresh(args.results_doc, study, (out / f"{study}.md").read_text(),
@@ -392,19 +386,15 @@ def bench_command(args):
 
 
 class _Studies:
-    """The study names ``pbe-cfd bench`` accepts, asked of the bench package when the
-    argument is checked (so that other commands import none of it): the studies of one
-    method are named by its registry entry."""
-
-    def _names(self):
-        from .bench.common import STUDY_FILES
-        return tuple(STUDY_FILES)
-
-    def __contains__(self, name):
-        return name in self._names()
+    """The study names of ``pbe-cfd bench`` (those of one method named by its registry
+    entry), asked of the bench package only when the argument is checked."""
 
     def __iter__(self):
-        return iter(self._names())
+        from .bench.common import STUDY_FILES
+        return iter(tuple(STUDY_FILES))
+
+    def __contains__(self, name):
+        return name in tuple(self)
 
 
 def _int_list(text):
