@@ -3,13 +3,15 @@
 numba's on-disk cache is keyed by each module's own source file, so a compiled caller keeps
 inlined code of a callee from another module after that callee changed. To make the cache
 always consistent with the code, it lives in a directory keyed by a hash of the package's
-source files that compiled code can read (unless NUMBA_CACHE_DIR is set by the user): the
+source files that compiled code can read (under NUMBA_CACHE_DIR when the user sets it): the
 compiled folders and the few modules outside them that compiled code imports, ``COMPILED``.
+Inside it, a module's entries are named by its place in the package, not on disk
+(``util/kernel_cache.py``), so a cache built once (``pbe-cfd compile``) serves the same sources
+wherever they are installed.
 Everything else (the CLI, the runs' orchestration, the pictures, the benchmarks) is left out
 of the hash (``tests/test_layers.py`` checks over the import graph that compiled code reads
 none of it), so a change there does not recompile the kernels.
 """
-import hashlib
 import os
 from pathlib import Path
 
@@ -25,34 +27,21 @@ COMPILED = ("__init__.py", "physics/", "methods/", "integrate/", "distribution/"
 
 def _compiled_sources(root: Path) -> list[Path]:
     """The package's .py files that can change compiled code (those under COMPILED)."""
-    out = []
-    for path in sorted(root.rglob("*.py")):
-        rel = path.relative_to(root).as_posix()
-        if any(rel == c or (c.endswith("/") and rel.startswith(c)) for c in COMPILED):
-            out.append(path)
-    return out
+    from .util.kernel_cache import compiled_sources
+    return compiled_sources(root, COMPILED)
 
 
 def _source_hash() -> str:
-    digest = hashlib.sha1()
-    root = Path(__file__).resolve().parent
-    for path in _compiled_sources(root):
-        digest.update(str(path.relative_to(root)).encode())
-        digest.update(path.read_bytes())
-    return digest.hexdigest()[:16]
+    from .util.kernel_cache import source_hash
+    return source_hash(Path(__file__).resolve().parent, COMPILED)
 
 
 def _configure_numba_cache():
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        return
-    base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "pbe_cfd" / "numba"
-    target = base / _source_hash()
-    try:
-        target.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return
-    import numba
-    numba.config.CACHE_DIR = str(target)
+    from .util import kernel_cache
+    root = kernel_cache.install(_source_hash())
+    if root is not None and not os.environ.get("NUMBA_CACHE_DIR"):
+        import numba
+        numba.config.CACHE_DIR = str(root)   # numba functions outside the package
 
 
 _configure_numba_cache()

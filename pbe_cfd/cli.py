@@ -1,4 +1,5 @@
-"""The ``pbe-cfd`` command line: run | plan | scenes | compare | couple | case | render | bench.
+"""The ``pbe-cfd`` command line: run | plan | scenes | compare | couple | case | render | bench
+| compile.
 
 Argument parsing and one ``*_command`` function per verb, nothing else: each command reads its
 arguments, calls the runs, studies and writers below, and prints what it wrote.
@@ -386,11 +387,10 @@ def bench_command(args):
 
 
 class _Studies:
-    """The study names of ``pbe-cfd bench`` (those of one method named by its registry
-    entry), asked of the bench package only when the argument is checked."""
+    """The study names of ``pbe-cfd bench``, asked of the bench package when checked."""
 
     def __iter__(self):
-        from .bench.common import STUDY_FILES
+        from .bench.common import STUDY_FILES      # a method's study: named by its entry
         return iter(tuple(STUDY_FILES))
 
     def __contains__(self, name):
@@ -417,10 +417,8 @@ def _method_list(text):
     for item in (x.strip() for x in text.split(",") if x.strip()):
         name, _, order = item.partition(":")
         try:
-            if name not in readers:
-                raise ValueError
             out.append((name, readers[name](order)))
-        except ValueError:
+        except (KeyError, ValueError):
             raise argparse.ArgumentTypeError(
                 f"{item!r}: expected one of {', '.join(n + ':ORDER' for n in readers)} "
                 "(qmom:N, laguerre:M, cqmom:N1xN2)") from None
@@ -510,6 +508,8 @@ def build_parser():
     p.set_defaults(func=couple_command)
 
     _add_case_parser(sub)
+    from .runs.precompile import add_compile_parser      # the parser only: nothing heavy
+    add_compile_parser(sub, (DEFAULT_WELL_MIXED, DEFAULT_COUPLED))
 
     p = sub.add_parser("render", help="render PNGs of a coupled run's VTK series")
     p.add_argument("dir", help="output directory of `pbe-cfd couple`")

@@ -36,6 +36,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mutations_list import MUTATIONS  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from pbe_cfd import COMPILED  # noqa: E402
+from pbe_cfd.util.kernel_cache import source_hash  # noqa: E402
 
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -92,13 +95,19 @@ def importers(tree: Path, mutated: str) -> set:
 def seed_cache(baseline_cache: Path, cache: Path, tree: Path, mutated: str):
     """A fresh cache directory for a mutant of ``mutated`` (see the module docstring)."""
     shutil.copytree(baseline_cache, cache)
+    # the package's kernels sit under pbe_cfd-<hash of its compiled sources>
+    # (pbe_cfd/util/kernel_cache.py): the mutant's sources name their own directory
+    own = cache / f"pbe_cfd-{source_hash(tree / 'pbe_cfd', COMPILED)}"
+    for d in cache.glob("pbe_cfd-*"):
+        if d != own:
+            d.rename(own)
     if not compiled(tree / mutated):
         return 0
     stale = importers(tree, mutated) | {"pbe_cfd/physics/registry.py"}
     removed = 0
     for rel in stale:
         p = Path(rel)
-        for d in cache.glob(f"{p.parent.name}_*"):
+        for d in own.glob(f"{p.parent.name}_*"):
             for entry in d.glob(f"{p.stem}.*"):
                 entry.unlink()
                 removed += 1

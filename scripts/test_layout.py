@@ -72,6 +72,7 @@ RULES = (
     # io: output guard, manifest, OpenFOAM case I/O, user cases
     ("test_openfoam", "io"),
     ("test_bed3d", "io"),
+    ("test_spool", "io"),
     ("test_output", "io"),
     ("test_data_safety", "io"),
     ("test_cfd_input", "io"),

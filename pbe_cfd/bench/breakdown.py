@@ -20,8 +20,9 @@ import numba as nb
 import numpy as np
 
 from ..methods.dispatch import WORK_SIZE
-from ..methods.laguerre.rhs import _slice_position, _weight_position, laguerre_d43
-from ..methods.laguerre.layout import AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_NWL
+from ..methods.laguerre.position import _slice_position, _weight_position, laguerre_d43
+from ..methods.laguerre.layout import (AUX_NSLICE, AUX_NWC, AUX_NWD, N_CORNERS,
+                                      weight_corner)
 from ..methods.qmom.qmom import invert as qmom_invert
 from ..methods.quadrature.gauss import wheeler_nodes
 from ..physics import parameters as P
@@ -64,14 +65,15 @@ def _laguerre_position_sweep(states, cells, aux, params, config, reps, out):
         for r in range(reps):
             st = states[(c + 7919 * r) % n]
             i0, t = _slice_position(cells[c], aux)
-            ic, tc, jd, td, il, tl = _weight_position(st, aux, m)
+            wpos = _weight_position(st, aux, m)
             d43 = laguerre_d43(st, aux, params, config)
             if r == 0:
                 slices = (1.0 if t < 1.0 else 0.0) + (1.0 if t > 0.0 else 0.0)
-                wc = (1.0 if tc < 1.0 else 0.0) + (1.0 if tc > 0.0 else 0.0)
-                wd = (1.0 if td < 1.0 else 0.0) + (1.0 if td > 0.0 else 0.0)
-                wl = (1.0 if tl < 1.0 else 0.0) + (1.0 if tl > 0.0 and il >= 0 else 0.0)
-                out[c] = slices * wc * wd * (wl if aux[AUX_NWL] > 1.0 else 1.0)
+                corners = 0.0
+                for q in range(N_CORNERS):
+                    if weight_corner(q, wpos, int(aux[AUX_NWC]), int(aux[AUX_NWD]))[1] != 0.0:
+                        corners += 1.0
+                out[c] = slices * corners
             elif d43 < 0.0 or i0 < 0:
                 out[c] = -1.0                  # keeps the position work live
 

@@ -47,12 +47,14 @@ def _child(spec: dict) -> dict:
     if spec["workers"]:
         from ..runs import distributed as D
         client, cluster = D.start_local_cluster(spec["workers"])
-        chunks = spec["workers"] if spec["transport"] else None
+        chunks = spec.get("blocks") or spec["workers"] if spec["transport"] else None
+        halo = spec.get("halo_substeps")
         # warm-up: every worker loads the numba kernels (from the cache) before the timing
         warm = dataclasses.replace(scene, end_time=min(0.1, spec["end_time"]),
                                    output_interval=min(0.1, spec["end_time"]))
-        run_coupled(warm, domain, executor=D.ClusterExecutor(client=client, chunks=chunks))
-        executor = D.ClusterExecutor(client=client, chunks=chunks)
+        run_coupled(warm, domain, executor=D.ClusterExecutor(client=client, chunks=chunks,
+                                                             halo_substeps=halo))
+        executor = D.ClusterExecutor(client=client, chunks=chunks, halo_substeps=halo)
     t0 = time.perf_counter()
     try:
         res = run_coupled(scene, domain, executor=executor)
@@ -79,6 +81,11 @@ def _child(spec: dict) -> dict:
             "client_sent_bytes_per_split_step": tr.get("client_sent_bytes_per_split_step"),
             "gathered_bytes_per_output_time": tr.get("gathered_bytes_per_output_time"),
             "halo_cells": tr.get("halo_cells"), "halo_depth": tr.get("halo_depth_substeps"),
+            "substeps_per_part": tr.get("substeps_per_part"),
+            "block_compute_s": tr.get("block_compute_s"),
+            "phases": {k: float(v) for k, v in res.phases.items()},
+            "transport_wall_s": res.stats.get("transport", {}).get("transport_wall_s"),
+            "source_wall_s": res.stats.get("transport", {}).get("source_wall_s"),
             "halo_bytes_per_transport_part": tr.get("halo_bytes_per_transport_part"),
             "substeps_per_split_step": res.stats.get("transport", {}).get(
                 "substeps_per_split_step"),
@@ -159,13 +166,17 @@ def _write_csv(path, runs):
 
 
 def multi_machine_model(runs, n_cells=1e7, sim_time=1800.0, split_step=0.25,
-                        network=NETWORK_BYTES_PER_S, hop=TASK_HOP_S) -> dict:
+                        network=NETWORK_BYTES_PER_S, hop=TASK_HOP_S,
+                        per_exchange=None) -> dict:
     """Machines for ``n_cells`` over ``sim_time`` [s] of process to finish in an hour, from
     the largest measured transport runs: the serial rate per machine [cell-steps/s], the
     accepted steps per cell per process second, the halo (cells, depth in substeps) per block
     boundary scaled to the bed of ``n_cells`` (section ~ n^(2/3), substeps ~ 1/cell size),
     ``network`` [bytes/s] and ``hop`` [s] per dependent task hop (4 per split step: two
-    transport parts, each a halo hop and a block task). An estimate, not a measurement."""
+    transport parts, each a halo hop and a block task, per exchange round). ``per_exchange``:
+    substeps per halo exchange (None: one exchange per transport part); the bytes are the
+    same either way (k layers of the cut per part), the rounds, and so the hops, are
+    k / per_exchange. An estimate, not a measurement."""
     tr = [r for r in runs if r["transport"]]
     if not tr:
         return {}
@@ -175,12 +186,18 @@ def multi_machine_model(runs, n_cells=1e7, sim_time=1800.0, split_step=0.25,
     rate = ser["cell_steps_per_s"]
     steps_per_cell_s = ser["accepted_steps"] / ser["active_cells"] / ser["end_time"]
     scale = (n_cells / n_meas) ** (1.0 / 3.0)
-    halo_one = (two["halo_cells"][0] if two.get("halo_cells") else 0) * scale ** 2 * scale
+    depth = two.get("halo_depth") or 1
+    k_meas = two.get("substeps_per_part") or depth
+    # the measured halo per boundary is `depth` layers; a part moves k layers of the cut
+    halo_one = ((two["halo_cells"][0] if two.get("halo_cells") else 0) * k_meas / depth
+                * scale ** 2 * scale)
+    k_big = k_meas * scale
+    rounds = 1 if per_exchange is None else math.ceil(k_big / per_exchange)
     n_state = two["halo_bytes_per_transport_part"] / max(1, sum(two["halo_cells"])) / 8
     bytes_split = 2 * 2 * halo_one * n_state * 8   # 2 sides, 2 transport parts
     compute = n_cells * sim_time * steps_per_cell_s / rate
     n_split = sim_time / split_step
-    comm = n_split * (bytes_split / network + 4 * hop)
+    comm = n_split * (bytes_split / network + 4 * rounds * hop)
     machines = None
     for m in range(1, 4097):
         if compute / m + comm <= 3600.0:
@@ -191,6 +208,7 @@ def multi_machine_model(runs, n_cells=1e7, sim_time=1800.0, split_step=0.25,
             "halo_bytes_per_split_step_per_boundary": bytes_split,
             "compute_s_one_machine": compute, "comm_s": comm, "machines_for_1_h": machines,
             "network_bytes_per_s": network, "task_hop_s": hop,
+            "substeps_per_part": k_big, "exchange_rounds_per_part": rounds,
             "measured_at_active_cells": n_meas}
 
 

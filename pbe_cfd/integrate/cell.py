@@ -384,6 +384,14 @@ def _memory(scheme, mode, h):
     return -h if (scheme == AUTO and mode == 1) else h
 
 
+@nb.njit(cache=True, inline="always")
+def _clear_crossed(local):
+    """Clear STOKES_CROSSED of a cell's params copy where it carries the switch memory
+    (``switches.held_params``); a copy that holds nothing has no such slot."""
+    if local.shape[0] > P.STOKES_CROSSED:
+        local[P.STOKES_CROSSED] = 0.0
+
+
 @nb.njit(cache=True)
 def _attempt(scheme, method, mode, state, h_try, buf, phis, cap, jac, lu, piv, pivots, coefs,
              n_inv, have_jac, cell, aux, local, config, work, rtol, atol, droplet, n, stats):
@@ -395,7 +403,7 @@ def _attempt(scheme, method, mode, state, h_try, buf, phis, cap, jac, lu, piv, p
         expo = droplet >= 0 and scheme == AUTO and _capture_chosen(
             scheme, method, state, h_try, buf, cap, cell, aux, local, config, work, rtol,
             atol, droplet, n, stats)
-        local[P.STOKES_CROSSED] = 0.0
+        _clear_crossed(local)
         outcome, err, h_rho, calls = _explicit(scheme, method, state, h_try, buf, phis, expo,
                                                cell, aux, local, config, work, rtol, atol,
                                                droplet, n)
@@ -405,7 +413,7 @@ def _attempt(scheme, method, mode, state, h_try, buf, phis, cap, jac, lu, piv, p
                                           n_inv, cell, aux, local, config, work, rtol, atol, n)
             stats[JACOBIANS] += 1
             have_jac = True
-        local[P.STOKES_CROSSED] = 0.0
+        _clear_crossed(local)
         outcome, err, calls = _implicit(scheme, method, state, h_try, buf, jac, lu, piv, cell,
                                         aux, local, config, work, rtol, atol, n)
     stats[RHS_CALLS] += calls
@@ -469,7 +477,7 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
         crossed = hold and outcome == ACCEPT and local[P.STOKES_CROSSED] != 0.0
         if crossed:
             outcome, err = located(method, t, state, h_try, buf, cell, aux, local, config,
-                                    work, rtol, atol, n, stats, saved, loc, outcome, err)
+                                   work, rtol, atol, n, stats, saved, loc, outcome, err)
         if outcome == ACCEPT:
             t = t_end if last else t + h_try
             for i in range(n):

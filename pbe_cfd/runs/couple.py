@@ -34,7 +34,7 @@ __all__ = ["CoupledResult", "run_coupled", "write_coupled", "check_foam_fields",
 class CoupledResult:
     """Per-output-time cell fields and bed-integrated columns of a coupled run."""
     times: np.ndarray
-    cell_fields: list              # one dict name -> (n_cells,) per output time
+    cell_fields: list              # one dict name -> (n_cells,) per output time (a Spool)
     bed_columns: dict
     stats: dict
     wall_time_s: float
@@ -170,12 +170,13 @@ def _outputs(plan, arrays, aux, cells, active, spray, idx, times, history, warni
     problem's ``OutputPlan``. ``per_time``
     (a list) receives the active cells' SI columns of each output time."""
     from ..distribution.reconstruct import Mixture
+    from ..io.spool import Spool
     mixtures = []
     n = cells.n_cells
     volumes = np.asarray(cells.cell_volume, dtype=float)
     v_active = volumes[idx]
     bed_volume = float(volumes.sum())
-    cell_fields = []
+    cell_fields = Spool()              # one output time in memory at a time
     bed = {"time_s": times}
     rho = plan.density
     pd = arrays.droplet_mass

@@ -173,14 +173,34 @@ def fluidisation_values(scene) -> dict:
     return values
 
 
-def _ends_here(c, t_start, t, d32, d_cfd, t_end) -> bool:
-    """True when a segment begun at t_start [s] ends at output time t [s]."""
-    if t >= t_end - 1e-9 * t_end:
+def _ends_here(c, t_start, t, d32, d_cfd, t_end, nears_umf=False) -> bool:
+    """True when a segment begun at t_start [s] ends at check time t [s]; ``nears_umf``: the
+    granules' U_mf has just reached the warning's fraction of the inlet velocity."""
+    if t >= t_end - 1e-9 * t_end or nears_umf:
         return True
     if c.interval is not None and t - t_start >= c.interval * (1 - 1e-9):
         return True
     return (c.d32_change is not None
             and abs(d32 / d_cfd - 1.0) >= c.d32_change * (1 - 1e-9))
+
+
+def check_times(t0: float, t1: float, step: float | None) -> list:
+    """The check times [s] in (t0, t1]: equal pieces of at most ``step`` [s], ending at t1."""
+    if step is None or step >= (t1 - t0) * (1 - 1e-12):
+        return [t1]
+    n = int(math.ceil((t1 - t0) / step * (1 - 1e-12)))
+    return [t0 + (t1 - t0) * k / n for k in range(1, n)] + [t1]
+
+
+def _nears_umf(scene, fluid, d_cfd, d32) -> bool:
+    """True when granules of d32 [m] reach U_mf >= warn_fraction x U_inlet and the CFD's
+    diameter d_cfd [m] did not."""
+    from .coupling_output import umf_of
+    u_in = fluid.get("inlet_velocity")
+    if u_in is None:
+        return False
+    limit = scene.coupling.warn_fraction * u_in
+    return bool(umf_of(scene, fluid, d32) >= limit > umf_of(scene, fluid, d_cfd))
 
 
 def run_two_way(scene, store, progress=None, log=None, warn=None) -> TwoWayRun:
@@ -226,7 +246,8 @@ def run_two_way(scene, store, progress=None, log=None, warn=None) -> TwoWayRun:
         else:
             first = (initial_states(scene, arrays, rows[idx, P.ALPHA]) if states is None
                      else carry_over(states, volumes, rows[idx, P.ALPHA], vol))
-            run.compile_time_s += _granulate(scene, seg, arrays, aux, first, times, progress)
+            run.compile_time_s += _granulate(scene, seg, arrays, aux, first, times, progress,
+                                             run.fluidisation)
             store.save_granulation(k, {"t_end": seg.t_end, "d32_end": seg.d32_end,
                                        "pbe_wall_s": seg.pbe_wall_s},
                                    seg.times, seg.history, idx)
@@ -246,10 +267,11 @@ def run_two_way(scene, store, progress=None, log=None, warn=None) -> TwoWayRun:
             store.save_cfd(k, cfd)
 
 
-def _granulate(scene, seg, arrays, aux, states, times, progress) -> float:
+def _granulate(scene, seg, arrays, aux, states, times, progress, fluid) -> float:
     """Integrate segment ``seg`` from its start over the scene's output times until it ends
-    (``_ends_here``); fills its times, history, end time, d32 and wall seconds. Returns the
-    compile seconds."""
+    (``_ends_here``, checked every ``check_interval``); fills its times, history, end time,
+    d32 and wall seconds. ``fluid``: the case's gas values for U_mf. Returns the compile
+    seconds."""
     batch = CellBatch.for_scene(scene, arrays, aux, np.ascontiguousarray(seg.rows[seg.idx]),
                                 np.ascontiguousarray(states), cell_ids=seg.idx)
     compile_s = batch.compile()
@@ -263,15 +285,24 @@ def _granulate(scene, seg, arrays, aux, states, times, progress) -> float:
     vol = np.asarray(seg.domain.cells.cell_volume, dtype=float)[seg.idx]
     out_t, history = [seg.t_start], [batch.states.copy()]
     later = [t for t in times if t > seg.t_start * (1 + 1e-12) + 1e-12]
+    c = scene.coupling
+    ended = False
     for t in later:
-        executor.run(batch, np.array([out_t[-1], t]), transport)
-        out_t.append(float(t))
-        history.append(batch.states.copy())
-        d32 = granule_d32(scene, arrays, aux, batch.states, vol)
+        last = out_t[-1]
+        for tc in check_times(last, float(t), c.check_interval):
+            executor.run(batch, np.array([last, tc]), transport)
+            last = tc
+            d32 = granule_d32(scene, arrays, aux, batch.states, vol)
+            ended = _ends_here(c, seg.t_start, tc, d32, seg.diameter, scene.end_time,
+                               _nears_umf(scene, fluid, seg.diameter, d32))
+            if ended or tc == t:
+                out_t.append(float(tc))
+                history.append(batch.states.copy())
+                break
         if progress is not None:
-            progress(t / scene.end_time, f"segment {seg.index}: t = {t:.4g} s, d32 = "
-                     f"{d32 * 1e6:.1f} um")
-        if _ends_here(scene.coupling, seg.t_start, t, d32, seg.diameter, scene.end_time):
+            progress(out_t[-1] / scene.end_time, f"segment {seg.index}: t = {out_t[-1]:.4g} "
+                     f"s, d32 = {d32 * 1e6:.1f} um")
+        if ended:
             seg.d32_end = d32
             break
     seg.times, seg.history, seg.t_end = np.array(out_t), history, out_t[-1]

@@ -116,18 +116,20 @@ def defluidisation_warnings(scene, run) -> list:
 def combined_result(scene, run, wall_s: float) -> CoupledResult:
     """The coupled outputs across the segments: cell fields and bed columns at every output
     time (a boundary's time once, from the segment that ended there), psd and labels."""
-    times, fields, mixtures, bed = [], [], [], {}
+    from ..io.spool import Spool
+    times, fields, mixtures, bed = [], Spool(), [], {}
     plan = output_plan(scene)
     warnings = list(run.warnings)
     for seg in run.segments:
         cf, b, mx = _outputs(plan, run.arrays, seg.aux, seg.domain.cells, seg.active,
                              seg.spray, seg.idx, seg.times, seg.history, warnings)
         skip = 1 if seg.index > 0 else 0
-        for f in cf:
+        for f in cf[skip:]:          # one output time in memory at a time
             f["cfd_time_s"] = np.full(seg.domain.cells.n_cells, seg.cfd_time)
             f["segment"] = np.full(seg.domain.cells.n_cells, float(seg.index))
+            fields.append(f)
+        cf.close()
         times.extend(seg.times[skip:])
-        fields.extend(cf[skip:])
         mixtures.extend(mx[skip:])
         for name, values in b.items():
             bed.setdefault(name, []).extend(np.asarray(values)[skip:])

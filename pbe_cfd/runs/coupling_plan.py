@@ -35,9 +35,13 @@ def plan_lines(scene, n_cells: int | None = None) -> list[str]:
     cells = n_cells or (TEMPLATE_CELLS[c.mesh] if bundled else None)
     shown = ", ".join(f"{a:g}-{b:g}" for a, b in segs[:8]) + (" ..." if len(segs) > 8 else "")
     lines = [f"  two-way coupling: {len(segs)} segments of process time [s]: {shown}"]
+    where = ("output time" if c.check_interval is None
+             else f"check (every {c.check_interval:g} s)")
     if c.d32_change is not None:
-        lines.append(f"    a segment also ends at the first output time where the bed's d32 "
+        lines.append(f"    a segment also ends at the first {where} where the bed's d32 "
                      f"moved {100 * c.d32_change:g}% from its CFD's diameter (more segments)")
+    lines.append(f"    and at the first {where} where the granules' U_mf reaches "
+                 f"{c.warn_fraction:g} x the inlet velocity (the defluidisation warning)")
     first = (f"the case template ({c.mesh} mesh) from its packed bed for {c.first_flow:g} s of "
              f"flow, averaged from {c.first_window_start:g} s" if bundled
              else f"the case {scene.domain.case} as it is, at time {scene.domain.time}")

@@ -23,14 +23,16 @@ class SerialExecutor:
         """Advance ``batch`` over the output ``times`` [s]: per interval the sources only, or
         with ``transport`` the operator splitting of transport and sources
         (``Transport.advance``). Raises SimulationError when a cell stops. Returns the states at
-        every output time (copies)."""
-        history = [batch.states.copy()]
+        every output time (copies, streamed to disk: ``io.spool.Spool``)."""
+        from ..io.spool import Spool
+        history = Spool()
+        history.append(batch.states)
         for k in range(1, len(times)):
             if transport is None:
                 batch.step(times[k - 1], times[k])
             else:
                 transport.advance(batch.states, times[k - 1], times[k], batch.source_step)
-            history.append(batch.states.copy())
+            history.append(batch.states)
             if progress is not None:
                 progress(times[k] / times[-1], f"t = {times[k]:.4g} s")
         return history

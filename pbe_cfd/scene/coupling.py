@@ -18,6 +18,11 @@ Keys (SI):
                   reaches this fraction of the inlet's superficial velocity (default 0.8)
   inlet_velocity  m/s, the superficial velocity that warning compares with (default: the
                   case's gas inlet patch)
+  check_interval  s of process time between the checks of d32_change and of the warning's
+                  threshold (default: the output interval); a segment that ends between two
+                  output times writes its boundary as an output time too
+A segment also ends where the granules' U_mf first reaches warn_fraction of the inlet's
+velocity, so the CFD re-runs (and the warning is given) as the bed nears defluidisation.
 """
 from __future__ import annotations
 
@@ -38,6 +43,7 @@ class Coupling:
     mesh: str = "small"                   # the template's mesh for that first run
     warn_fraction: float = 0.8            # defluidisation warning at U_mf >= this x U_inlet
     inlet_velocity: float | None = None   # m/s compared with U_mf (default: the case's inlet)
+    check_interval: float | None = None   # s between segment-end checks (default: outputs)
 
     @property
     def window_start(self) -> float:
@@ -69,7 +75,8 @@ def parse_coupling(table, domain, error) -> Coupling:
                                         unit="s"),
         mesh=table.choice("mesh", ("small", "full"), "small"),
         warn_fraction=table.number("warn_fraction", 0.8, positive=True, high=1.0),
-        inlet_velocity=table.number("inlet_velocity", None, positive=True, unit="m/s"))
+        inlet_velocity=table.number("inlet_velocity", None, positive=True, unit="m/s"),
+        check_interval=table.number("check_interval", None, positive=True, unit="s"))
     table.finish()
 
     def fail(key, text):

@@ -472,3 +472,36 @@ def test_ctrl_c_during_case_run_removes_the_half_run_case_and_its_solver(
         time.sleep(0.1)
     else:
         pytest.fail("the solver of the interrupted case still runs")
+
+
+def test_kill_9_of_case_run_leaves_no_solver_running(box, fake_openfoam, tmp_path):
+    """SIGKILL of ``pbe-cfd case run`` cannot be caught; the bundled Allrun and the tool it runs
+    must die with it (parent-death signals), not write on into the case."""
+    from importlib import resources
+    template = tmp_path / "bundled"
+    shutil.copytree(resources.files("pbe_cfd") / "data" / "openfoam_case", template)
+    pidfile = tmp_path / "solver.pid"
+    solver = Path(os.environ["PATH"].split(os.pathsep)[0]) / "twoPhaseEulerFoam"
+    solver.write_text('#!/bin/sh\necho $$ > "$PBE_TEST_PIDFILE"\nexec sleep 60\n')
+    proc = cli(["case", "run", "--dir", "k"], cwd=box,
+               env={**os.environ, "PBE_CFD_CASE": str(template),
+                    "PBE_TEST_PIDFILE": str(pidfile)})
+    deadline = time.monotonic() + 60
+    while not pidfile.is_file() or not pidfile.read_text().strip():
+        assert proc.poll() is None, proc.stderr.read()
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    pid = int(pidfile.read_text())
+    proc.kill()
+    proc.wait(timeout=30)
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        try:                                   # gone, or a zombie nobody reaped yet
+            if Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z":
+                break
+        except (FileNotFoundError, ProcessLookupError):
+            break
+        time.sleep(0.1)
+    else:
+        os.kill(pid, signal.SIGKILL)
+        pytest.fail("the solver of the killed case run still runs")

@@ -41,8 +41,9 @@ def _check(res, y0, x_cr, x_eq, rtol):
 
 # CQMOM 2x2 misses the closed form at the end of the falling-rate period by 1.1e-8 relative
 # on M01 (2.69517883e-3 against 2.69517880e-3) with the integrator that locates and holds the
-# Stokes switches (no Stokes criterion in this scene); it met 1e-8 before. Strict, so a fix
-# shows.
+# Stokes switches (no Stokes criterion in this scene); it met 1e-8 before. Not the
+# out-of-bounds write of the switch flag that integrator had (fixed, still 1.1e-8 off); the
+# cause is not found. Strict, so a fix shows.
 KINK = pytest.mark.xfail(strict=True, reason="CQMOM M01 1.1e-8 off the closed form")
 
 
@@ -129,9 +130,9 @@ def _spray_dry_scene(method):
                       method={"_replace": True, "rtol": 1e-8, **method})
 
 
-@pytest.fixture(scope="module")
-def reference():
-    """(times [s], mean, 95% half-width) of the reference's NAMES over the scene."""
+def _reference(stop):
+    """(times [s], mean, 95% half-width) of the reference's NAMES over the scene, the spray
+    stopping at ``stop`` [s]."""
     import math
 
     from references import cnmc_drying
@@ -144,10 +145,16 @@ def reference():
                 slip=air["slip_velocity"], rho_s=RHO_S, rho_l=1000.0,
                 x_cr=air["critical_moisture"], x_eq=0.0, k0=s["k0"], n0=N0, p0=P0, y0=s["y0"],
                 droplet_mass=1000.0 * math.pi / 6.0 * s["d_drop"] ** 3,
-                solids_fraction=s["solids"], rate=s["rate"], start=0.0, stop=s["stop"])
+                solids_fraction=s["solids"], rate=s["rate"], start=0.0, stop=stop)
     times = np.arange(0.0, s["end"] + 0.5, 1.0)
     mean, half = cnmc_drying.ensemble(case, REF_PARTICLES, REF_REPLICAS, REF_SEED, times)
     return times, dict(zip(cnmc_drying.NAMES, mean.T)), dict(zip(cnmc_drying.NAMES, half.T))
+
+
+@pytest.fixture(scope="module")
+def reference():
+    """The reference over the spray-then-dry scene (the spray stops at SPRAY_DRY["stop"])."""
+    return _reference(SPRAY_DRY["stop"])
 
 
 @pytest.mark.slow
@@ -161,7 +168,13 @@ def test_spray_then_dry_against_the_independent_cnmc(method, reference):
     hold M00 .. M50 and E, but M01 runs 4-7% below the reference from t ~ 10 s on (band
     0.8-1.8%), with more nodes further (QMOM N = 4: -8%, CQMOM 4 x 2: -10% at 20 s); without
     aggregation the same scene agrees to 1% (QMOM N = 3, 4) with the reference and with the
-    semi-analytic sum over injection times. Red, reported; not tuned."""
+    semi-analytic sum over injection times. Red, reported; not tuned.
+
+    The cause is the closure of the drift, not the physics: the project's cNMC agrees with the
+    reference on the same scene (``test_cnmc_with_drying_and_aggregation_matches_the_reference``),
+    and the QMOM quadrature of the reference's own box overestimates its evaporation rate by
+    3-7% (N = 3) and 6-22% (N = 4) from 3 to 20 s (scripts/drying_closure.py; docs/physics.md
+    section 15, "Closure of the drift")."""
     times, mean, half = reference
     c = run_well_mixed(_spray_dry_scene(COMPARED[method])).columns
     assert np.allclose(c["time_s"], times, rtol=0.0, atol=1e-9)
@@ -171,6 +184,38 @@ def test_spray_then_dry_against_the_independent_cnmc(method, reference):
         dev = np.abs(c[name] - mean[name])
         worst[name] = float(np.max(dev / np.abs(mean[name])))
         assert np.all(dev <= 0.03 * np.abs(mean[name]) + half[name]), (name, worst[name])
+
+
+@pytest.mark.slow
+@pytest.mark.study
+def test_cnmc_with_drying_and_aggregation_matches_the_reference():
+    """The project's cNMC (per-particle drying, ``physics.drying.advance_liquid``) against the
+    independent cNMC on the scene above with the spray on throughout (the project's cNMC sprays
+    at one constant rate): M00, M10, M01, M20, M11, M02 and the evaporated liquid within the
+    issue's 3% of the reference's mean plus both ensembles' 95% half-widths (two independent
+    means: their difference is within the root sum of squares of the halves, which the sum
+    bounds). Both are the same model, so only their scatter may separate them; the moment
+    methods' M01 gap is then the closure of the drift."""
+    times, mean, half = _reference(2.0 * SPRAY_DRY["end"])
+    s = SPRAY_DRY
+    scene = make_scene(scene={"end_time": s["end"], "output_interval": 1.0},
+                       material={"density": RHO_S, "binder_density": 1000.0},
+                       initial={"mean_mass": P0, "number_density": N0,
+                                "binder_fraction": s["y0"]},
+                       aggregation={"kernel": "constant", "rate": s["k0"]},
+                       binder_injection={"rate": s["rate"], "droplet_diameter": s["d_drop"],
+                                         "solids_fraction": s["solids"]},
+                       drying=s["air"],
+                       method={"_replace": True, "name": "cnmc", "particles": REF_PARTICLES,
+                               "replicas": 4, "seed": 5})
+    c = run_well_mixed(scene).columns
+    assert np.allclose(c["time_s"], times, rtol=0.0, atol=1e-9)
+    for name in ("M00", "M10", "M01", "M20", "M11", "M02", "liquid_evaporated"):
+        own_half = 0.5 * (c[name + "_hi"] - c[name + "_lo"])
+        dev = np.abs(c[name] - mean[name])
+        assert np.all(dev <= 0.03 * np.abs(mean[name]) + half[name] + own_half), \
+            (name, float(np.max(dev / np.abs(mean[name]))))
+    assert c["liquid_evaporated"][-1] > 0.5 * c["M01"][0]
 
 
 def _carried(method):

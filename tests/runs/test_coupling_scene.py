@@ -11,7 +11,7 @@ import pytest
 
 from pbe_cfd import cli
 from pbe_cfd.physics.fluidisation import minimum_fluidisation_velocity
-from pbe_cfd.runs.coupling import _ends_here, carry_over
+from pbe_cfd.runs.coupling import _ends_here, _nears_umf, carry_over, check_times
 from pbe_cfd.runs.coupling_output import defluidisation_warnings, umf_of
 from pbe_cfd.scene.scene import SceneError, scene_from_dict
 from references import wen_yu
@@ -126,6 +126,42 @@ def test_defluidisation_warns_before_the_bed_collapses():
     # the bundled inlet (0.08 m/s) and the same granules: no warning below 0.8 x 0.08 m/s
     calm = _fake_run(diameters[:2], 200e-6, 0.08)
     assert defluidisation_warnings(scene, calm) == []
+
+
+def test_check_times_split_an_output_interval_evenly():
+    assert check_times(30.0, 60.0, None) == [60.0]
+    assert check_times(30.0, 60.0, 30.0) == [60.0]
+    assert check_times(30.0, 60.0, 7.0) == pytest.approx([36.0, 42.0, 48.0, 54.0, 60.0],
+                                                         rel=0, abs=1e-12)
+    assert check_times(30.0, 60.0, 7.0)[-1] == 60.0       # the output time itself, exactly
+    with pytest.raises(SceneError, match=r"\[coupling.check_interval\]"):
+        scene_from_dict(transport_data(flow_time=0.5, interval=60.0, check_interval=0.0),
+                        "s.toml")
+
+
+def test_a_segment_ends_where_u_mf_first_nears_the_inlet_velocity():
+    """The segment ends (and the CFD re-runs) at the first check where the granules' U_mf
+    reaches warn_fraction x U_in, computed from the independent Wen & Yu solution; once the
+    CFD's own diameter is past it, the threshold no longer ends segments."""
+    scene = scene_from_dict(transport_data(flow_time=0.5, interval=120.0), "s.toml")
+    u_in = 0.04
+    fluid = {**AIR, "inlet_velocity": u_in}
+    ds = np.linspace(100e-6, 600e-6, 501)
+    u = np.array([wen_yu.u_mf(d, 1021.0, AIR["gas_density"], AIR["gas_viscosity"])
+                  for d in ds])
+    k = int(np.argmax(u >= 0.8 * u_in))             # the first diameter past the threshold
+    assert 0 < k < ds.size - 1
+    d_cfd = 150e-6
+    # Wen & Yu of the project and of the reference agree to 1.2e-3 (test above): skip the
+    # diameters within that band of the threshold
+    below = ds[:k][u[:k] < 0.8 * u_in * (1 - 2.4e-3)]
+    above = ds[k:][u[k:] > 0.8 * u_in * (1 + 2.4e-3)]
+    assert not any(_nears_umf(scene, fluid, d_cfd, d) for d in below)
+    assert all(_nears_umf(scene, fluid, d_cfd, d) for d in above)
+    assert not any(_nears_umf(scene, fluid, above[0], d) for d in above)
+    assert not _nears_umf(scene, {**AIR, "inlet_velocity": None}, d_cfd, 600e-6)
+    c = scene.coupling
+    assert _ends_here(c, 0.0, 10.0, d_cfd, d_cfd, 600.0, nears_umf=True)
 
 
 def test_without_openfoam_couple_exits_2(tmp_path, monkeypatch, capsys):

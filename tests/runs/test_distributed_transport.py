@@ -79,6 +79,22 @@ def test_states_on_the_workers_equal_serial(client, problems, case, blocks):
     assert rep["gathered_bytes_per_output_time"] >= n_active * 8 * 5   # states once per output
 
 
+@pytest.mark.parametrize("per_exchange", [1, 4])
+def test_shallow_halo_exchanged_per_round_equals_serial(client, problems, per_exchange):
+    """Halos exchanged every ``per_exchange`` substeps (a halo that many hops deep) instead
+    of once per transport part: still bitwise the serial run, with a halo no deeper than
+    asked and smaller than the one-exchange-per-part halo."""
+    scene, domain, ref = problems["3d"]
+    deep = run_coupled(scene, domain, executor=D.ClusterExecutor(client=client, chunks=2))
+    res = run_coupled(scene, domain, executor=D.ClusterExecutor(
+        client=client, chunks=2, halo_substeps=per_exchange))
+    assert_same(ref, res)
+    rep, rep_deep = (r.stats["cluster"]["transport"] for r in (res, deep))
+    assert rep_deep["substeps_per_part"] > per_exchange       # the split is a real one
+    assert rep["halo_depth_substeps"] == per_exchange
+    assert sum(rep["halo_cells"]) < sum(rep_deep["halo_cells"])
+
+
 def test_client_traffic_does_not_grow_with_the_cells(client, tmp_path):
     write_bed(tmp_path, 3000)
     sent = {}

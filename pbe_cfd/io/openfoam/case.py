@@ -15,7 +15,8 @@ from importlib import resources
 from pathlib import Path
 
 
-from .install import DEFAULT_PHASE, OpenFOAMError, find_openfoam, phase_fields
+from .install import (DEFAULT_PHASE, OpenFOAMError, bound_to_parent, find_openfoam,
+                      phase_fields)
 
 
 def default_case_dir() -> Path:
@@ -115,7 +116,7 @@ def run_case(case_dir: str | os.PathLike, mesh: str = "small",
     if target is None:
         target = _control_value(case_dir / "system" / "controlDict", "endTime")
 
-    proc = subprocess.Popen(args, cwd=case_dir, env=install.env(), stdout=subprocess.PIPE,
+    proc = subprocess.Popen(bound_to_parent(args), cwd=case_dir, env=install.env(), stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, start_new_session=True)
     watch = _AllrunWatch(proc, say)
     try:

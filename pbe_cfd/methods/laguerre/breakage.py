@@ -32,7 +32,8 @@ from ...physics import parameters as P
 from ...physics.breakage import (cell_selection_factor, daughter_moment_factor,
                                  selection_function)
 from .basis import moment_index
-from .layout import AUX_NWC, AUX_NWD, AUX_NWL, AUX_OFF_BREAK, AUX_ORDER, weight_corner
+from .layout import (AUX_NWC, AUX_NWD, AUX_NWL, AUX_OFF_BREAK, AUX_ORDER, N_CORNERS,
+                     weight_corner)
 
 
 def breakage_on(config) -> bool:
@@ -123,7 +124,7 @@ def add_laguerre_breakage(state, out, cell, aux, params, config, wpos):
     K = m * m
     nwc = int(aux[AUX_NWC])
     nwd = int(aux[AUX_NWD])
-    for q in range(8):
+    for q in range(N_CORNERS):
         w, f = weight_corner(q, wpos, nwc, nwd)
         if f != 0.0:
             add_linear_term(state, out, aux, o + w * K * K, K, 0, 0, factor * f)

@@ -32,7 +32,8 @@ from ...physics import parameters as P
 from ...physics.drying import drying_rate
 from .basis import moment_index
 from .breakage import add_laguerre_breakage, add_linear_term
-from .layout import AUX_NWC, AUX_NWD, AUX_OFF_DRYING, AUX_ORDER, weight_corner
+from .layout import (AUX_NWC, AUX_NWD, AUX_OFF_DRYING, AUX_ORDER, N_CORNERS,
+                     weight_corner)
 
 
 def drying_on(config) -> bool:
@@ -93,7 +94,7 @@ def add_laguerre_drying(state, out, aux, config, wpos):
     nwc = int(aux[AUX_NWC])
     nwd = int(aux[AUX_NWD])
     evaporated = config[P.N_STATE] - 1
-    for q in range(8):
+    for q in range(N_CORNERS):
         w, f = weight_corner(q, wpos, nwc, nwd)
         if f == 0.0:
             continue

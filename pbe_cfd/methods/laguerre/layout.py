@@ -188,7 +188,7 @@ def weight_corners(state, aux):
     class's mean mass W10/W00 and mean binder W01/W00 on the adaptive grid (bilinear in
     ln c, ln d, as the RHS blends; with the following support in the mass-weighted mean mass
     W20/W10, the binder fraction W01/W10 and the carried gamma shape (``carried_shape``), all
-    in logs, trilinear); [(0, 1.0)] for fixed weights."""
+    in logs, on the Kuhn simplex of ``weight_corner``); [(0, 1.0)] for fixed weights."""
     nwc, nwd = int(aux[AUX_NWC]), int(aux[AUX_NWD])
     if nwc * nwd <= 1:
         return [(0, 1.0)]
@@ -210,12 +210,24 @@ def weight_corners(state, aux):
         lam = carried_shape(w00, float(state[m]), float(state[2 * m]))
         grid = aux[o + nwc + nwd:o + nwc + nwd + nwl]
         il, tl = (nwl - 2, 1.0) if lam == math.inf else _log_position(lam, grid)
-    out = []
-    for g, wg in ((0, 1.0 - tl), (1, tl)):
+    if nwl <= 1:
+        out = []
         for a, wa in ((0, 1.0 - tc), (1, tc)):
             for b, wb in ((0, 1.0 - td), (1, td)):
-                if wg * wa * wb > 0.0:
-                    out.append((((il + g) * nwc + ic + a) * nwd + jd + b, wg * wa * wb))
+                if wa * wb > 0.0:
+                    out.append(((ic + a) * nwd + jd + b, wa * wb))
+        return out
+    # the shape axis: the Kuhn simplex of the cube holding (tc, td, tl), as weight_corner
+    order = sorted(((tc, 0), (td, 1), (tl, 2)), key=lambda x: -x[0])
+    bits = [0, 0, 0]
+    ts = [1.0] + [t for t, _ in order] + [0.0]
+    out = []
+    for q in range(N_CORNERS):
+        if q > 0:
+            bits[order[q - 1][1]] = 1
+        f = ts[q] - ts[q + 1]
+        if f > 0.0:
+            out.append((((il + bits[2]) * nwc + ic + bits[0]) * nwd + jd + bits[1], f))
     return out
 
 
@@ -233,6 +245,11 @@ def wet_support(aux, w=0):
     return float(aux[AUX_P_MAX]), float(aux[AUX_B_MAX])
 
 
+#: the most weight-grid corners one state blends (bilinear: 4; with the shape axis the
+#: simplex's 4)
+N_CORNERS = 4
+
+
 @nb.njit(cache=True, inline="always")
 def _corner(k, i, t):
     """(index, weight) of corner k (0 lower, 1 upper) of a linear interpolation at (i, t)."""
@@ -243,11 +260,46 @@ def _corner(k, i, t):
 
 @nb.njit(cache=True, inline="always")
 def weight_corner(q, wpos, nwc, nwd):
-    """(weight slice w, blend weight) of corner q < 8 of the weight position wpos
-    (``_weight_position``): bit 0 the mass axis, bit 1 the binder axis, bit 2 the shape
-    axis; w = (il * nwc + ic) * nwd + jd."""
+    """(weight slice w, blend weight) of corner q < N_CORNERS of the weight position wpos
+    (``_weight_position``); w = (il * nwc + ic) * nwd + jd. Without a shape axis (il < 0):
+    bilinear in (ln c, ln d), bit 0 of q the mass axis, bit 1 the binder axis. With it: the
+    Kuhn simplex of the cell's cube that holds the point (docs/physics.md 9.2), corner q the
+    lower corner plus the unit steps along the q axes of largest fractional coordinate, blend
+    weight t_(q) - t_(q+1) (t_(0) = 1 >= t_(1) >= t_(2) >= t_(3) >= t_(4) = 0): exact for
+    any function linear in (ln c_m, ln y_bar, ln lambda), four corners instead of eight."""
     ic, tc, jd, td, il, tl = wpos
-    i, wa = _corner(q & 1, ic, tc)
-    j, wb = _corner((q >> 1) & 1, jd, td)
-    g, wg = _corner((q >> 2) & 1, il, tl)
-    return (g * nwc + i) * nwd + j, wa * wb * wg
+    if il < 0:
+        i, wa = _corner(q & 1, ic, tc)
+        j, wb = _corner((q >> 1) & 1, jd, td)
+        return i * nwd + j, wa * wb
+    # axes (0 mass, 1 binder, 2 shape) in descending fractional coordinate
+    a0, a1, a2 = 0, 1, 2
+    t0, t1, t2 = tc, td, tl
+    if t0 < t1:
+        a0, a1, t0, t1 = a1, a0, t1, t0
+    if t1 < t2:
+        a1, a2, t1, t2 = a2, a1, t2, t1
+    if t0 < t1:
+        a0, a1, t0, t1 = a1, a0, t1, t0
+    if q == 0:
+        f = 1.0 - t0
+        n_up = 0
+    elif q == 1:
+        f = t0 - t1
+        n_up = 1
+    elif q == 2:
+        f = t1 - t2
+        n_up = 2
+    else:
+        f = t2
+        n_up = 3
+    i, j, g = ic, jd, il
+    for r in range(n_up):
+        ax = a0 if r == 0 else (a1 if r == 1 else a2)
+        if ax == 0:
+            i += 1
+        elif ax == 1:
+            j += 1
+        else:
+            g += 1
+    return (g * nwc + i) * nwd + j, f

@@ -135,6 +135,16 @@ def _gamma_tail(mean, var, limit, extra):
     return float(gammaincc(k + extra, limit / (var / mean)))
 
 
+def escaped_mass_parts(state, aux, params, config):
+    """Estimated shares [-] of the granule mass beyond each bound of the support, as
+    ``escaped_mass_share`` fits them, keyed by the [method] key that sets the bound: the wet
+    class beyond p_max ("support_mass", or "following_growth" with the following support),
+    beyond b_max ("support_binder"; "following_growth" with the following support, whose only
+    bound in b is b <= p <= p_max), the dry class beyond its p_max ("support_mass"). Each
+    share is of the granule mass of both classes, each class's share capped at 1."""
+    return _escape(state, aux, params, config)[1]
+
+
 def escaped_mass_share(state, aux, params, config):
     """Estimated share [-] of the granule mass carried beyond p_max or b_max.
 
@@ -148,9 +158,21 @@ def escaped_mass_share(state, aux, params, config):
     (near-)delta marginal counts fully beyond the limit if its mean is. Returns the
     mass-weighted sum over the classes, capped at 1.
     """
+    return _escape(state, aux, params, config)[0]
+
+
+def _escape(state, aux, params, config):
+    """(escaped_mass_share, escaped_mass_parts) of one state."""
     m = int(config[P.ORDER])
     s = np.asarray(state, float)
     pref = params[P.MASS_SCALE]
+    following = aux[AUX_FOLLOWING] == 1.0
+    wet_p_key = "following_growth" if following else "support_mass"
+    wet_b_key = "following_growth" if following else "support_binder"
+    parts = {}
+
+    def add(key, value):
+        parts[key] = parts.get(key, 0.0) + value
     K = m * m
     # the wet class's support: the smallest among the blended slices (following support)
     pmax, bmax = (min(x) / pref for x in zip(*(wet_support(aux, w)
@@ -174,15 +196,22 @@ def escaped_mass_share(state, aux, params, config):
             sb = _gamma_tail(mb, W(1, 2) / W(1, 0) - mb * mb, bmax, 0.0)
         else:
             sb = float(max(W(1, 1), 0.0) / (bmax * W(1, 0)))
-        share = max(0.0, p_tail(W(0, 0), W(1, 0), W(2, 0) if m >= 3 else 0.0)) + max(0.0, sb)
+        sp = max(0.0, p_tail(W(0, 0), W(1, 0), W(2, 0) if m >= 3 else 0.0))
+        share = sp + max(0.0, sb)
         total += W(1, 0)
         escaped += W(1, 0) * min(1.0, share)
+        add(wet_p_key, W(1, 0) * min(1.0, sp))
+        add(wet_b_key, W(1, 0) * min(1.0, max(0.0, sb)))
     D = s[K:K + m]
     if D[0] > 0 and D[1] > 0:
         total += D[1]
-        escaped += D[1] * min(1.0, max(0.0, p_tail(D[0], D[1], D[2] if m >= 3 else 0.0,
-                                                   pmax_dry)))
-    return float(min(1.0, escaped / total)) if total > 0 else 0.0
+        sd = D[1] * min(1.0, max(0.0, p_tail(D[0], D[1], D[2] if m >= 3 else 0.0, pmax_dry)))
+        escaped += sd
+        add("support_mass", sd)
+    if not total > 0:
+        return 0.0, {}
+    return (float(min(1.0, escaped / total)),
+            {k: float(min(1.0, v / total)) for k, v in parts.items()})
 
 
 def escaped_share_report(states, aux, arrays):
@@ -196,9 +225,10 @@ def escaped_share_report(states, aux, arrays):
     share = float(shares[k]) if shares.size else 0.0
     text = ""
     if share > ESCAPE_WARN_SHARE:
+        parts = escaped_mass_parts(states[k], aux, arrays.params, arrays.config)
         text = (f"Laguerre ROM: {share:.2%} of the granule mass lies beyond the integration "
                 f"support ({support_text(states[k], aux)}) at output row {k}; the tensor does "
-                f"not see it -- {support_advice(aux)}")
+                f"not see it -- {support_advice(aux, parts)}")
     return share, text
 
 
@@ -212,8 +242,22 @@ def support_text(state, aux):
             f"[method] following_growth; dry class: {dry}")
 
 
-def support_advice(aux):
-    """What to change in the scene when mass leaves the support."""
+def support_advice(aux, parts=None):
+    """What to change in the scene when mass leaves the support: with ``parts``
+    (``escaped_mass_parts``) each [method] key whose bound holds back more than
+    ESCAPE_WARN_SHARE of the granule mass, named with its value and share; the generic
+    advice otherwise."""
+    values = {"support_mass": f"{aux[AUX_P_MAX]:.3g} kg", "support_binder":
+              f"{aux[AUX_B_MAX]:.3g} kg", "following_growth": "the following range"}
+    named = [k for k, v in sorted((parts or {}).items(), key=lambda kv: -kv[1])
+             if v > ESCAPE_WARN_SHARE]
+    if named:
+        too_small = "; ".join(f"[method] {k} ({values[k]}) is too small: {parts[k]:.1%} of the "
+                              "granule mass lies beyond it" for k in named)
+        way = ("raise it" if len(named) == 1 else "raise them")
+        if aux[AUX_FOLLOWING] != 1.0:
+            way += ", or set [method] following_support = true"
+        return f"{too_small}; {way}, or use qmom"
     if aux[AUX_FOLLOWING] == 1.0:
         return "raise [method] following_growth (wet) or support_mass (dry), or use qmom"
     return ("set [method] following_support = true, or widen support_mass / support_binder, "
@@ -415,5 +459,6 @@ def failure_hint(state, aux, arrays):
         return (f"; the population was inside the Laguerre support {where}, {share:.1%} of "
                 "the granule mass beyond it: the support is not the cause, the stop is the "
                 "integrator's (above)")
+    parts = escaped_mass_parts(np.ravel(state), aux, arrays.params, arrays.config)
     return (f"; {share:.1%} of the granule mass had left the Laguerre support {where}: "
-            f"{support_advice(aux)}")
+            f"{support_advice(aux, parts)}")

@@ -42,6 +42,8 @@ class ClusterExecutor:
     meta        extra manifest entries (scene, output directory)
     fault       fault injection (``parse_fault``), for tests
     cluster     a LocalCluster this executor owns (closed by ``close``)
+    halo_substeps  with transport: substeps per halo exchange (the halo's depth in upwind
+                hops); None: one exchange per transport part (depth = its substeps)
     """
     client: object
     chunks: object = None
@@ -52,6 +54,7 @@ class ClusterExecutor:
     fault: dict | None = None
     cluster: object = None
     case_dir: Path | None = None
+    halo_substeps: int | None = None
     _report: dict = field(default_factory=dict, repr=False)
     store: ChunkStore | None = field(default=None, repr=False)
 

@@ -83,7 +83,9 @@ class HaloRun:
         durations = [p[1] for k in range(1, len(times))
                      for p in _interval_parts(transport, times[k - 1], times[k]) if p[0] == "T"]
         self.depth = max([_substeps(transport, d)[0] for d in durations] or [0])
-        self.ops = block_operators(transport.generator, labels, max(1, self.depth))
+        per = getattr(ex, "halo_substeps", None)
+        self.exchange = max(1, self.depth if per is None else min(int(per), self.depth))
+        self.ops = block_operators(transport.generator, labels, self.exchange)
         self.cut = cut_faces(transport.generator, labels)
         workers = sorted(self.client.scheduler_info().get("workers", {}))
         if not workers:
@@ -130,14 +132,19 @@ class HaloRun:
             c["max_courant_used"] = max(c["max_courant_used"], dt * float(tr.out_rate.max()))
         c["substeps"] += k
         c["transport_calls"] += 1
-        new = []
-        for b, op in enumerate(self.ops):
-            pieces = [self._submit(halo_take, self.block_f[a], self.idx_f[(a, b)], b=a)
-                      for a in sorted(op.sources)] if k > 0 else []
-            new.append(self._submit(block_transport, self.block_f[b], self.op_f[b], pieces,
-                                    float(dt), int(k), tr.repair is not None,
-                                    self.shared_f[self.where[b]], b=b))
-        self.block_f = new
+        rounds = [self.exchange] * (k // self.exchange) + (
+            [k % self.exchange] if k % self.exchange else [])
+        for r, k_r in enumerate(rounds or [0]):
+            last = r == max(0, len(rounds) - 1)
+            new = []
+            for b, op in enumerate(self.ops):
+                pieces = [self._submit(halo_take, self.block_f[a], self.idx_f[(a, b)], b=a)
+                          for a in sorted(op.sources)] if k_r > 0 else []
+                new.append(self._submit(block_transport, self.block_f[b], self.op_f[b],
+                                        pieces, float(dt), int(k_r),
+                                        last and tr.repair is not None,
+                                        self.shared_f[self.where[b]], b=b))
+            self.block_f = new
 
     def _source_part(self, ta, tb):
         self.block_f = [self._submit(block_source, self.block_f[b], self.rows_f[b],
@@ -164,6 +171,7 @@ class HaloRun:
         self.moved["gathered"].append(sum(blk[a].nbytes for blk in blocks
                                           for a in BLOCK_ARRAYS))
         self.moved["interval_wall"].append(_time.perf_counter() - start)
+        self.moved["block_compute_s"] = [float(blk["compute_s"]) for blk in blocks]
         self.moved["split_steps"].append(n_split)
         return blocks
 
@@ -223,7 +231,10 @@ class HaloRun:
         return {"mode": "states on the workers, halo exchange worker to worker",
                 "resumed_from_output": int(k0), "blocks": len(self.ops),
                 "partition": self.part.kind, "cut_generator_entries": int(self.cut),
-                "halo_depth_substeps": int(self.depth), "halo_cells": halo,
+                "substeps_per_part": int(self.depth),
+                "halo_depth_substeps": int(self.exchange), "halo_cells": halo,
+                "block_cells": [int(op.owned.size) for op in self.ops],
+                "block_compute_s": self.moved.get("block_compute_s", []),
                 "halo_bytes_per_transport_part": int(sum(halo) * n_state * 8),
                 "client_sent_bytes_per_split_step": med(self.moved["client_sent"]),
                 "gathered_bytes_per_output_time": med(self.moved["gathered"]),
@@ -240,13 +251,15 @@ def run_on_workers(ex, part, batch, times, transport, shared, threads, progress)
     the history (states at every output time) and updates ``batch`` like the serial run."""
     states, steps, stats, status, reached = (batch.states, batch.steps, batch.stats_counts,
                                              batch.status, batch.reached)
-    history, k0 = [states.copy()], 0
+    from ...io.spool import Spool
+    history, k0 = Spool(), 0
+    history.append(states)
     store = ex.store
     if store is not None and ex.resume:
-        for k in store.stored_steps():
-            if k < len(times):
-                history.append(store.load_step(k)["states"].copy())
-                k0 = k
+        stored = [k for k in store.stored_steps() if k < len(times)]
+        k0 = max(stored, default=0)
+        for k in stored:
+            history.append(store.load_step(k)["states"])
         if k0 > 0:
             z = store.load_step(k0)
             for name, arr in (("states", states), ("steps", steps), ("stats", stats),
@@ -256,7 +269,6 @@ def run_on_workers(ex, part, batch, times, transport, shared, threads, progress)
                 batch.smoothed[...] = z["smoothed"]
             transport._count["repaired_cells"] = int(z.get("repaired", 0))
             transport._count["repair_max_rel_change"] = float(z.get("repair_max", 0.0))
-        history = history[:k0 + 1]
     run = HaloRun(ex, part, batch, times, transport, shared, threads)
     base_repaired = transport._count["repaired_cells"]
     try:
@@ -272,7 +284,7 @@ def run_on_workers(ex, part, batch, times, transport, shared, threads, progress)
                         + [float(b["repair_max"]) for b in blocks])
             transport._count["repaired_cells"] = repaired
             transport._count["repair_max_rel_change"] = worst
-            history.append(states.copy())
+            history.append(states)
             if store is not None:
                 store.save_step(k, {"states": states, "steps": steps, "stats": stats,
                                     "status": status, "reached": reached,

@@ -345,18 +345,30 @@ def test_dry_granules_breaking_while_binder_arrives():
     assert np.any(b / x < 0.01) and np.any(b / x > 0.05)
 
 
-# Since the sharp Stokes switches are located and held within a step (integrate/switches.py),
-# CQMOM's default run on this scene departs from its 100x tighter run by more than the
-# local-error bound of tests/error_bounds.py: M00 5.06e-7 against a bound of 2.19e-7 (2x2),
-# 7.10e-7 against 2.24e-7 (3x2), 4.59e-4 against 2.21e-7 (3x3). QMOM's run of the same scene
-# stays within it. The cause is not found; strict, so a fix shows.
-SWITCH_DEFECT = pytest.mark.xfail(strict=True, reason="CQMOM departs from its tight run "
-                                  "across the located Stokes switches (see above)")
+# 3x3 slides along St = St* (108,521 of 142,864 accepted steps cross a switch at rtol 1e-8),
+# and its runs at rtol 1e-10 and 1e-12 stall while sliding and continue with the smooth
+# fallback switch (smooth_stokes_cells = 1): the reference is then another model, and the
+# default run differs from it by 4.6e-4 on M00 (against a bound of 2.2e-7). Measured with
+# the blanket sliding exemption, before the sliding pair was told apart; strict, so a
+# sliding mode that lets the tight run finish sharp shows.
+SLIDING_REFERENCE = pytest.mark.xfail(strict=True, reason="the 3x3 tight reference stalls "
+                                      "while sliding and is smoothed (see above)")
+
+
+# 2x2, 3x2: a crossing step within 8 steps of any pair's switch is kept unlocated, so the
+# switch of a second point of the same size node, shortly after the first, goes unlocated
+# (2x2 at rtol 1e-8: 6 steps across a switch): M00 5.06e-7 against a bound of 2.19e-7 (2x2),
+# 7.10e-7 against 2.24e-7 (3x2). Telling the sliding pair apart (keep unlocated only a pair
+# that switched within the last 8 steps itself) makes both pass, but then the QMOM hard case
+# of tests/physics/test_stokes_jump.py stalls while sliding and is smoothed; strict, so a
+# sliding mode that serves both shows.
+SWITCH_DEFECT = pytest.mark.xfail(strict=True, reason="CQMOM keeps a second point's switch "
+                                  "unlocated after the first (see above)")
 
 
 @pytest.mark.parametrize("n1,n2", [pytest.param(2, 2, marks=SWITCH_DEFECT),
                                    pytest.param(3, 2, marks=SWITCH_DEFECT),
-                                   pytest.param(3, 3, marks=SWITCH_DEFECT)])
+                                   pytest.param(3, 3, marks=SLIDING_REFERENCE)])
 def test_steep_power_breakage_on_the_seed_scenario(n1, n2):
     """The seed scenario (eke kernel, geometric and physical efficiency, droplets a population
     of their own, injection) with a steep power selection S = 0.05 (p / p0)^3 1/s and uniform

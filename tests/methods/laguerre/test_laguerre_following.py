@@ -121,6 +121,35 @@ def test_support_messages_name_the_keys():
     assert share > 0.1 and "support_mass" in text and "following_support" in text
 
 
+def test_a_too_small_support_key_is_named_by_key():
+    """Binder beyond support_binder, mass inside support_mass (fixed support): the warning and
+    the stop name support_binder as too small, with the share of the granule mass beyond it,
+    and not support_mass. The population: exponential in p (mean P0), b = 0.9 p, so the mass
+    share beyond b_max is that of p > b_max / 0.9 under the mass-weighted gamma of shape 2,
+    (1 + x) exp(-x) at x = b_max / (0.9 P0); the mass share beyond p_max is (1 + x) exp(-x) at
+    x = p_max / P0 (5e-4, under the warning's 0.1%)."""
+    y = 0.9
+    arrays = model.pack(scene(False))
+    aux = LT.aux_for_scene(scene(False), arrays)
+
+    def mom(i, j):
+        return N0 * P0 ** (i + j) * math.factorial(i + j) * y ** j
+
+    state = LT.scene_initial_state(scene(False), arrays, mom)
+    parts = LT.escaped_mass_parts(state, aux, arrays.params, arrays.config)
+    xb = float(aux[LT.AUX_B_MAX]) / (y * P0)
+    xp = float(aux[LT.AUX_P_MAX]) / P0
+    assert parts["support_binder"] == pytest.approx((1 + xb) * math.exp(-xb), rel=1e-9, abs=0)
+    assert parts["support_mass"] == pytest.approx((1 + xp) * math.exp(-xp), rel=1e-9, abs=0)
+    _, text = LT.escaped_share_report(state, aux, arrays)
+    hint = LT.failure_hint(state, aux, arrays)
+    for message in (text, hint):
+        assert f"support_binder ({aux[LT.AUX_B_MAX]:.3g} kg) is too small: " \
+               f"{parts['support_binder']:.1%}" in message, message
+        assert "support_mass (" not in message, message
+        assert "widen" not in message, message
+
+
 @pytest.fixture(scope="module")
 def following_run():
     return run_well_mixed(scene(True)).columns
@@ -176,8 +205,9 @@ def test_following_support_holds_the_mass_and_blends_complete_closures():
         return nn * c_end ** (i + j) * math.factorial(i + j) * Y0 ** j
 
     state = LT.scene_initial_state(sc, arrays, mom)
-    # four corners in (c_m, y); the exponential's shape 1 is a grid point of the shape axis
-    assert sum(f > 1e-12 for _, f in weight_corners(state, aux)) == 4
+    # the exponential's shape 1 is a grid point of the shape axis, c_m and y lie between
+    # grid points: the simplex's face on that shape, the triangle of three (c_m, y) corners
+    assert sum(f > 1e-12 for _, f in weight_corners(state, aux)) == 3
     assert L.escaped_mass_share(state, aux, arrays.params, arrays.config) < 1e-3
     m = 3
     for i in range(m):

@@ -4,7 +4,7 @@ section 9.2, ``[method] following_shape``, on by default with the following supp
 Checked without running a case: the shape read from the carried moments, the closure of a
 gamma population whose weight matches it (m = 3: the expansion is then the gamma itself, so
 the reconstruction's M30 is the gamma's), and that M10 and M01 stay exact while the RHS blends
-the eight corners in (c_m, y, lambda).
+the four corners of the simplex in (c_m, y, lambda) that holds the state.
 """
 import math
 
@@ -15,7 +15,8 @@ from scipy.special import gammaincc, gammaln
 from pbe_cfd.methods.laguerre import rhs as L
 from pbe_cfd.methods.laguerre import tensor as LT
 from pbe_cfd.methods.laguerre.layout import (AUX_NWC, AUX_NWD, AUX_NWL, AUX_OFF_LOGW,
-                                             carried_shape, weight_corners)
+                                             N_CORNERS, carried_shape, weight_corner,
+                                             weight_corners)
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.runs import model
 
@@ -117,9 +118,10 @@ def test_the_closure_of_a_matching_gamma_is_the_gamma(built, k_index):
     assert got == pytest.approx(mom(3, 0), rel=0.01 + tail, abs=0), (k, got / mom(3, 0))
 
 
-def test_mass_and_binder_rates_are_exactly_zero_over_eight_corners(built):
+def test_mass_and_binder_rates_are_exactly_zero_over_a_full_simplex(built):
     """No droplets, no injection: the RHS's M10 and M01 rows are 0.0 for a state whose blend
-    has eight corners (aggregation rows D_a = 0 for i + j = 1, breakage F(1) = 1)."""
+    has all four corners of its simplex, each on another shape, mass and binder slice
+    (aggregation rows D_a = 0 for i + j = 1, breakage F(1) = 1)."""
     sc, arrays, aux = built
     cg, yg, lg = grids(aux)
     state = LT.scene_initial_state(sc, arrays, gamma_moments(N0, math.sqrt(lg[2] * lg[3]),
@@ -127,7 +129,7 @@ def test_mass_and_binder_rates_are_exactly_zero_over_eight_corners(built):
     state[1] *= 1.3                      # binder fraction between two grid points as well
     state[4] *= 1.3
     state[7] *= 1.3
-    assert len(weight_corners(state, aux)) == 8
+    assert len(weight_corners(state, aux)) == 4
     out = np.zeros_like(state)
     L.laguerre_rhs(state, out, np.zeros(P.N_CELL), aux, arrays.params, arrays.config)
     assert out[0] < 0.0 and out[6] != 0.0           # the other moments do move
@@ -145,3 +147,33 @@ def test_the_following_support_defaults_the_dry_shape_to_2():
     assert make_scene(method=set10).method.options.dry_weight_shape_mass == 10.0
     fixed = {"name": "laguerre", "order": 3, "_replace": True}
     assert make_scene(method=fixed).method.options.dry_weight_shape_mass == 10.0
+
+
+def test_the_simplex_blend_is_exact_for_linear_functions():
+    """weight_corner with a shape axis: four non-negative weights summing to one whose blend
+    of the corners' grid coordinates is the point itself (exact for any function linear in
+    the three logs), on random points, ties and faces; without it (il = -1) the bilinear
+    weights (1 - t or t per axis, multiplied)."""
+    rng = np.random.default_rng(26)
+    nwc, nwd, nwl = 7, 5, 6
+    for trial in range(500):
+        ic, jd, il = (int(x) for x in rng.integers(0, (nwc - 1, nwd - 1, nwl - 1)))
+        tc, td, tl = rng.random(3)
+        if trial % 5 == 0:
+            tl = 0.0                      # on a grid shape: a face of the cell
+        if trial % 7 == 0:
+            td = tc                       # a tie
+        total, point = 0.0, np.zeros(3)
+        for q in range(N_CORNERS):
+            w, f = weight_corner(q, (ic, tc, jd, td, il, tl), nwc, nwd)
+            assert f >= 0.0
+            g, rest = divmod(w, nwc * nwd)
+            total += f
+            point += f * np.array([rest // nwd, rest % nwd, g])
+        assert total == pytest.approx(1.0, rel=0, abs=4e-16)
+        assert np.allclose(point, [ic + tc, jd + td, il + tl], rtol=0, atol=1e-13)
+        bilinear = {(ic + a) * nwd + jd + b: (tc if a else 1 - tc) * (td if b else 1 - td)
+                    for a in (0, 1) for b in (0, 1)}
+        for q in range(N_CORNERS):
+            w, f = weight_corner(q, (ic, tc, jd, td, -1, 0.0), nwc, nwd)
+            assert f == bilinear[w]

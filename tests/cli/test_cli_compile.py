@@ -1,0 +1,44 @@
+"""``pbe-cfd compile`` compiles exactly the kernels the README's first run uses: after it, in
+the same fresh process, ``pbe-cfd run`` and ``pbe-cfd couple`` add no signature to the
+integration kernel (a kernel of another type, integrator or method would be a new one)."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+PROBE = """
+import json, sys
+from pbe_cfd.cli import main
+from pbe_cfd.integrate import integrate_cells_kernel as kernel
+out = sys.argv[1]
+assert main(["compile"]) == 0
+compiled = sorted(str(s) for s in kernel.signatures)
+assert main(["run", "--out", out + "/run"]) == 0
+assert main(["couple", "--out", out + "/couple"]) == 0
+print(json.dumps({"compiled": compiled, "after": sorted(str(s) for s in kernel.signatures)}))
+"""
+
+
+@pytest.mark.slow
+def test_compile_builds_the_one_kernel_that_run_and_couple_then_use(tmp_path):
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)}   # this checkout's code
+    proc = subprocess.run([sys.executable, "-c", PROBE, str(tmp_path)], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=1800, env=env)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    seen = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert len(seen["compiled"]) == 1
+    assert seen["after"] == seen["compiled"]
+    for name in ("seed-wurster", "fluid-bed"):
+        assert f"{name}: " in proc.stdout and "the qmom kernel with the auto integrator" in \
+            proc.stdout
+    for sub in ("run", "couple"):
+        summary = json.loads((tmp_path / sub / "summary.json").read_text())
+        assert summary["kernels_compiled"] is False
