@@ -302,7 +302,7 @@ def _couple_recorded(args, scene, out, phases, t_read, caught):
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
     with output.atomic_directory(out, args.overwrite, kind="couple") as tmp:
-        phases = write_coupled(tmp, scene, domain, result, phases=phases)
+        phases = write_coupled(tmp, domain, result, phases=phases)
         if args.foam_fields:
             written = write_foam_fields(scene, domain, result, args.overwrite)
             written = list(written) + list(executor.mirror_to_processors(written,
@@ -341,9 +341,7 @@ def bench_command(args):
 
     from . import bench
     from .io import output
-    out = Path(args.out)
-    quick = bool(args.quick)
-    study = args.study
+    out, quick, study = Path(args.out), bool(args.quick), args.study
     refusal = _threads_refusal(args.threads) or (study == "integrators" and args.scene and
                                                  bench.transport_cost.refusal(args.scene))
     if refusal:
@@ -359,24 +357,18 @@ def bench_command(args):
     start = time.perf_counter()
     if study == "accuracy":
         res = bench.accuracy_study(args.scene, out, quick=quick)
-        files = "accuracy.csv, accuracy.md, pareto.png"
         print(bench.accuracy_markdown(res))
     elif study == "throughput":
         res = bench.throughput_study(out, quick=quick, cells=args.cells, threads=args.threads,
                                      methods=args.methods,
                                      scene_name=args.scene or bench.DEFAULT_THROUGHPUT_SCENE)
-        files = "throughput.csv, throughput.md, throughput.png, machine.json"
         print(bench.throughput_markdown(res))
     elif study == "peer":
         try:
             bench.peer_study(out, quick=quick)
-        except bench.PeerUnavailable as exc:
+        except (bench.PeerUnavailable, bench.PeerRunError) as exc:
             print(f"pbe-cfd: error: {exc}", file=sys.stderr)
-            return 2
-        except bench.PeerRunError as exc:
-            print(f"pbe-cfd: error: {exc}", file=sys.stderr)
-            return 1
-        files = "peer.csv, peer.md, peer.png, peer.json"
+            return 2 if isinstance(exc, bench.PeerUnavailable) else 1
         print((out / "peer.md").read_text())
     else:
         study_of = {bench.CNMC_STUDY: bench.cnmc_study, bench.LAGUERRE_STUDY: bench.laguerre_study,
@@ -384,14 +376,25 @@ def bench_command(args):
                     "cluster": bench.cluster_study, "batch": bench.batch_study}
         kw = {"baseline": Path(args.scene)} if study == "integrators" and args.scene else {}
         study_of[study](out, quick=quick, **kw)
-        files = f"{study}.csv, {study}.md"
         print((out / f"{study}.md").read_text())
+    files = ", ".join(bench.STUDY_FILES[study])
     print(f"bench {study}: {time.perf_counter() - start:.1f} s; wrote {out}/{{{files}}}")
     if args.results_doc:
         done = results_doc.refresh(args.results_doc, study, (out / f"{study}.md").read_text(),
                                    results_doc.command_line(args))
         print(f"bench {study}: {done} its block in {args.results_doc}")
     return 0
+
+
+class _Studies:
+    """The study names of ``pbe-cfd bench``, asked of the bench package when checked."""
+
+    def __iter__(self):
+        from .bench.common import STUDY_FILES      # a method's study: named by its entry
+        return iter(tuple(STUDY_FILES))
+
+    def __contains__(self, name):
+        return name in tuple(self)
 
 
 def _int_list(text):
@@ -414,10 +417,8 @@ def _method_list(text):
     for item in (x.strip() for x in text.split(",") if x.strip()):
         name, _, order = item.partition(":")
         try:
-            if name not in readers:
-                raise ValueError
             out.append((name, readers[name](order)))
-        except ValueError:
+        except (KeyError, ValueError):
             raise argparse.ArgumentTypeError(
                 f"{item!r}: expected one of {', '.join(n + ':ORDER' for n in readers)} "
                 "(qmom:N, laguerre:M, cqmom:N1xN2)") from None
@@ -523,8 +524,7 @@ def build_parser():
     p.set_defaults(func=render_command)
 
     p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")
-    p.add_argument("study", choices=("accuracy", "throughput", "cnmc", "laguerre", "couple",
-                                     "integrators", "peer", "cluster", "batch"))
+    p.add_argument("study", choices=_Studies())
     p.add_argument("scene", nargs="?", help="scene for the accuracy study; integrators: a "
                    "pbe_cfd source tree whose transport ratios are timed in the same run")
     p.add_argument("--out", default="bench-out")

@@ -33,6 +33,8 @@ CASES = {
     "seed-wurster-laguerre": (["run", "seed-wurster-laguerre"], None),
     "seed-wurster-cnmc": (["run", "seed-wurster-cnmc"], None),
     "seed-wurster-cqmom": (["run", "seed-wurster-cqmom"], None),
+    "seed-wurster-eqmom": (["run", "{scene}"], ("seed-wurster", {"name": "eqmom", "nodes": 3},
+                                                None, None)),
     "constant-kernel": (["run", "constant-kernel"], None),
     "study-analytic": (["run", "study-analytic"], None),
     "fluid-bed": (["couple"], None),
@@ -52,13 +54,15 @@ WALL_KEYS = ("wall_time_s", "cell_steps_per_second", "cluster", "threads", "sour
 
 
 def _derived_scene(work: Path, name: str, spec) -> Path:
-    """A scene TOML: a bundled scene with [method] / [initial] entries replaced."""
+    """A scene TOML: a bundled scene with [method] / [initial] entries replaced (and its end
+    time, unless None)."""
     import tomllib
     base, method, initial, end_time = spec
     text = (ROOT / "pbe_cfd" / "scenes" / f"{base}.toml").read_text()
     data = tomllib.loads(text)
     data["scene"]["name"] = name
-    data["scene"]["end_time"] = end_time
+    if end_time is not None:
+        data["scene"]["end_time"] = end_time
     if method and "name" in method:
         data["method"] = dict(method)
     elif method:

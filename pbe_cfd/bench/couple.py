@@ -9,6 +9,7 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
+from ..methods.qmom import ENTRY as QMOM
 from ..runs.couple import run_coupled
 from ..runs.domain import Domain, load_domain
 from ..scene.scene import load_scene
@@ -41,9 +42,9 @@ def couple_study(out_dir="bench-out", quick=False, quiet=False) -> dict:
     domains = [("small (900 cells)", small)]
     if not quick:
         domains.append(("small x 4 (3600 cells)", replicated_domain(small, 4)))
-    methods = [("QMOM N = 2", base.with_method(name="qmom", nodes=2))]
+    methods = [("QMOM N = 2", base.with_method(name=QMOM.name, nodes=2))]
     if not quick:
-        methods += [("QMOM N = 3", base.with_method(name="qmom", nodes=3)),
+        methods += [("QMOM N = 3", base.with_method(name=QMOM.name, nodes=3)),
                     ("Laguerre m = 3 (fluid-bed-laguerre)", laguerre)]
     rows = []
     for mlabel, scene in methods:

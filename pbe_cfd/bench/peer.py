@@ -36,6 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..methods.cnmc import ENTRY as CNMC
+from ..methods.qmom import ENTRY as QMOM
 from .common import _git_describe, _say, machine_info
 from .peer_case import (ClassCase, PeerUnavailable, openfoam_missing, read_class_moments,
                         run_case)
@@ -137,7 +139,7 @@ def pbe_scene(problem):
             "domain": {"type": "well-mixed"}, "material": {"density": RHO},
             "initial": {"distribution": "monodisperse", "number_density": N_START,
                         "mean_mass": RHO * X_START},
-            "method": {"name": "qmom", "nodes": 3}}
+            "method": {"name": QMOM.name, QMOM.order_key: 3}}
     if rate > 0:
         data["aggregation"] = {"kernel": "constant", "rate": rate}
     if power == 0.0:
@@ -173,10 +175,10 @@ def run_pbe(scene, changes, repeats) -> dict:
 
 def pbe_variants(quick):
     """(method label, knob label, Method changes) of the pbe-cfd runs."""
-    out = [("qmom", f"N={n}", {"name": "qmom", "nodes": n}) for n in QMOM_NODES]
+    out = [(QMOM.name, f"N={n}", {"name": QMOM.name, QMOM.order_key: n}) for n in QMOM_NODES]
     if not quick:
-        out.append(("cnmc", "1e4 x 4", {"name": "cnmc", "particles": 10000, "replicas": 4,
-                                        "seed": 5}))
+        out.append((CNMC.name, "1e4 x 4", {"name": CNMC.name, "particles": 10000,
+                                            "replicas": 4, "seed": 5}))
     return out
 
 

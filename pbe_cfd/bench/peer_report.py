@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from ..methods.cnmc import ENTRY as CNMC
+from ..methods.qmom import ENTRY as QMOM
 from .common import _machine_line, _write_csv
 
 _COLUMNS = ("problem", "method", "knob", "groups", "err_M0", "err_M1", "err_M2", "sum_f",
@@ -65,7 +67,7 @@ def plot_peer(result, path):
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     colours = {"aggregation": "tab:blue", "breakage": "tab:orange", "mixed": "tab:green"}
-    markers = {"class": "s", "qmom": "o", "cnmc": "^"}
+    markers = {"class": "s", QMOM.name: "o", CNMC.name: "^"}
     for ax, key, label in ((axes[0], "wall_s", "wall time [s]"),
                            (axes[1], "per_cell_step_s", "wall time per cell-step [s]")):
         for r in result["rows"]:

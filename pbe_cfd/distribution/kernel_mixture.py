@@ -100,7 +100,8 @@ def of_states(states, aux, arrays, rho, bivariate, labels=str) -> KernelMixture:
     """The KernelMixture of EQMOM's scaled states (rows: times or cells); rows whose
     inversion took the closest-sigma fallback or failed are named (a failed row has no
     kernels: no granules to draw, d10/d50/d90 = 0 there)."""
-    from ..methods.eqmom import entry, inversion
+    from ..methods.eqmom import entry
+    from ..methods.quadrature import gamma_inversion as inversion
     kernels = [entry.kernels_si(s, aux, arrays) for s in np.atleast_2d(states)]
     return KernelMixture(kernels, rho, bivariate, inversion.STATUS_TEXT,
                          reported=(inversion.CLOSEST, inversion.FAILED),
@@ -124,7 +125,7 @@ def _size_nodes(w, p):
 def _fit_row(x, w, kernels):
     """EQMOM with ``kernels`` gamma kernels of the moments m_0 .. m_2kernels of the nodes
     (x [kg], w [1/m3]): (sigma [kg], centres [kg], weights [1/m3], status)."""
-    from ..methods.eqmom import inversion as I
+    from ..methods.quadrature import gamma_inversion as I
     m0 = w.sum()
     mean = (w * x).sum() / m0
     u = np.array([(w * (x / mean) ** k).sum() / m0 for k in range(2 * kernels + 1)])
@@ -145,7 +146,7 @@ def of_nodes(populations, rho, bivariate, labels=str) -> KernelMixture:
     named in ``notes``, as are a closest-sigma fit and a row with a node not finite (drawn
     empty). The binder fraction per size class is
     interpolated in ln p between the nodes' binder fractions (``reconstruct.node_binder``)."""
-    from ..methods.eqmom import inversion as I
+    from ..methods.quadrature import gamma_inversion as I
     from .reconstruct import node_binder, padded_rows
     w_all, p_all = (padded_rows(populations, k) for k in range(2))
     kernels, one, delta, bad = [], [], [], []

@@ -22,9 +22,7 @@ from .batch import CellBatch, SimulationError, check_physics  # noqa: F401 (Simu
 from .domain import PACKING_MARGIN, Domain, spray_zone_cut
 from .executor import SerialExecutor
 from .inventory import inventory
-from .problem import problem_of
-from ..methods import registry
-from ..methods.registry import method_of
+from .problem import OutputPlan, problem_of
 from ..util.population import mean_diameters
 from ..scene.scene import SceneError
 
@@ -46,6 +44,7 @@ class CoupledResult:
     phases: dict = field(default_factory=dict)  # wall seconds of setup, compile, solve, assemble
     psd: dict | None = None         # psd.csv columns of the bed (distribution.tables)
     labels: dict = field(default_factory=dict)   # columns.json: file -> column -> meaning
+    plan: OutputPlan | None = None  # what the writers read of the scene
 
 
 def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None,
@@ -56,10 +55,6 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     ``pbe_cfd.runs.distributed.ClusterExecutor`` on a Dask cluster, with the same results)."""
     import numba
 
-    method = method_of(scene)
-    if not method.integrated:
-        raise SceneError(scene.source, "method.name", "a coupled run needs a moment method: "
-                         f"expected {' or '.join(registry.MOMENT_METHODS)}")
     check_physics(scene)
     if threads is not None:
         numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
@@ -67,6 +62,7 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     start = _time.perf_counter()
     cells = domain.cells
     problem = problem_of(scene, domain)
+    method, plan = problem.method, problem.outputs
     arrays, aux, times, idx = problem.arrays, problem.aux, problem.times, problem.cell_ids
     active, spray, notes = problem.active, problem.spray, problem.notes
     warnings = []
@@ -87,7 +83,7 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     solve_end = _time.perf_counter()
     wall = solve_end - start
     per_time = []
-    cell_fields, bed, mixtures = _outputs(scene, arrays, aux, cells, active, spray, idx, times,
+    cell_fields, bed, mixtures = _outputs(plan, arrays, aux, cells, active, spray, idx, times,
                                           history, warnings, per_time)
     if "evaporated_liquid" in arrays.state_names:
         bed.update(inventory(scene, arrays, times, per_time, batch.rows,
@@ -109,24 +105,24 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     warnings.extend(notes_method)
     warnings.extend(batch.notes)
     run_stats["smooth_stokes_cells"] = int(np.count_nonzero(batch.smoothed))
-    warnings.extend(_domain_warnings(scene, spray, notes, cells, active))
+    warnings.extend(_domain_warnings(plan, spray, notes, cells, active))
     warnings[:0] = list(getattr(domain, "warnings", None) or [])
     phases = {"setup_s": setup_s, "compile_s": compile_s, "solve_s": solve_end - solve_start,
               "assemble_s": _time.perf_counter() - solve_end}
-    psd, labels = _bed_distribution(scene, arrays, times, bed, mixtures, cell_fields, warnings)
+    psd, labels = _bed_distribution(plan, arrays, times, bed, mixtures, cell_fields, warnings)
     phases["assemble_s"] = _time.perf_counter() - solve_end
     return CoupledResult(times=times, cell_fields=cell_fields, bed_columns=bed, stats=run_stats,
                          wall_time_s=wall, warnings=warnings, compile_time_s=compile_s,
                          kernels_compiled=batch.compiled_now, phases=phases, psd=psd,
-                         labels=labels)
+                         labels=labels, plan=plan)
 
 
-def _cell_distribution(scene, arrays, aux, states, populations, idx, n, t, fields, notes):
+def _cell_distribution(plan, arrays, aux, states, populations, idx, n, t, fields, notes):
     """d10/d50/d90/span cell fields (inactive cells 0) of one output time; returns the
     bed's distribution there (the cells' mixture weighted by their granule mass)."""
     from ..distribution import tables
     label = lambda r: f"cell {int(idx[r])} at t = {t:.6g} s"     # noqa: E731 (a row's name)
-    recon = tables.reconstruction_of(scene, arrays, states, aux, populations, label)
+    recon = tables.reconstruction_of(plan.scene, arrays, states, aux, populations, label)
     size, found = tables.size_columns(recon, label)
     notes.extend(x for x in found if x not in notes)
     for name, values in size.items():
@@ -136,7 +132,7 @@ def _cell_distribution(scene, arrays, aux, states, populations, idx, n, t, field
     return recon
 
 
-def _bed_distribution(scene, arrays, times, bed, mixtures, cell_fields, warnings):
+def _bed_distribution(plan, arrays, times, bed, mixtures, cell_fields, warnings):
     """Bed d10/d50/d90/span columns (added after the others), the bed's psd.csv columns
     and the columns.json labels."""
     from ..distribution import reconstruct, tables
@@ -146,30 +142,32 @@ def _bed_distribution(scene, arrays, times, bed, mixtures, cell_fields, warnings
     psd, grid_notes = tables.psd_columns(times, stack)
     warnings.extend(x for x in notes + grid_notes if x not in warnings)
     names = arrays.state_names
-    return psd, {"bed_moments.csv": tables.column_labels(scene, names, bed, bed=True),
-                 "vtk cell fields": tables.column_labels(scene, names, cell_fields[0]),
-                 "psd.csv": tables.psd_labels(scene, psd)}
+    hooks = plan.scene                  # the method's and the distribution's labels take it
+    return psd, {"bed_moments.csv": tables.column_labels(hooks, names, bed, bed=True),
+                 "vtk cell fields": tables.column_labels(hooks, names, cell_fields[0]),
+                 "psd.csv": tables.psd_labels(hooks, psd)}
 
 
-def _domain_warnings(scene, spray, notes, cells, active) -> list:
+def _domain_warnings(plan, spray, notes, cells, active) -> list:
     out = []
-    if scene.binder_injection is not None and not np.any(spray):
+    if plan.sprays and not np.any(spray):
         out.append(f"the spray zone of [binder_injection] holds no cell: "
-                   f"{spray_zone_cut(scene, cells, active)}; "
+                   f"{spray_zone_cut(plan.scene, cells, active)}; "
                    "no binder is injected (change [binder_injection] zone)")
     if notes["cells_capped_below_alpha_max"]:
         out.append(f"{notes['cells_capped_below_alpha_max']} cells had alpha at or above "
-                   f"alpha_max = {scene.domain.alpha_max:g}; kept {PACKING_MARGIN:g} "
+                   f"alpha_max = {plan.alpha_max:g}; kept {PACKING_MARGIN:g} "
                    "below it so that g0 stays finite")
     return out
 
 
-def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history, warnings,
+def _outputs(plan, arrays, aux, cells, active, spray, idx, times, history, warnings,
              per_time=None):
     """Per output time: the cell fields (every mesh cell; inactive cells 0) and the bed
     columns (volume averages of the moments [per m3 of bed], d32, d43 [m] of the whole bed's
     population, binder fraction, bed mass [kg]), the cells' d10/d50/d90/span, and per output
-    time the bed's size distribution (``distribution.reconstruct.Mixture``). ``per_time``
+    time the bed's size distribution (``distribution.reconstruct.Mixture``); plan: the
+    problem's ``OutputPlan``. ``per_time``
     (a list) receives the active cells' SI columns of each output time."""
     from ..distribution.reconstruct import Mixture
     from ..io.spool import Spool
@@ -180,11 +178,11 @@ def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history, warn
     bed_volume = float(volumes.sum())
     cell_fields = Spool()              # one output time in memory at a time
     bed = {"time_s": times}
-    rho = scene.material.density
+    rho = plan.density
     pd = arrays.droplet_mass
     for k, states in enumerate(history):
         populations = []
-        cols = model.moment_outputs(scene, arrays, states, aux, populations=populations)
+        cols = model.moment_outputs(plan.scene, arrays, states, aux, populations=populations)
         if per_time is not None:
             per_time.append(cols)
         fields = {"alpha": np.asarray(cells.alpha, dtype=float),
@@ -194,7 +192,7 @@ def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history, warn
             full = np.zeros(n)
             full[idx] = values
             fields[name] = full
-        recon = _cell_distribution(scene, arrays, aux, states, populations, idx, n, times[k],
+        recon = _cell_distribution(plan, arrays, aux, states, populations, idx, n, times[k],
                                    fields, warnings)
         mixtures.append(Mixture(recon, recon.mass * v_active))
         cell_fields.append(fields)
@@ -205,7 +203,7 @@ def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history, warn
         # bed d32/d43 from every cell's population, weighted by cell volume
         ws = [np.asarray(w) * v_active[c] for c, (w, _, _) in enumerate(populations)]
         ps = [np.asarray(p) for _, p, _ in populations]
-        if scene.separate_droplets and "droplet_number_density" in cols:
+        if plan.separate_droplets and "droplet_number_density" in cols:
             ws.append(np.array([np.sum(cols["droplet_number_density"] * v_active)]))
             ps.append(np.array([pd]))
         d32, d43 = mean_diameters(np.concatenate(ws), np.concatenate(ps), rho)
@@ -213,26 +211,27 @@ def _outputs(scene, arrays, aux, cells, active, spray, idx, times, history, warn
         bed.setdefault("d43_m", np.zeros(len(times)))[k] = d43
         m10 = bed["M10"][k]
         bed.setdefault("binder_fraction", np.zeros(len(times)))[k] = (
-            bed["M01"][k] / m10 if scene.bivariate and m10 > 0 else 0.0)
+            bed["M01"][k] / m10 if plan.bivariate and m10 > 0 else 0.0)
         bed.setdefault("bed_mass_kg", np.zeros(len(times)))[k] = m10 * bed_volume
-        if scene.bivariate:
+        if plan.bivariate:
             bed.setdefault("bed_binder_mass_kg", np.zeros(len(times)))[k] = (
                 bed["M01"][k] * bed_volume)
     return cell_fields, bed, mixtures
 
 
 # ---------------------------------------------------------------------------- writing
-def write_coupled(out_dir: Path, scene, domain: Domain, result: CoupledResult,
+def write_coupled(out_dir: Path, domain: Domain, result: CoupledResult,
                   render: bool = True, phases: dict | None = None) -> dict:
-    """Write fields.pvd + .vtu, bed_moments.csv, PNG renders and summary.json into out_dir.
+    """Write fields.pvd + .vtu, bed_moments.csv, PNG renders and summary.json into out_dir;
+    what they need of the scene is the result's output plan (``result.plan``).
 
     ``phases``: wall seconds [s] of the phases before the run (start-up, read), merged with
     the run's (``result.phases``) and this function's (write, render) into summary.json's
     ``phases``; returns that dict."""
     from ..io import output
-    from ..scene.scene import describe
     from ..viz import figure_pool
 
+    plan = result.plan
     t0 = _time.perf_counter()
     phases = {**(phases or {}), **result.phases}
     output.write_columns_csv(out_dir / "bed_moments.csv", result.bed_columns)
@@ -241,17 +240,17 @@ def write_coupled(out_dir: Path, scene, domain: Domain, result: CoupledResult,
         output.write_json(out_dir / "columns.json", result.labels)
     extra, started = [], None
     if render:
-        extra = _bed_figures(out_dir, scene, result)
+        extra = _bed_figures(out_dir, plan, result)
         if figure_pool.drawing_elsewhere():     # drawn while the VTK series is written
             started, extra = figure_pool.start_tasks(extra), []
     try:
-        _write_and_render(out_dir, scene, domain, result, render, extra, started, phases, t0)
+        _write_and_render(out_dir, plan, domain, result, render, extra, started, phases, t0)
     except BaseException:
         if started is not None:      # nothing may still be drawing into a directory removed
             _quietly(figure_pool.finish_tasks, started)
         raise
     t2 = _time.perf_counter()
-    summary = {"scene": describe(scene), "method": scene.method.name,
+    summary = {"scene": plan.echo, "method": plan.method_name,
                "domain": domain.description, "wall_time_s": result.wall_time_s,
                "compile_time_s": result.compile_time_s,
                "kernels_compiled": result.kernels_compiled, "stats": result.stats,
@@ -261,7 +260,7 @@ def write_coupled(out_dir: Path, scene, domain: Domain, result: CoupledResult,
     return phases
 
 
-def _write_and_render(out_dir, scene, domain, result, render, extra, started, phases, t0):
+def _write_and_render(out_dir, plan, domain, result, render, extra, started, phases, t0):
     """The VTK series, then the field pictures (with ``extra`` drawing tasks) and the
     collection of the ``started`` ones; the write and render seconds go into ``phases``."""
     from ..io.vtk import VtkSeries
@@ -275,7 +274,7 @@ def _write_and_render(out_dir, scene, domain, result, render, extra, started, ph
         t1 = _time.perf_counter()
         render_series(out_dir / "vtk", times=[result.times[0], result.times[-1]],
                       png_dir=out_dir / "png",
-                      info={"name": scene.name, "alpha_min": scene.domain.alpha_min},
+                      info={"name": plan.title, "alpha_min": plan.alpha_min},
                       extra_tasks=extra)
         if started is not None:
             figure_pool.finish_tasks(started)
@@ -290,22 +289,22 @@ def _quietly(fn, *args):
         pass
 
 
-def _bed_figures(out_dir: Path, scene, result: CoupledResult) -> list:
+def _bed_figures(out_dir: Path, plan, result: CoupledResult) -> list:
     """The drawing tasks (``viz.figure_pool``) of the bed's pictures: bed_moments.png,
     moisture.png where the run dries, and psd.png where the run has a size distribution; they
     read the CSV files already written."""
     from ..viz.render import BED_MOMENTS_COST, plot_bed_moments
     png = out_dir / "png"
     tasks = [(plot_bed_moments, (out_dir / "bed_moments.csv", png / "bed_moments.png"),
-              {"title": scene.name}, BED_MOMENTS_COST)]
+              {"title": plan.title}, BED_MOMENTS_COST)]
     if "moisture_content" in result.bed_columns:
         from ..viz.moisture import MOISTURE_COST, plot_moisture
         tasks.append((plot_moisture, (out_dir / "bed_moments.csv", png / "moisture.png"),
-                      {"title": f"{scene.name}: moisture"}, MOISTURE_COST))
+                      {"title": f"{plan.title}: moisture"}, MOISTURE_COST))
     if result.psd is not None:
         from ..viz.psd_figure import PSD_COST, plot_psd
         tasks.append((plot_psd, (png / "psd.png", out_dir / "psd.csv"),
-                      {"title": f"{scene.name}: the bed's granules"}, PSD_COST))
+                      {"title": f"{plan.title}: the bed's granules"}, PSD_COST))
     return tasks
 
 

@@ -103,7 +103,7 @@ def write_two_way(tmp: Path, scene, store, run, result):
     from ..io.openfoam import rerun
     from .coupling_output import plot_segments, segment_rows
     cols = segment_rows(scene, run)
-    phases = write_coupled(tmp, scene, run.segments[0].domain, result)
+    phases = write_coupled(tmp, run.segments[0].domain, result)
     output.write_columns_csv(tmp / "segments.csv", cols)
     plot_segments(tmp / "png" / "segments.png", cols, f"{scene.name}: two-way segments",
                   metadata=output.figure_metadata("png", "couple"))

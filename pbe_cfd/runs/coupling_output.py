@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from .couple import CoupledResult, _bed_distribution, _outputs
+from .problem import output_plan
 from ..physics.fluidisation import minimum_fluidisation_velocity
 
 #: fraction of the solids volume below the bed height [-] (ours: a bed surface that ignores
@@ -117,9 +118,10 @@ def combined_result(scene, run, wall_s: float) -> CoupledResult:
     time (a boundary's time once, from the segment that ended there), psd and labels."""
     from ..io.spool import Spool
     times, fields, mixtures, bed = [], Spool(), [], {}
+    plan = output_plan(scene)
     warnings = list(run.warnings)
     for seg in run.segments:
-        cf, b, mx = _outputs(scene, run.arrays, seg.aux, seg.domain.cells, seg.active,
+        cf, b, mx = _outputs(plan, run.arrays, seg.aux, seg.domain.cells, seg.active,
                              seg.spray, seg.idx, seg.times, seg.history, warnings)
         skip = 1 if seg.index > 0 else 0
         for f in cf[skip:]:          # one output time in memory at a time
@@ -134,14 +136,15 @@ def combined_result(scene, run, wall_s: float) -> CoupledResult:
     times = np.asarray(times)
     bed = {k: np.asarray(v, dtype=float) for k, v in bed.items()}
     warnings.extend(defluidisation_warnings(scene, run))
-    psd, labels = _bed_distribution(scene, run.arrays, times, bed, mixtures, fields, warnings)
+    psd, labels = _bed_distribution(plan, run.arrays, times, bed, mixtures, fields, warnings)
     stats = {"cells": int(run.segments[0].domain.cells.n_cells), "segments": len(run.segments),
              "active_cells": int(run.segments[-1].idx.size),
              "cfd_wall_s": float(sum(s.cfd_wall_s for s in run.segments)),
              "pbe_wall_s": float(sum(s.pbe_wall_s for s in run.segments))}
     return CoupledResult(times=times, cell_fields=fields, bed_columns=bed, stats=stats,
                          wall_time_s=wall_s, warnings=warnings,
-                         compile_time_s=run.compile_time_s, psd=psd, labels=labels)
+                         compile_time_s=run.compile_time_s, psd=psd, labels=labels,
+                         plan=plan)
 
 
 def plot_segments(path, cols, title: str, metadata=None):

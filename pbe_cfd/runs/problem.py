@@ -3,9 +3,11 @@
 One function takes the validated scene and its domain (None: the well-mixed cell) and returns
 the packed problem -- the method's registry entry, the packed ``params``/``config`` and scales
 (``model.Arrays``), the method's ``aux``, the rows of the integrated cells, their initial
-scaled states, the output times and the tolerances and first step of the step control. The
-runs (``simulate``, ``couple``) and the cell batch read the problem, not the scene; the scene
-rides along for the SI outputs and the messages (its ``source``).
+scaled states, the output times, the tolerances and first step of the step control, and the output plan
+(``OutputPlan``: what the written outputs need of the scene). The runs (``simulate``,
+``couple``), the cell batch and the coupled run's outputs read the problem, not the scene; the
+scene rides along for the methods' output hooks (``MethodEntry.columns``, the size
+distribution), which take it, and for the messages (its ``source``).
 """
 from __future__ import annotations
 
@@ -20,11 +22,52 @@ from ..methods.entry import MethodEntry
 from ..methods.registry import method_of
 from ..physics import parameters as P
 from ..scene import spray
+from ..scene.scene import SceneError
 
-__all__ = ["Problem", "problem_of"]
+__all__ = ["OutputPlan", "Problem", "output_plan", "problem_of"]
 
 #: the first step of every cell, as a share of the output interval [-]
 FIRST_STEP_SHARE = 1e-3
+
+
+@dataclass(frozen=True)
+class OutputPlan:
+    """What a run's written outputs read of the scene (SI).
+
+    title           the scene's name (pictures' titles)
+    method_name     the scene's ``[method] name`` (summary.json)
+    density         granule material density [kg/m3] (mean diameters)
+    bivariate       True if the granules carry binder (binder columns)
+    separate_droplets  True if free droplets are a population of their own (bed d32/d43)
+    alpha_min       solids fraction below which a cell holds no granules [-] (renders)
+    sprays          True if the scene has ``[binder_injection]`` (the empty-zone warning)
+    alpha_max       the packing limit [-] (the capped-cells warning)
+    echo            the scene as plain data (summary.json, ``scene.describe``)
+    scene           the validated scene, for the methods' output hooks that take it
+                    (``MethodEntry.columns``, ``distribution.tables``)
+    """
+    title: str
+    method_name: str
+    density: float
+    bivariate: bool
+    separate_droplets: bool
+    alpha_min: float
+    alpha_max: float
+    sprays: bool
+    echo: dict
+    scene: object
+
+
+def output_plan(scene) -> OutputPlan:
+    """The output plan of a validated scene."""
+    from ..scene.scene import describe
+    return OutputPlan(title=scene.name, method_name=scene.method.name,
+                      density=float(scene.material.density), bivariate=bool(scene.bivariate),
+                      separate_droplets=bool(scene.separate_droplets),
+                      alpha_min=float(scene.domain.alpha_min),
+                      alpha_max=float(scene.domain.alpha_max),
+                      sprays=scene.binder_injection is not None, echo=describe(scene),
+                      scene=scene)
 
 
 @dataclass(frozen=True)
@@ -45,7 +88,8 @@ class Problem:
     mesh_rows       (n_cells, N_CELL) rows of every mesh cell (coupled; None well-mixed)
     active, spray   (n_cells,) the cells holding granules and the sprayed cells (coupled)
     notes           what building the cell rows reported (``domain.build_cells``)
-    scene           the validated scene: SI outputs and messages only
+    outputs         the output plan (``OutputPlan``)
+    scene           the validated scene: messages and the methods' hooks only
     """
     method: MethodEntry
     arrays: model.Arrays
@@ -57,6 +101,7 @@ class Problem:
     atol: float
     first_step: float
     schedule: list
+    outputs: OutputPlan
     scene: object
     cell_ids: np.ndarray | None = None
     mesh_rows: np.ndarray | None = None
@@ -72,15 +117,21 @@ class Problem:
 
 def problem_of(scene, domain=None) -> Problem:
     """The packed problem of a validated scene on ``domain`` (a ``runs.domain.Domain``; None:
-    the well-mixed cell of the scene's ``[domain]``). Raises SimulationError when no mesh
-    cell holds granules (alpha >= alpha_min)."""
+    the well-mixed cell of the scene's ``[domain]``). Raises SceneError for a method the
+    per-cell integrator does not run on a domain, SimulationError when no mesh cell holds
+    granules (alpha >= alpha_min)."""
     method = method_of(scene)
+    if domain is not None and not method.integrated:
+        from ..methods import registry
+        raise SceneError(scene.source, "method.name", "a coupled run needs a moment method: "
+                         f"expected {' or '.join(registry.MOMENT_METHODS)}")
     times = output_times(scene)
     common = dict(method=method, times=times, rtol=scene.method.rtol,
                   atol=scene.method.atol,
                   first_step=scene.output_interval * FIRST_STEP_SHARE,
                   schedule=(spray.factors(scene.binder_injection, scene.end_time)
-                            if scene.binder_injection is not None else []), scene=scene)
+                            if scene.binder_injection is not None else []),
+                  outputs=output_plan(scene), scene=scene)
     if domain is None:
         arrays = model.pack(scene)
         rows = model.well_mixed_cell(scene)

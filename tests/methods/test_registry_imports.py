@@ -39,3 +39,23 @@ def test_the_whole_registry_lists_every_package_in_order():
         if m.integrated:
             assert registry.entry_of_code(m.code) is m
     assert registry.entry_of_code(-12345) is None
+
+
+_DRAW_PROBE = """
+import sys
+import numpy as np
+from pbe_cfd.distribution.kernel_mixture import of_nodes
+w = np.array([1.0e9, 2.0e9, 5.0e8])                     # 1/m3
+p = np.array([1.0e-9, 3.0e-9, 8.0e-9])                  # kg
+mix = of_nodes([(w, p, 0.1 * p)], 1500.0, False)
+print(int((mix.w[0] > 0).sum()), "pbe_cfd.methods.eqmom" in sys.modules)
+"""
+
+
+def test_a_quadrature_distribution_is_drawn_without_the_eqmom_package():
+    """QMOM's and CQMOM's size distribution (gamma kernels fitted to the nodes' moments by the
+    shared inversion in methods.quadrature) needs no EQMOM module."""
+    out = subprocess.run([sys.executable, "-c", _DRAW_PROBE], capture_output=True, text=True,
+                         check=True).stdout.split()
+    assert out[0] == "2"                           # n - 1 = 2 kernels fitted to 3 nodes
+    assert out[1] == "False"

@@ -100,7 +100,7 @@ def test_vtk_series_opens_in_pyvista_with_finite_fields(tmp_path, snapshot):
     scene = short_fluid_bed(end=5.0, interval=5.0)
     domain = load_domain(scene)
     res = run_coupled(scene, domain)
-    write_coupled(tmp_path, scene, domain, res, render=False)
+    write_coupled(tmp_path, domain, res, render=False)
     reader = pv.get_reader(str(tmp_path / "vtk" / "pbe.pvd"))
     assert len(reader.time_values) == 2
     reader.set_active_time_value(reader.time_values[-1])

@@ -41,7 +41,7 @@ def test_phases_cover_the_run_and_reach_summary_json(tmp_path, coupled):
     # measured around run_coupled by this test's own clock, and the solve is not empty
     assert sum(ph.values()) <= outer_s
     assert ph["solve_s"] > 0.0
-    phases = write_coupled(tmp_path, scene, domain, res, render=False,
+    phases = write_coupled(tmp_path, domain, res, render=False,
                            phases={"startup_s": 0.5, "read_s": 0.25})
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["phases"]["startup_s"] == 0.5 and summary["phases"]["read_s"] == 0.25

@@ -11,7 +11,7 @@ import numpy as np
 
 from ...physics import parameters as P
 from ..entry import MethodEntry
-import pbe_cfd.methods.eqmom.inversion as I
+import pbe_cfd.methods.quadrature.gamma_inversion as I
 import pbe_cfd.methods.eqmom.state as S
 from .options import EqmomOptions
 from .sources import eqmom_conserved, eqmom_project, eqmom_realizable, eqmom_rhs

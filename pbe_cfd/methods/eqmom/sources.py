@@ -19,9 +19,10 @@ from ...physics.injection import droplet_liquid
 from ...physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ...physics.properties import DIAMETER, N_PROPS
 from ...physics.rates import pair_rate, particle_properties
+from ..quadrature.aggregation_sources import add_pair_sources
 from ..quadrature.breakage_sources import node_selection_rate
 from ..quadrature.drying_sources import drift_moment_rate, point_drying_rate
-import pbe_cfd.methods.eqmom.inversion as I
+import pbe_cfd.methods.quadrature.gamma_inversion as I
 import pbe_cfd.methods.eqmom.state as S
 
 _as_strided = np.lib.stride_tricks.as_strided
@@ -33,45 +34,6 @@ def _props_view(work, n_max):
     rows = S.max_particles(n_max) + 1
     return _as_strided(work[o:o + rows * N_PROPS], shape=(rows, N_PROPS),
                        strides=(N_PROPS * 8, 8))
-
-
-@nb.njit(cache=True, error_model="numpy", inline="always")
-def _aggregation(out, X, W, B, m, props, factor, u0, number_scale, n_size, n_max, bivariate,
-                 params, config):
-    """Pair sources of the m particles (QMOM's non-negative recurrences, module qmom)."""
-    for a in range(m):
-        xa = X[a]
-        ba = B[a]
-        for c in range(a, m):
-            rate = number_scale * pair_rate(props, a, c, factor, u0, params, config)
-            if rate == 0.0:
-                continue
-            pair = W[a] * W[c] * rate
-            if a == c:
-                pair *= 0.5
-            out[0] -= pair
-            xc = X[c]
-            s = xa + xc
-            g = 0.0
-            pa = xa
-            pc = xc
-            for k in range(2, n_size):
-                g = s * g + xc * pa + xa * pc
-                pa *= xa
-                pc *= xc
-                out[k] += pair * g
-            if bivariate:
-                bc = B[c]
-                ha = 0.0
-                hc = 0.0
-                pa = 1.0
-                pc = 1.0
-                for k in range(1, n_max):
-                    ha = s * ha + xc * pa
-                    hc = s * hc + xa * pc
-                    pa *= xa
-                    pc *= xc
-                    out[n_size + k] += pair * (ba * ha + bc * hc)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -200,8 +162,8 @@ def eqmom_rhs(state, out, cell, aux, params, config, work):
     u0 = cell[P.COLLISION_VELOCITY]
     number_scale = params[P.NUMBER_SCALE]
     if factor != 0.0:
-        _aggregation(out, X, W, B, m, props, factor, u0, number_scale, n_size, n_max,
-                     bivariate, params, config)
+        add_pair_sources(out, X, W, B, m, props, factor, u0, number_scale, n_size, n_max,
+                         bivariate, params, config)
     if config[P.BREAKAGE] == 1:
         _breakage(out, X, W, B, m, cell, n_size, n_max, bivariate, params, config)
     if config[P.DRYING] == 1:

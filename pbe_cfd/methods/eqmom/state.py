@@ -23,7 +23,7 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.properties import N_PROPS
-import pbe_cfd.methods.eqmom.inversion as I
+import pbe_cfd.methods.quadrature.gamma_inversion as I
 
 #: aux slot: secondary Gauss nodes per kernel
 AUX_SECONDARY = 0

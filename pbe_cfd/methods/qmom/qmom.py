@@ -22,6 +22,7 @@ from ...physics.injection import droplet_liquid
 from ...physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ...physics.properties import DIAMETER, N_PROPS
 from ...physics.rates import pair_rate, particle_properties
+from ..quadrature.aggregation_sources import add_pair_sources
 from ..quadrature.breakage_sources import add_qmom_breakage
 from ..quadrature.drying_sources import add_qmom_drying
 from ..quadrature.binder import solve_node_binder
@@ -238,8 +239,9 @@ def qmom_rhs(state, out, cell, aux, params, config, work):
 
     cell: (alpha [-], theta [m2/s2], collision velocity [m/s], injection [droplets/(m3 s)]);
     work: float array of at least ``work_size(N)``. No allocation. The moment gains of a pair
-    come from recurrences in k with non-negative terms (see the pair loop): exact zero for the
-    mass moment (k = 1), exact -1 for the number (k = 0), no cancellation. d43 (ktgf) comes
+    come from recurrences in k with non-negative terms (``quadrature.aggregation_sources``):
+    exact zero for the mass moment (k = 1), exact -1 for the number (k = 0), no
+    cancellation. d43 (ktgf) comes
     from the nodes' diameters: d^3 is proportional to the mass, so d43 = sum w x d / sum w x
     without further powers.
     """
@@ -271,45 +273,10 @@ def qmom_rhs(state, out, cell, aux, params, config, work):
             den43 += wx
     d43 = num43 / den43 if den43 > 0.0 else 0.0
     factor = kernel_cell_factor(code, cell[P.ALPHA], cell[P.THETA], d43, params)
-    # granule-granule aggregation, each unordered pair once. Gains by recurrences in k with
-    # non-negative terms only (s = x_a + x_c):
-    #   G_k = s^k - x_a^k - x_c^k:  G_1 = 0, G_k = s G_(k-1) + x_c x_a^(k-1) + x_a x_c^(k-1)
-    #   H_k = s^k - x_a^k:          H_0 = 0, H_k = s H_(k-1) + x_c x_a^(k-1)
-    # so the number loses exactly the pair and the mass moment (k = 1) gets exactly nothing.
+    # granule-granule aggregation, each unordered pair once (non-negative recurrences)
     if factor != 0.0:
-        for a in range(n):
-            xa = nodes[a]
-            ba = binder[a]
-            for c in range(a, n):
-                rate = number_scale * pair_rate(props, a, c, factor, u0, params, config)
-                if rate == 0.0:
-                    continue
-                pair = weights[a] * weights[c] * rate
-                if a == c:
-                    pair *= 0.5
-                out[0] -= pair
-                xc = nodes[c]
-                s = xa + xc
-                g = 0.0
-                pa = xa
-                pc = xc
-                for k in range(2, n_size):
-                    g = s * g + xc * pa + xa * pc
-                    pa *= xa
-                    pc *= xc
-                    out[k] += pair * g
-                if bivariate:
-                    bc = binder[c]
-                    ha = 0.0
-                    hc = 0.0
-                    pa = 1.0
-                    pc = 1.0
-                    for k in range(1, n_max):
-                        ha = s * ha + xc * pa
-                        hc = s * hc + xa * pc
-                        pa *= xa
-                        pc *= xc
-                        out[n_size + k] += pair * (ba * ha + bc * hc)
+        add_pair_sources(out, nodes, weights, binder, n, props, factor, u0, number_scale,
+                         n_size, n_max, bivariate, params, config)
     if config[P.BREAKAGE] == 1:
         add_qmom_breakage(out, nodes, weights, binder, n, cell, params, config)
     if config[P.DRYING] == 1:

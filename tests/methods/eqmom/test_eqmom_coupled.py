@@ -39,6 +39,6 @@ def test_eqmom_coupled_bed_finishes_conserves_mass_and_writes_d50(tmp_path):
     active = last["M00"] > 0
     assert np.all(last["d50_m"][active] > 0) and np.all(last["d50_m"][~active] == 0)
     (tmp_path / "out").mkdir()
-    write_coupled(tmp_path / "out", scene, domain, res, render=False)
+    write_coupled(tmp_path / "out", domain, res, render=False)
     labels = json.loads((tmp_path / "out" / "columns.json").read_text())
     assert "EQMOM" in labels["bed_moments.csv"]["d50_m"]

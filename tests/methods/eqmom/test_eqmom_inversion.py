@@ -19,7 +19,8 @@ from scipy.special import gammaln
 from pbe_cfd.runs import model
 from pbe_cfd.distribution import tables
 from pbe_cfd.distribution.kernel_mixture import of_states
-from pbe_cfd.methods.eqmom import entry, inversion as I, state as S
+from pbe_cfd.methods.eqmom import entry, state as S
+from pbe_cfd.methods.quadrature import gamma_inversion as I
 from pbe_cfd.methods.eqmom.sources import eqmom_project, eqmom_realizable
 
 from conftest import make_scene
