@@ -9,12 +9,12 @@ from pbe_cfd.methods.registry import METHOD_REGISTRY
 
 PACKAGE = Path(__file__).resolve().parent.parent / "pbe_cfd"
 
-#: files outside the method packages that still name methods, and how often: the accuracy and
-#: peer studies' definitions (which methods and knobs a study compares, against the QMOM
+#: files outside the method packages that still name methods, and how often: the peer
+#: study's definitions (which methods and knobs a study compares, against the QMOM
 #: baseline and the cNMC reference) and the CLI's list of study names (the studies of one
 #: method are called like it). This list only shrinks.
 PENDING = {
-    "bench/accuracy.py": 16, "bench/accuracy_report.py": 7, "bench/couple.py": 2,
+    "bench/couple.py": 2,
     "bench/peer.py": 5, "bench/peer_report.py": 2, "cli.py": 2,
 }
 #: the registry lists the method packages by name (each imported when its entry is first used)
