@@ -84,16 +84,16 @@ def _table_build_seconds(scene, pack, cell):
     beforehand on a 4 x 4 grid (once per process)."""
     import time
     from ...physics import parameters as P
-    from . import tensor as LT
+    from .tensor import build_aux, scene_weights_support
 
     def build(sc):
         arrays = pack(sc)
-        weights, support = LT.scene_weights_support(sc)
+        weights, support = scene_weights_support(sc)
         u0 = float(cell(sc)[0, P.COLLISION_VELOCITY])
         t0 = time.perf_counter()
-        LT.build_aux(arrays.params, arrays.config, sc.method.options.order, weights=weights,
-                     support=support, consistent=sc.method.options.consistent,
-                     collision_velocity=u0 if u0 > 0 else None, use_cache=False)
+        build_aux(arrays.params, arrays.config, sc.method.options.order, weights=weights,
+                  support=support, consistent=sc.method.options.consistent,
+                  collision_velocity=u0 if u0 > 0 else None, use_cache=False)
         return time.perf_counter() - t0
 
     if not _BUILDER_WARM:
