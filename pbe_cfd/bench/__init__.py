@@ -49,7 +49,7 @@ cache is warm). Numbers are measured, never asserted.
 from ..runs import model  # noqa: F401 - bench.model: the domain layer the studies build on
 from .accuracy import (DEFAULT_ACCURACY_SCENE, QUANTITIES, TIME_FRACTIONS, Variant,
                        accuracy_study, accuracy_variants, chosen_times, cnmc_reference,
-                       laguerre_build_time, run_variant)
+                       reference_method, run_variant, table_build_time)
 from .accuracy_report import accuracy_markdown, pareto_front, plot_pareto
 from .analytic import (analytic_applicable, analytic_moments, analytic_reference,
                        smoluchowski_d43)

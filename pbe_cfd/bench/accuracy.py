@@ -16,7 +16,7 @@ import numpy as np
 from ..runs import model
 from ..runs.batch import output_times
 from ..physics import parameters as P
-from ..methods.laguerre import tensor as LT
+from ..methods.registry import METHOD_REGISTRY, METHODS
 from ..scene.scene import SceneError, load_scene
 from ..runs.simulate import run_well_mixed
 from .analytic import analytic_applicable, analytic_reference
@@ -65,8 +65,9 @@ def cnmc_reference(scene, particles, replicas, seed=97, use_cache=True, quiet=Tr
             pass
     _say(quiet, f"  reference: cNMC {particles:g} particles x {replicas} replicas ...")
     start = time.perf_counter()
-    res = run_well_mixed(scene.with_method(name="cnmc", particles=int(particles),
-                                           replicas=int(replicas), seed=int(seed)))
+    res = run_well_mixed(scene.with_method(name=reference_method().name,
+                                           particles=int(particles), replicas=int(replicas),
+                                           seed=int(seed)))
     wall = time.perf_counter() - start
     cols = {k: np.asarray(v, dtype=float) for k, v in res.columns.items()}
     if use_cache:
@@ -80,11 +81,17 @@ def cnmc_reference(scene, particles, replicas, seed=97, use_cache=True, quiet=Tr
     return cols, wall, False
 
 
+def reference_method():
+    """The registry entry of the particle ensemble (the method run per replica, not per
+    cell: ``MethodEntry.ensemble``) that gives the accuracy study's reference."""
+    return next(e for e in METHOD_REGISTRY if e.ensemble is not None)
+
+
 # ============================================================================ accuracy study
 @dataclasses.dataclass
 class Variant:
     """One method at one setting of its accuracy knob."""
-    method: str          # qmom | cqmom | laguerre | cnmc
+    method: str          # the method's registered name
     label: str           # short knob label, e.g. "N=3", "m=3 fine consistent", "1e4 x 4"
     changes: dict        # Method fields for Scene.with_method
 
@@ -94,32 +101,11 @@ class Variant:
 
 
 def accuracy_variants(quick=False) -> list:
-    """The knob settings the accuracy study runs (see module doc)."""
-    out = []
-    for n in ((1, 2, 3) if quick else (1, 2, 3, 4)):
-        out.append(Variant("qmom", f"N={n}", {"name": "qmom", "nodes": n}))
-    for n in ((2, 3) if quick else (2, 3, 4)):
-        out.append(Variant("eqmom", f"N={n}", {"name": "eqmom", "nodes": n}))
-    for n1, n2 in (((2, 2),) if quick else ((2, 2), (3, 2), (3, 3), (4, 2))):
-        out.append(Variant("cqmom", f"N1={n1} N2={n2}",
-                           {"name": "cqmom", "nodes": n1, "binder_nodes": n2}))
-    grids = {"coarse": 8, "fine": 12} if quick else {"coarse": 20, "fine": 40}
-    orders = (2, 3) if quick else (2, 3, 4)
-    for m in orders:
-        for gname, g in grids.items():
-            for consistent in (True, False):
-                if quick and gname == "fine" and not consistent:
-                    continue
-                kind = "consistent" if consistent else "plain"
-                out.append(Variant("laguerre", f"m={m} {gname} {kind}",
-                                   {"name": "laguerre", "order": m, "consistent": consistent,
-                                    "grid_mass": g, "grid_binder": g}))
-    cn = ((1000, 2), (3000, 2)) if quick else ((1000, 4), (10000, 4), (100000, 4))
-    for particles, replicas in cn:
-        out.append(Variant("cnmc", f"{particles:.0e}".replace("e+0", "e") + f" x {replicas}",
-                           {"name": "cnmc", "particles": particles, "replicas": replicas,
-                            "seed": 11}))
-    return out
+    """The knob settings the accuracy study runs: each registered method's
+    ``accuracy_knobs`` (in registry order)."""
+    return [Variant(e.name, label, dict(changes, name=e.name))
+            for e in METHOD_REGISTRY if e.accuracy_knobs is not None
+            for label, changes in e.accuracy_knobs(quick)]
 
 
 def chosen_times(scene, fractions=TIME_FRACTIONS):
@@ -160,17 +146,13 @@ def run_variant(scene, variant, repeats=3, quiet=True):
     return first, median, res.columns, res.stats
 
 
-def laguerre_build_time(scene, variant):
-    """Seconds to build the variant's Laguerre tensor from scratch (no disk cache)."""
-    sc = scene.with_method(**variant.changes)
-    arrays = model.pack(sc)
-    weights, support = LT.scene_weights_support(sc)
-    u0 = float(model.well_mixed_cell(sc)[0, P.COLLISION_VELOCITY])
-    t0 = time.perf_counter()
-    LT.build_aux(arrays.params, arrays.config, sc.method.options.order, weights=weights,
-                 support=support, consistent=sc.method.options.consistent,
-                 collision_velocity=u0 if u0 > 0 else None, use_cache=False)
-    return time.perf_counter() - t0
+def table_build_time(scene, variant):
+    """Seconds to build the variant's tables from scratch (no disk cache), or None for a
+    method without tables (``MethodEntry.table_build``)."""
+    build = METHODS[variant.method].table_build
+    if build is None:
+        return None
+    return build(scene.with_method(**variant.changes), model.pack, model.well_mixed_cell)
 
 
 def accuracy_study(scene_name=None, out_dir="bench-out", quick=False, repeats=None,
@@ -197,6 +179,8 @@ def accuracy_study(scene_name=None, out_dir="bench-out", quick=False, repeats=No
     if reference is None and analytic_applicable(scene):
         ref, ref_info = analytic_reference(scene, grid)
         ref_info["band"] = {q: 0.0 for q in QUANTITIES}
+        if "d50_lattice_step" in ref_info:      # the lattice's step at the chosen times
+            ref_info["band"]["d50_m"] = max(ref_info["d50_lattice_step"][i] for i in idx)
     else:
         particles, replicas = reference if reference is not None else (
             (20000, 4) if quick else (1_000_000, 16))
@@ -209,7 +193,7 @@ def accuracy_study(scene_name=None, out_dir="bench-out", quick=False, repeats=No
                 rel = [abs(half[i] / cols[q][i]) if cols[q][i] != 0 else float("nan")
                        for i in idx]
                 band[q] = float(np.nanmax(rel)) if rel else float("nan")
-        ref_info = {"kind": "cnmc", "particles": particles, "replicas": replicas,
+        ref_info = {"kind": reference_method().name, "particles": particles, "replicas": replicas,
                     "wall_s": wall, "cached": cached, "band": band,
                     "text": f"cNMC ensemble of {particles:g} particles x {replicas} replicas "
                             f"({particles * replicas:.2g} particle-replicas, "
@@ -217,13 +201,6 @@ def accuracy_study(scene_name=None, out_dir="bench-out", quick=False, repeats=No
                             "half-width per quantity is listed"}
 
     # ---- variants
-    lag = [v for v in variants if v.method == "laguerre"]
-    if lag:     # compile the tensor builder once, so that no build time includes it
-        tiny = Variant("laguerre", "warm-up", dict(lag[0].changes, grid_mass=4, grid_binder=4))
-        try:
-            laguerre_build_time(scene, tiny)
-        except Exception:  # noqa: BLE001 - the variant itself will report the problem
-            pass
     rows = []
     for v in variants:
         _say(quiet, f"  {v.name} ...")
@@ -243,13 +220,14 @@ def accuracy_study(scene_name=None, out_dir="bench-out", quick=False, repeats=No
                    max_abs_error=max(finite) if finite else float("nan"),
                    steps=stats.get("accepted_steps"), rhs_calls=stats.get("rhs_calls"),
                    trials=stats.get("trials"))
-        if v.method == "laguerre":
-            try:
-                row["tensor_build_s"] = laguerre_build_time(scene, v)
-            except Exception as exc:  # noqa: BLE001
-                row["tensor_build_s"] = float("nan")
-                row["tensor_build_error"] = str(exc)
-        if v.method == "cnmc":
+        try:
+            build = table_build_time(scene, v)
+        except Exception as exc:  # noqa: BLE001 - reported in the row
+            build = float("nan")
+            row["tensor_build_error"] = str(exc)
+        if build is not None:
+            row["tensor_build_s"] = build
+        if METHODS[v.method].ensemble is not None:
             row["own_band"] = {q: float(np.nanmax([abs(0.5 * (cols[q + "_hi"][i]
                                                               - cols[q + "_lo"][i])
                                                          / cols[q][i]) for i in idx]))

@@ -82,14 +82,15 @@ def accuracy_markdown(result) -> str:
                      f"{r['first_call_s']:.3g}{extra} |")
     own = [(r["knob"], max((b for b in r.get("own_band", {}).values() if math.isfinite(b)),
                            default=float("nan")))
-           for r in result["rows"] if r["status"] == "ok" and r["method"] == "cnmc"]
+           for r in result["rows"] if r["status"] == "ok" and "own_band" in r]
     if own:
-        lines += ["", "cNMC variants' own 95% band half-width (max over quantities and times): "
+        lines += ["", "Particle-ensemble variants' own 95% band half-width (max over quantities and times): "
                   + ", ".join(f"{k} {_fmt_err(b)}" for k, b in own) + "; their wall time is "
                   "the whole ensemble."]
-    band = ref.get("band") or {}
-    if ref["kind"] == "cnmc" and band:
-        lines += ["", "Reference's own 95% band half-width (max over the chosen times): "
+    band = {q: b for q, b in (ref.get("band") or {}).items() if b and math.isfinite(b)}
+    if band:
+        lines += ["", "Reference's own resolution (an ensemble: its 95% band half-width; a lattice "
+                  "percentile: one lattice step; max over the chosen times): "
                   + ", ".join(f"{names[q]} {_fmt_err(b)}" for q, b in band.items()) + "."]
     lines += ["", "`*` on the Pareto front (no other variant is both faster and more accurate). "
               f"Wall time: median of {result['repeats']} runs; first call: the first run in the "
@@ -117,8 +118,8 @@ def plot_pareto(path, result):
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
-    style = {"qmom": ("o", "C0"), "laguerre": ("s", "C1"), "cnmc": ("^", "C2"),
-             "cqmom": ("D", "C3"), "eqmom": ("v", "C4")}
+    methods = list(dict.fromkeys(r["method"] for r in result["rows"]))
+    style = {m: ("osD^vP*X"[k % 8], f"C{k % 10}") for k, m in enumerate(methods)}
     for ax, quantities, what in ((axes[0], QUANTITIES,
                                   "M00, M20, M11, M02, d43, binder fraction"),
                                  (axes[1], SIZE_QUANTITIES, "M00, M20, d43")):

@@ -9,7 +9,10 @@ sigma, its mass density p n_a(p) gamma of shape l_a + 1 (times w_a x_a), so
 
 P the regularised lower incomplete gamma function. sigma = 0 (a discrete fit) makes every
 kernel a step at its centre. The binder fraction of a size class is the kernels' y_a weighted by
-their mass in the class (exact for the per-kernel binder model). Percentiles by bisection.
+their mass in the class (exact for the per-kernel binder model). Percentiles: a row of one
+kernel in closed form (the inverse of P, or its centre for sigma = 0); a row of several by
+bisection between its kernels' own percentiles (the mixture's Q3 is a mean of theirs, so its
+percentile lies between the lowest and the highest of them).
 A row whose inversion fell back is named in ``notes`` with the fallback.
 """
 from __future__ import annotations
@@ -51,37 +54,71 @@ class KernelMixture:
                                   + ("; no granules drawn, d10/d50/d90 = 0 there"
                                      if code == failed else ""))
 
-    def _kernel_cdf(self, p):
-        """Per row and kernel the mass fraction of the kernel below p [kg] (rows, n, k)."""
+    def _kernel_cdf(self, p, rows=slice(None)):
+        """Per row (of ``rows``) and kernel the mass fraction of the kernel below p [kg]
+        (rows, n, k)."""
         from scipy.special import gammainc
         p = np.asarray(p, dtype=float)
-        smooth = (self.sigma > 0)[:, None, None]
-        sig = np.where(self.sigma > 0, self.sigma, 1.0)[:, None, None]
-        shape = np.where(self.x > 0, self.x, 1.0)[:, :, None] / sig + 1.0
+        sigma, x = self.sigma[rows], self.x[rows]
+        smooth = (sigma > 0)[:, None, None]
+        sig = np.where(sigma > 0, sigma, 1.0)[:, None, None]
+        shape = np.where(x > 0, x, 1.0)[:, :, None] / sig + 1.0
         with np.errstate(invalid="ignore", over="ignore"):
             g = gammainc(shape, p[:, None, :] / sig)
-        step = (p[:, None, :] >= self.x[:, :, None]) * 1.0
+        step = (p[:, None, :] >= x[:, :, None]) * 1.0
         return np.where(smooth, g, step)
 
-    def cdf(self, d):
-        """Q3 [-] at diameters d [m] ((k,) or (rows, k)) per row (0 in an empty row)."""
-        d = np.broadcast_to(np.asarray(d, dtype=float), (self.rows,) + np.shape(d)[-1:])
+    def cdf(self, d, rows=slice(None)):
+        """Q3 [-] at diameters d [m] ((k,) or (rows, k)) per row (0 in an empty row);
+        ``rows`` an index of the rows to evaluate (default all)."""
+        empty, mass = self.empty[rows], self.mass[rows]
+        d = np.broadcast_to(np.asarray(d, dtype=float), (empty.size,) + np.shape(d)[-1:])
         p = mass_of_diameter(d, self.rho)
-        part = self._kernel_cdf(p)
-        num = np.einsum("rn,rnk->rk", self.kernel_mass, part)
-        tot = np.where(self.empty, 1.0, self.mass)[:, None]
-        return np.where(self.empty[:, None], 0.0, num / tot)
+        part = self._kernel_cdf(p, rows)
+        num = np.einsum("rn,rnk->rk", self.kernel_mass[rows], part)
+        tot = np.where(empty, 1.0, mass)[:, None]
+        return np.where(empty[:, None], 0.0, num / tot)
+
+    def kernel_quantiles(self, fractions):
+        """Per row, kernel and fraction the kernel's own percentile [kg] of granule mass
+        (rows, n, len(fractions)): P^-1(l_a + 1, f) sigma, the centre where sigma = 0; NaN
+        for a kernel without mass."""
+        from scipy.special import gammaincinv
+        f = check_fractions(fractions)
+        sig = np.where(self.sigma > 0, self.sigma, 1.0)[:, None, None]
+        shape = np.where(self.x > 0, self.x, 1.0)[:, :, None] / sig + 1.0
+        p = gammaincinv(shape, f[None, None, :]) * sig
+        p = np.where((self.sigma > 0)[:, None, None], p, self.x[:, :, None])
+        return np.where((self.kernel_mass > 0)[:, :, None], p, np.nan)
 
     def quantiles(self, fractions):
-        """Diameters [m] at the mass fractions per row (0 in an empty row)."""
+        """Diameters [m] at the mass fractions per row (0 in an empty row): closed-form in a
+        row of one kernel, else by bisection between its kernels' percentiles."""
         f = check_fractions(fractions)
-        xs = np.where(self.w > 0, self.x, np.nan)
-        lo = diameter_of_mass(np.nanmin(np.where(self.empty[:, None], 1.0, xs), axis=1)
-                              * 1e-6, self.rho)
-        hi = diameter_of_mass(np.nanmax(np.where(self.empty[:, None], 1.0, xs), axis=1)
-                              * 1e3 + 60.0 * self.sigma, self.rho)
-        q = bisect_quantiles(self.cdf, f, self.rows, lo=lo[:, None], hi=hi[:, None])
-        return np.where(self.empty[:, None], 0.0, q)
+        key = tuple(float(v) for v in f)
+        cache = self.__dict__.setdefault("_quantile_cache", {})
+        if key not in cache:
+            cache[key] = self._quantiles(f)
+        return cache[key].copy()
+
+    def _quantiles(self, f):
+        full = ~self.empty
+        q = np.zeros((self.rows, f.size))
+        if not np.any(full):
+            return q
+        kq = self.kernel_quantiles(f)[full]                    # (full rows, n, k)
+        with np.errstate(invalid="ignore"):
+            lo, hi = np.nanmin(kq, axis=1), np.nanmax(kq, axis=1)
+        q[full] = diameter_of_mass(lo, self.rho)
+        several = np.flatnonzero(full)[np.any(hi > lo, axis=1)]
+        if several.size:
+            # a relative 1e-9 outside the kernels' own: a step at the top is reached
+            sub = np.isin(np.flatnonzero(full), several)
+            d_lo = diameter_of_mass(lo[sub], self.rho) * (1 - 1e-9)
+            d_hi = diameter_of_mass(hi[sub], self.rho) * (1 + 1e-9)
+            q[several] = bisect_quantiles(lambda d: self.cdf(d, several), f, several.size,
+                                          lo=d_lo, hi=d_hi)
+        return q
 
     def class_binder(self, d_lo, d_hi):
         """Binder mass over granule mass [-] in each class [d_lo, d_hi] (rows, k)."""
@@ -150,7 +187,13 @@ def of_nodes(populations, rho, bivariate, labels=str) -> KernelMixture:
     from .reconstruct import node_binder, padded_rows
     w_all, p_all = (padded_rows(populations, k) for k in range(2))
     kernels, one, delta, bad = [], [], [], []
+    two = _two_node_fits(w_all, p_all)
     for r in range(w_all.shape[0]):
+        if two is not None and two[r] is not None:
+            kernels.append(two[r][:5])
+            if two[r][5]:
+                delta.append(r)
+            continue
         if not (np.all(np.isfinite(w_all[r])) and np.all(np.isfinite(p_all[r]))):
             kernels.append((0.0, np.zeros(0), np.zeros(0), np.zeros(0), I.FAILED))
             bad.append(r)
@@ -176,6 +219,38 @@ def of_nodes(populations, rho, bivariate, labels=str) -> KernelMixture:
                              f"{_rows_text(np.array(rows), labels)}")
     mix.node_binder = node_binder(populations) if bivariate else None
     return mix
+
+
+def _two_node_fits(w, p):
+    """Per row of two distinct valid nodes (w [1/m3], p [kg], each (rows, 2)) the one-gamma
+    EQMOM ``_fit_row`` gives, in closed form: u_2 = M20 M00 / M10^2, sigma = (u_2 - 1) mean
+    (the root of J, where the kernel's second moment 1 + sigma meets u_2); discrete
+    (sigma = 0) where |J(0)| = (u_2 - 1) / u_2 <= the inversion's ROOT_TOLERANCE; a delta at
+    the mean (flagged) where u_2 < 1. Entries (sigma, centres, weights, binder, status,
+    delta) or None for a row that takes the general fit; None for populations of other
+    than two nodes."""
+    from ..methods.eqmom import inversion as I
+    if w.shape[1] != 2:
+        return None
+    ok = (np.all(np.isfinite(w) & np.isfinite(p) & (w > 0) & (p > 0), axis=1)
+          & (p[:, 0] != p[:, 1]))
+    m0 = np.where(ok, w[:, 0] + w[:, 1], 1.0)
+    mean = np.where(ok, (w[:, 0] * p[:, 0] + w[:, 1] * p[:, 1]) / m0, 1.0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        u2 = (w[:, 0] * (p[:, 0] / mean) ** 2 + w[:, 1] * (p[:, 1] / mean) ** 2) / m0
+    ok &= np.isfinite(u2) & np.isfinite(mean)
+    out = [None] * w.shape[0]
+    for r in np.flatnonzero(ok):
+        f0 = (u2[r] - 1.0) / u2[r]
+        if f0 < 0.0:
+            entry = (0.0, mean[r:r + 1], m0[r:r + 1], np.zeros(1), I.DISCRETE, True)
+        elif abs(f0) <= I.ROOT_TOLERANCE:
+            entry = (0.0, mean[r:r + 1], m0[r:r + 1], np.zeros(1), I.DISCRETE, False)
+        else:
+            entry = ((u2[r] - 1.0) * mean[r], mean[r:r + 1], m0[r:r + 1], np.zeros(1),
+                     I.FIT, False)
+        out[r] = entry
+    return out
 
 
 class NodeMixture(KernelMixture):

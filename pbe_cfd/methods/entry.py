@@ -82,6 +82,13 @@ class MethodEntry(NamedTuple):
                     (EQMOM's gamma kernels, ``distribution.kernel_mixture``), None (none)
     distribution_text   that reconstruction in words (columns.json, docs/physics.md 11.1)
     moments_text    how the moments it does not carry are reconstructed (columns.json)
+    accuracy_knobs  f(quick) -> ((label, {options field: value}), ...): the settings of its
+                    accuracy knob the accuracy study runs (``bench.accuracy``; quick: the
+                    short study's); None: not in that study
+    table_build     f(scene, pack, cell) -> seconds to build its tables (``aux``) from
+                    scratch, without the disk cache (the accuracy study reports them apart);
+                    pack(scene) -> its packed arrays, cell(scene) -> its well-mixed cell row;
+                    None: no tables
     dries           True if it carries the drying drift of a [drying] table (docs/physics.md
                     section 15) and its evaporated-liquid entry
     solute_droplets True if its free droplets of their own may carry binder solids
@@ -124,6 +131,8 @@ class MethodEntry(NamedTuple):
     distribution: str | None = None
     distribution_text: str = ""
     moments_text: str = ""
+    accuracy_knobs: Callable | None = None
+    table_build: Callable | None = None
     dries: bool = False
     solute_droplets: bool = True
 

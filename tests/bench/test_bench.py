@@ -49,6 +49,33 @@ def test_analytic_moments_solve_the_closed_moment_equations():
     assert np.all(np.diff(lat["d43_m"]) > 0)
 
 
+def test_lattice_median_is_the_closed_form_median_of_constant_aggregation(tmp_path):
+    """Without injection the constant kernel from monodisperse granules p0 has the closed form
+    c_k = N0 (tau/2)^(k-1) / (1 + tau/2)^(k+1), tau = k0 N0 t (Smoluchowski 1916): the mass
+    median is the first k whose cumulative mass share sum_(i<=k) i c_i / N0 reaches 1/2."""
+    text = (bench.analytic.__file__.rsplit("/", 2)[0] + "/scenes/study-analytic.toml")
+    toml = open(text).read()
+    head, rest = toml.split("[binder_injection]")
+    toml = head + rest[rest.index("[method]"):]
+    path = tmp_path / "no-injection.toml"
+    path.write_text(toml)
+    scene = load_scene(str(path))
+    assert scene.binder_injection is None
+    times = np.array([1.0, 4.0, 10.0])
+    lat = bench.smoluchowski_d43(scene, times)
+    n0, k0, p0 = (scene.initial.number_density, scene.aggregation.rate,
+                  scene.initial.mean_mass)
+    for t, d50 in zip(times, lat["d50_m"]):
+        half = 0.5 * k0 * n0 * t
+        k, share = 0, 0.0
+        while share < 0.5:
+            k += 1
+            share += k * half ** (k - 1) / (1.0 + half) ** (k + 1)
+        want = (6.0 * k * p0 / (math.pi * scene.material.density)) ** (1.0 / 3.0)
+        assert d50 == pytest.approx(want, rel=1e-12, abs=0.0), (t, k)
+    assert lat["d50_m"][-1] > lat["d50_m"][0]
+
+
 def test_accuracy_quick_uses_the_analytic_reference_and_writes_everything(tmp_path, capsys):
     out = tmp_path / "acc"
     code = cli.main(["bench", "accuracy", "study-analytic", "--out", str(out), "--quick"])
@@ -65,11 +92,7 @@ def test_accuracy_quick_uses_the_analytic_reference_and_writes_everything(tmp_pa
             assert r["status"].startswith("failed: ") and len(r["status"]) > 10
             continue
         for q in bench.QUANTITIES:
-            # the closed-form reference gives moments and d43 (Smoluchowski lattice), no
-            # distribution: no d50 to compare with, and the row says so with NaN
-            if q == "d50_m":
-                assert math.isnan(float(r[f"err_{q}"])), (r["method"], r["knob"])
-                continue
+            # the closed-form reference gives the moments, the Smoluchowski lattice d43 and d50
             assert math.isfinite(float(r[f"err_{q}"])), (r["method"], r["knob"], q)
         assert float(r["wall_s_median"]) > 0
     assert {r["method"] for r in rows if r["status"] == "ok"} >= {"qmom", "cnmc"}

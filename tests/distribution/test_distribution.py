@@ -267,3 +267,30 @@ def test_a_node_set_without_a_distribution_is_named_with_its_fallback():
     assert cols["d50_m"][0] == 0.0
     assert [cols[k][1] for k in ("d10_m", "d50_m", "d90_m")] == pytest.approx(
         [_d_of_mass(P0)] * 3, rel=1e-12, abs=0)
+
+
+def test_two_node_rows_in_closed_form_are_the_general_fit_and_its_percentiles():
+    """Rows of two nodes take the one-gamma fit in closed form (sigma = (u2 - 1) mean) and
+    their percentiles from P^-1; rows of three nodes bisect between their kernels'
+    percentiles. Both must equal the general inversion (``_fit_row``) and a bisection of the
+    row's own Q3 over the widest bracket (1 nm .. 10 m) to round-off: 1e-13 relative on the
+    fit (a few ulps through u2), 1e-12 on a diameter (2^-60 of 23 decades in ln d is 5e-17;
+    P^-1 to ~1e-14)."""
+    from pbe_cfd.distribution import kernel_mixture as KM
+    rng = np.random.default_rng(2027)
+    for n in (2, 3):
+        pops = []
+        for _ in range(60):
+            w = rng.uniform(0.05, 1.0, n) * N0
+            p = np.sort(rng.uniform(0.2, 8.0, n)) * P0
+            pops.append((w, p, np.zeros(n)))
+        pops.append((np.full(n, N0), P0 * (1.0 + 1e-7 * np.arange(n)), np.zeros(n)))
+        mix = KM.of_nodes(pops, RHO, False)
+        for r, (w, p, _) in enumerate(pops):
+            sigma, c, cw, _ = KM._fit_row(p, w, n - 1)
+            assert mix.sigma[r] == pytest.approx(sigma, rel=1e-13, abs=1e-30 * P0), (n, r)
+            k = c.size
+            assert mix.x[r, :k] == pytest.approx(c, rel=1e-13, abs=0), (n, r)
+            assert mix.w[r, :k] == pytest.approx(cw, rel=1e-13, abs=0), (n, r)
+        wide = bisect_quantiles(mix.cdf, FRACTIONS, mix.rows)
+        assert mix.quantiles(FRACTIONS) == pytest.approx(wide, rel=1e-12, abs=0), n

@@ -32,6 +32,13 @@ def _population(state, aux, arrays):
     raise TypeError("the cNMC carries particles, not a moment state")
 
 
+def _accuracy_knobs(quick):
+    """The accuracy study's ensembles: particles x replicas (seed 11)."""
+    sizes = ((1000, 2), (3000, 2)) if quick else ((1000, 4), (10000, 4), (100000, 4))
+    return tuple((f"{n:.0e}".replace("e+0", "e") + f" x {r}",
+                  {"particles": n, "replicas": r, "seed": 11}) for n, r in sizes)
+
+
 ENTRY = MethodEntry(
     name="cnmc", code=NOT_INTEGRATED, scene_keys=_keys, options=CnmcOptions, order_key=None,
     order_label="cNMC particles", state_names=lambda s: [], aux=no_aux,
@@ -39,4 +46,4 @@ ENTRY = MethodEntry(
     diagnostics=no_diagnostics, plan_line=_plan, ensemble=_ensemble,
     distribution_text="mass histogram of each replica's particle list (50 classes per decade "
                       "of d), the replicas' mean and 95% band; d10/d50/d90 exact per replica",
-    dries=True)
+    accuracy_knobs=_accuracy_knobs, dries=True)

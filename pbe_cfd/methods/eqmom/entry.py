@@ -100,4 +100,6 @@ ENTRY = MethodEntry(
     distribution_text="the EQMOM's own density: N gamma kernels in granule mass fitted to the "
                       "carried M00 .. M(2N)0; binder fraction per size class from the kernels' "
                       "binder fractions",
-    moments_text="from the EQMOM kernels' secondary Gauss nodes (binder fraction per kernel)")
+    moments_text="from the EQMOM kernels' secondary Gauss nodes (binder fraction per kernel)",
+    accuracy_knobs=lambda quick: tuple((f"N={n}", {"nodes": n})
+                                       for n in ((2, 3) if quick else (2, 3, 4))))

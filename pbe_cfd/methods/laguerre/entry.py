@@ -59,6 +59,49 @@ def _plan(scene):
             f"{m.grid_mass} x {m.grid_binder}; {n_state} states")
 
 
+def _accuracy_knobs(quick):
+    """The accuracy study's settings: order x tensor grid (coarse, fine) x consistent or
+    plain projection (the quick study leaves out the fine plain ones)."""
+    grids = {"coarse": 8, "fine": 12} if quick else {"coarse": 20, "fine": 40}
+    out = []
+    for m in ((2, 3) if quick else (2, 3, 4)):
+        for gname, g in grids.items():
+            for consistent in (True, False):
+                if quick and gname == "fine" and not consistent:
+                    continue
+                kind = "consistent" if consistent else "plain"
+                out.append((f"m={m} {gname} {kind}", {"order": m, "consistent": consistent,
+                                                      "grid_mass": g, "grid_binder": g}))
+    return tuple(out)
+
+
+_BUILDER_WARM = []
+
+
+def _table_build_seconds(scene, pack, cell):
+    """Seconds to build the scene's tensors from scratch (no disk cache); ``pack(scene)`` its
+    packed arrays, ``cell(scene)`` its well-mixed cell row. The tensor builder is compiled
+    beforehand on a 4 x 4 grid (once per process)."""
+    import time
+    from ...physics import parameters as P
+    from .tensor import build_aux, scene_weights_support
+
+    def build(sc):
+        arrays = pack(sc)
+        weights, support = scene_weights_support(sc)
+        u0 = float(cell(sc)[0, P.COLLISION_VELOCITY])
+        t0 = time.perf_counter()
+        build_aux(arrays.params, arrays.config, sc.method.options.order, weights=weights,
+                  support=support, consistent=sc.method.options.consistent,
+                  collision_velocity=u0 if u0 > 0 else None, use_cache=False)
+        return time.perf_counter() - t0
+
+    if not _BUILDER_WARM:
+        build(scene.with_method(grid_mass=4, grid_binder=4))
+        _BUILDER_WARM.append(True)
+    return build(scene)
+
+
 ENTRY = MethodEntry(
     name="laguerre", code=CODE, scene_keys=_keys, options=LaguerreOptions, order_key="order",
     order_label="Laguerre m", state_names=lambda s: _names(s),
@@ -76,4 +119,5 @@ ENTRY = MethodEntry(
     distribution_text="the Laguerre ROM's own density (wet and dry classes) integrated per "
                       "size class",
     moments_text="integral of the Laguerre density over its support",
+    accuracy_knobs=_accuracy_knobs, table_build=_table_build_seconds,
     solute_droplets=False, dries=True)

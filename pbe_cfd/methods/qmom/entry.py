@@ -47,4 +47,6 @@ ENTRY = MethodEntry(
                       "fraction per size class interpolated in ln p between the "
                       "nodes' binder values",
     moments_text="from the quadrature nodes (one binder value per size node)",
+    accuracy_knobs=lambda quick: tuple((f"N={n}", {"nodes": n})
+                                       for n in ((1, 2, 3) if quick else (1, 2, 3, 4))),
     dries=True)
