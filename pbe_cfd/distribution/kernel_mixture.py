@@ -229,7 +229,7 @@ def _two_node_fits(w, p):
     the mean (flagged) where u_2 < 1. Entries (sigma, centres, weights, binder, status,
     delta) or None for a row that takes the general fit; None for populations of other
     than two nodes."""
-    from ..methods.eqmom import inversion as I
+    from ..methods.quadrature import gamma_inversion as I
     if w.shape[1] != 2:
         return None
     ok = (np.all(np.isfinite(w) & np.isfinite(p) & (w > 0) & (p > 0), axis=1)
