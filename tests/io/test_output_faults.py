@@ -39,11 +39,17 @@ def content(root: Path) -> dict:
             for p in sorted(root.rglob("*")) if p.is_file()}
 
 
+ROOT = Path(__file__).resolve().parents[2]
+
+
 def cli(argv, **kw):
-    """Start ``pbe-cfd ARGV`` (the console entry point, signal handlers included)."""
+    """Start ``pbe-cfd ARGV`` (the console entry point, signal handlers included) with this
+    checkout's code."""
     code = "import sys; from pbe_cfd.cli import run; run()"
+    env = dict(kw.pop("env", os.environ))
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH")) if p)
     return subprocess.Popen([sys.executable, "-c", code, *argv], stderr=subprocess.PIPE,
-                            stdout=subprocess.PIPE, text=True, **kw)
+                            stdout=subprocess.PIPE, text=True, env=env, **kw)
 
 
 # ---------------------------------------------------------------------------- D1: kinds, inputs
