@@ -493,9 +493,9 @@ def test_bundled_transport_scene_spreads_binder_and_conserves_it():
 @pytest.mark.xfail(strict=False, reason=(
     "regression since Strang's closing and opening transport halves are joined: M11's error "
     "ratio between split steps 0.25 and 0.125 s (reference 0.0625 s) measured 3.9987, below "
-    "the second-order bound 4 (apparent order 1.58; binder_fraction still passes); the joined "
-    "part takes its own substeps, so the transport's own first-order error no longer halves "
-    "with the split step. Not resolved; the bound is kept"))
+    "the second-order bound 4 (apparent order 1.58; binder_fraction still passes); likely "
+    "the joined part's own substep count, which does not scale with the split step. Not "
+    "resolved; the bound is kept"))
 def test_default_split_step_is_second_order_and_within_its_stated_error():
     """Strang splitting on the bundled bed (10 s, QMOM N = 2) against a 1/16 s split: the
     error falls as h^2 (with the reference's own error, e(0.25) / e(0.125) = 4 (15/16) / (3/4)
