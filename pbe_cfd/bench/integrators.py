@@ -23,10 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import resource
 import statistics
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -120,15 +117,9 @@ def _scene_text_without_transport(text: str) -> str:
 
 def _process_seconds(scene_path, out_dir) -> tuple[float, float]:
     """(wall [s], CPU [s] user + system) of one ``pbe_cfd.cli couple`` process."""
-    env = dict(os.environ)
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    start = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "pbe_cfd.cli", "couple", str(scene_path), "--out",
-                    str(out_dir), "--overwrite"], check=True, env=env,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    wall = time.perf_counter() - start
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    from .transport_cost import _one_process
+    res = _one_process(None, scene_path, out_dir)
+    return res["wall_s"], res["cpu_s"]
 
 
 def transport_rows(repeats, quiet, quick=False, baseline=None) -> list:
