@@ -626,3 +626,28 @@ def test_divergence_correction_by_cg_matches_direct_within_its_residual():
     assert np.linalg.norm(d @ direct) <= eps
     # and the correction is a real one: the raw flux was far from divergence-free
     assert np.linalg.norm(d @ f) > 1e6 * r_bound
+
+
+def test_counting_executor_keeps_each_cells_counters_of_the_run():
+    """bench.transport_cost's recorder: its per-cell counters sum to the run's own counters,
+    its spray flags to the run's spray cells, and the per-cell, per-split-step figures times
+    cells and split steps give the totals back."""
+    from pbe_cfd import integrate
+    from pbe_cfd.bench.transport_cost import CountingExecutor, per_cell_split_step
+
+    scene = load_scene("fluid-bed-transport")
+    scene = dataclasses.replace(scene, end_time=0.5, output_interval=0.25)
+    domain = load_domain(scene, need_flux=True)
+    counting = CountingExecutor()
+    res = run_coupled(scene, domain, executor=counting)
+    assert counting.counts.shape == (res.stats["active_cells"], integrate.N_STATS)
+    assert int(counting.counts[:, integrate.RHS_CALLS].sum()) == res.stats["rhs_calls"]
+    assert int(counting.counts[:, integrate.ACCEPTED].sum()) == res.stats["accepted_steps"]
+    assert int(counting.spray.sum()) == res.stats["spray_cells"] > 0
+    per = per_cell_split_step(counting.counts, counting.spray, scene.end_time,
+                              scene.transport.split_step)
+    assert per["split_steps"] == res.stats["transport"]["split_steps"] == 2
+    rhs = sum(per[f"{k}_rhs_per_cell_split_step"] * per[f"{k}_cells"] * per["split_steps"]
+              for k in ("spray", "other"))
+    assert rhs == pytest.approx(res.stats["rhs_calls"], rel=1e-12, abs=0)
+    assert per["other_rhs_per_cell_split_step"] >= 4      # f(y0) and one three-stage step
