@@ -280,6 +280,7 @@ def test_an_unknown_breakage_code_gives_nan():
     assert math.isnan(B.daughter_share(unknown, 0.3))
 
 
+@pytest.mark.slow
 def test_an_unknown_method_code_gives_nan_not_another_methods_numbers():
     """The run-time method dispatch has no fallback: a code no method owns yields NaN rates
     (which stop the cell) and an unrealizable state, never QMOM's numbers."""
