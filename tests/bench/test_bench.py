@@ -227,7 +227,7 @@ def test_study_scenes_are_bundled_and_run():
 
 
 def test_bench_method_and_count_lists_are_checked():
-    from pbe_cfd.cli import _int_list, _method_list
+    from pbe_cfd.cli_bench import int_list as _int_list, method_list as _method_list
     assert _method_list("qmom:3, laguerre:2,cqmom:3x2") == (("qmom", 3), ("laguerre", 2),
                                                             ("cqmom", (3, 2)))
     assert _int_list("1,2") == (1, 2)

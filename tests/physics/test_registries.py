@@ -107,6 +107,9 @@ def test_factor_names_codes_and_switches_agree_with_the_scene_and_the_layout():
     assert (switches["geometric"], switches["physical"], switches["saturation"]) == (
         P.USE_GEOMETRIC, P.USE_PHYSICAL, P.USE_SATURATION)
     assert max(switches.values()) < P.N_CONFIG
+    by_code = {e.code: e.name for e in EFFICIENCY_REGISTRY}   # the named switches: code order
+    assert [name for name, _ in P.EFFICIENCY_FACTORS] == [
+        f"USE_{by_code[k].upper()}" for k in range(len(P.EFFICIENCY_FACTORS))]
     assert sorted(single_config_slots().values()) == list(range(P.N_SWITCHES_START))
     material = {f.name for f in dataclasses.fields(S.Material)}
     for e in EFFICIENCY_REGISTRY:
