@@ -2,7 +2,8 @@
 | compile.
 
 Argument parsing and one ``*_command`` function per verb, nothing else: each command reads its
-arguments, calls the runs, studies and writers below, and prints what it wrote.
+arguments, calls the runs, studies and writers below, and prints what it wrote. The ``bench``
+verb lives in ``cli_bench``, the argument types and checks the verbs share in ``cli_args``.
 
 Exit codes: 0 success, 2 bad input (scene, arguments, files, an output place refused), 1 a
 run that failed (or an OS error while writing its output), 130/143 interrupted by SIGINT/SIGTERM.
@@ -14,23 +15,14 @@ import sys
 import warnings
 from pathlib import Path
 
+from .cli_args import add_overwrite as _add_overwrite
+from .cli_args import fail as _fail
+from .cli_args import positive_int as _positive_int
+from .cli_args import threads_refusal as _threads_refusal
+from .cli_bench import add_bench_parser
+
 DEFAULT_WELL_MIXED = "seed-wurster"
 DEFAULT_COUPLED = "fluid-bed"
-
-
-def _positive_int(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
-    return value
-
-
-def _add_overwrite(p, what="the files an earlier pbe-cfd run wrote there"):
-    p.add_argument("--overwrite", action="store_true",
-                   help=f"replace {what} (files pbe-cfd did not write are never replaced)")
 
 
 def _compile_text(result):
@@ -60,29 +52,6 @@ def _phases_text(phases) -> str:
     names = ("startup", "read", "setup", "compile", "solve", "assemble", "write", "render")
     return "phases [s]: " + ", ".join(f"{n} {phases[n + '_s']:.2f}" for n in names
                                       if n + "_s" in phases)
-
-
-def _thread_limit() -> int:
-    """Most numba threads a run may ask for: the cores numba starts its pool with
-    (NUMBA_NUM_THREADS, by default the machine's cores)."""
-    import numba
-    return int(numba.config.NUMBA_NUM_THREADS)
-
-
-def _threads_refusal(threads) -> str | None:
-    """The refusal of ``--threads`` values outside 1 .. the cores, or None."""
-    values = threads if isinstance(threads, tuple) else (threads,)
-    limit = _thread_limit()
-    for value in values:
-        if value is not None and not 1 <= value <= limit:
-            return (f"--threads: expected a whole number of threads from 1 to {limit} (the "
-                    f"cores numba runs on), got {value}")
-    return None
-
-
-def _fail(message, code=2):
-    print(f"pbe-cfd: error: {message}", file=sys.stderr)
-    return code
 
 
 def write_size_distribution(directory, psd, labels, title, what):
@@ -335,98 +304,6 @@ def render_command(args):
     return 0
 
 
-def bench_command(args):
-    """``pbe-cfd bench STUDY [SCENE] --out DIR [--quick]``."""
-    import time
-
-    from . import bench
-    from .io import output
-    out, quick, study = Path(args.out), bool(args.quick), args.study
-    refusal = _threads_refusal(args.threads) or (study == "integrators" and args.scene and
-                                                 bench.transport_cost.refusal(args.scene))
-    if refusal:
-        return _fail(refusal)
-    if args.results_doc:
-        from .bench import results_doc
-        try:
-            results_doc.check(args.results_doc, study)
-        except results_doc.ResultsDocError as exc:
-            return _fail(str(exc))
-    output.prepare_directory(out, args.overwrite, names=bench.STUDY_FILES[study],
-                             kind="bench")
-    start = time.perf_counter()
-    if study == "accuracy":
-        res = bench.accuracy_study(args.scene, out, quick=quick)
-        print(bench.accuracy_markdown(res))
-    elif study == "throughput":
-        res = bench.throughput_study(out, quick=quick, cells=args.cells, threads=args.threads,
-                                     methods=args.methods,
-                                     scene_name=args.scene or bench.DEFAULT_THROUGHPUT_SCENE)
-        print(bench.throughput_markdown(res))
-    elif study == "peer":
-        try:
-            bench.peer_study(out, quick=quick)
-        except (bench.PeerUnavailable, bench.PeerRunError) as exc:
-            print(f"pbe-cfd: error: {exc}", file=sys.stderr)
-            return 2 if isinstance(exc, bench.PeerUnavailable) else 1
-        print((out / "peer.md").read_text())
-    else:
-        study_of = {bench.CNMC_STUDY: bench.cnmc_study, bench.LAGUERRE_STUDY: bench.laguerre_study,
-                    "couple": bench.couple_study, "integrators": bench.integrator_study,
-                    "cluster": bench.cluster_study, "batch": bench.batch_study}
-        kw = {"baseline": Path(args.scene)} if study == "integrators" and args.scene else {}
-        study_of[study](out, quick=quick, **kw)
-        print((out / f"{study}.md").read_text())
-    files = ", ".join(bench.STUDY_FILES[study])
-    print(f"bench {study}: {time.perf_counter() - start:.1f} s; wrote {out}/{{{files}}}")
-    if args.results_doc:
-        done = results_doc.refresh(args.results_doc, study, (out / f"{study}.md").read_text(),
-                                   results_doc.command_line(args))
-        print(f"bench {study}: {done} its block in {args.results_doc}")
-    return 0
-
-
-class _Studies:
-    """The study names of ``pbe-cfd bench``, asked of the bench package when checked."""
-
-    def __iter__(self):
-        from .bench.common import STUDY_FILES      # a method's study: named by its entry
-        return iter(tuple(STUDY_FILES))
-
-    def __contains__(self, name):
-        return name in tuple(self)
-
-
-def _int_list(text):
-    try:
-        values = tuple(int(x) for x in text.split(",") if x.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected whole numbers separated by commas, got "
-                                         f"{text!r}") from None
-    if not values or min(values) < 1:
-        raise argparse.ArgumentTypeError(f"expected positive whole numbers, got {text!r}")
-    return values
-
-
-def _method_list(text):
-    """'qmom:3,laguerre:3,cqmom:2x2' -> (("qmom", 3), ("laguerre", 3), ("cqmom", (2, 2))): each
-    method's order as its registry entry's ``bench_orders`` reads it."""
-    from .methods.registry import METHOD_REGISTRY
-    readers = {m.name: m.bench_orders for m in METHOD_REGISTRY if m.bench_orders is not None}
-    out = []
-    for item in (x.strip() for x in text.split(",") if x.strip()):
-        name, _, order = item.partition(":")
-        try:
-            out.append((name, readers[name](order)))
-        except (KeyError, ValueError):
-            raise argparse.ArgumentTypeError(
-                f"{item!r}: expected one of {', '.join(n + ':ORDER' for n in readers)} "
-                "(qmom:N, laguerre:M, cqmom:N1xN2)") from None
-    if not out:
-        raise argparse.ArgumentTypeError("name at least one method")
-    return tuple(out)
-
-
 def _add_case_parser(sub):
     p = sub.add_parser("case", help="run the bundled OpenFOAM fluid-bed case, or make a 3-D "
                                     "bed of any size (make --3d --cells N)")
@@ -523,24 +400,7 @@ def build_parser():
     _add_overwrite(p, "PNGs an earlier pbe-cfd run or render wrote (others are skipped)")
     p.set_defaults(func=render_command)
 
-    p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")
-    p.add_argument("study", choices=_Studies())
-    p.add_argument("scene", nargs="?", help="scene for the accuracy study; integrators: a "
-                   "pbe_cfd source tree whose transport ratios are timed in the same run")
-    p.add_argument("--out", default="bench-out")
-    p.add_argument("--quick", action="store_true", help="a tiny configuration (plumbing check)")
-    p.add_argument("--methods", type=_method_list, default=None, metavar="LIST",
-                   help="throughput: methods and orders, e.g. qmom:3,laguerre:3,cqmom:2x2 "
-                        "(default: all)")
-    p.add_argument("--cells", type=_int_list, default=None, metavar="LIST",
-                   help="throughput: cell counts, e.g. 1000,100000")
-    p.add_argument("--threads", type=_int_list, default=None, metavar="LIST",
-                   help="throughput: thread counts, e.g. 1,2")
-    p.add_argument("--results-doc", default=None, metavar="FILE",
-                   help="write the study's report into FILE (docs/results/STUDY.md) between "
-                        "its marker lines, keeping the rest of FILE as it is")
-    _add_overwrite(p, "the files of this study an earlier pbe-cfd bench wrote")
-    p.set_defaults(func=bench_command)
+    add_bench_parser(sub)
     return parser
 
 

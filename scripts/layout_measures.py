@@ -163,7 +163,7 @@ LAYERS = [("utilities", ("util", "io", "viz", "progress", "output", "plotting", 
           ("scene", ("scene", "limits")),
           ("runs", ("model", "domain", "distribution", "runs", "batch", "simulate", "couple",
                     "executor", "distributed", "transport", "solids_flux", "plan")),
-          ("studies", ("bench",)), ("cli", ("cli",))]
+          ("studies", ("bench",)), ("cli", ("cli", "cli_args", "cli_bench"))]
 
 
 def layer(module):

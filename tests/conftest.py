@@ -53,6 +53,16 @@ def make_scene(**tables):
     return scene_from_dict(data, "test-scene.toml")
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """A study (minutes to tens of minutes) is also slow: the fast tier's
+    ``-m "not slow and not openfoam"`` replaces the default ``-m "not study"`` (pyproject.toml),
+    so a study marked ``study`` alone would run in it. Runs before the marker selection."""
+    for item in items:
+        if item.get_closest_marker("study") and not item.get_closest_marker("slow"):
+            item.add_marker(pytest.mark.slow)
+
+
 @pytest.fixture
 def scene_factory():
     return make_scene

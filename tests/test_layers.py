@@ -16,7 +16,7 @@ LAYERS = [
     ("scene", ("scene/",)),
     ("runs", ("distribution/", "runs/", "transport/")),
     ("studies", ("bench/",)),
-    ("cli", ("cli.py",)),
+    ("cli", ("cli.py", "cli_args.py", "cli_bench.py")),
 ]
 
 #: imports exempt from the checks (none: the Laguerre ROM's cycle and upward import are gone)

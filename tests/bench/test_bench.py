@@ -76,6 +76,7 @@ def test_lattice_median_is_the_closed_form_median_of_constant_aggregation(tmp_pa
     assert lat["d50_m"][-1] > lat["d50_m"][0]
 
 
+@pytest.mark.slow
 def test_accuracy_quick_uses_the_analytic_reference_and_writes_everything(tmp_path, capsys):
     out = tmp_path / "acc"
     code = cli.main(["bench", "accuracy", "study-analytic", "--out", str(out), "--quick"])
@@ -108,6 +109,7 @@ def test_accuracy_quick_uses_the_analytic_reference_and_writes_everything(tmp_pa
     assert "qmom" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_accuracy_with_a_cnmc_reference_states_its_band(tmp_path):
     variants = [bench.Variant("qmom", "N=2", {"name": "qmom", "nodes": 2}),
                 bench.Variant("laguerre", "m=2 coarse consistent",
@@ -157,6 +159,7 @@ def test_numpy_baseline_computes_the_same_rhs(nodes):
         assert np.max(np.abs(got - expected) / np.maximum(np.abs(expected), scale)) < 1e-8
 
 
+@pytest.mark.slow
 def test_throughput_tiny(tmp_path):
     res = bench.throughput_study(tmp_path / "tp", quick=True, cells=(40, 80), threads=(1,),
                                  methods=(("qmom", 2), ("laguerre", 2), ("qmom", 3),
@@ -186,6 +189,7 @@ def test_throughput_tiny(tmp_path):
     assert rows[-1]["method"] == "numpy-scipy-qmom"
 
 
+@pytest.mark.slow
 def test_cnmc_laguerre_couple_studies_write_their_tables(tmp_path):
     out = tmp_path / "misc"
     bench.cnmc_study(out, quick=True, quiet=True)
@@ -223,7 +227,7 @@ def test_study_scenes_are_bundled_and_run():
 
 
 def test_bench_method_and_count_lists_are_checked():
-    from pbe_cfd.cli import _int_list, _method_list
+    from pbe_cfd.cli_bench import int_list as _int_list, method_list as _method_list
     assert _method_list("qmom:3, laguerre:2,cqmom:3x2") == (("qmom", 3), ("laguerre", 2),
                                                             ("cqmom", (3, 2)))
     assert _int_list("1,2") == (1, 2)

@@ -249,6 +249,7 @@ def test_bench_failure_status_keeps_the_whole_reason():
 
 
 # ---------------------------------------------------------------------------- first run
+@pytest.mark.slow
 def test_the_compile_is_said_while_it_runs_and_reported_apart(tmp_path, capsys, monkeypatch):
     """A slow kernel compile (a first run) is announced while it runs, and its time is kept
     out of the run time in the printed summary and in summary.json."""

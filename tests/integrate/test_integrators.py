@@ -257,6 +257,7 @@ def test_rejected_steps_are_rare_on_a_smooth_scene(integrator):
     assert st["rejected_error"] <= 0.1 * st["accepted_steps"], st
 
 
+@pytest.mark.slow
 def test_rodas3_stays_third_order_near_the_realizability_boundary():
     """The study-ktgf cell at 10 s (QMOM N = 3, aggregated from a monodisperse start: its
     moment set lies near the boundary, where the RHS is strongly curved and its Jacobian's

@@ -134,6 +134,7 @@ def test_a_file_as_output_directory_is_refused(box, capsys):
 
 
 # ---------------------------------------------------------------------------- run
+@pytest.mark.slow
 def test_run_replaces_an_earlier_output_only_with_overwrite(box, capsys):
     outside = tree(box, exclude=[box / "r"])
     assert main(["run", "tiny.toml", "--out", "r"]) == 0

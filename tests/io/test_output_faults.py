@@ -70,6 +70,7 @@ def test_couple_never_replaces_a_case_run_directory_nor_the_case_it_reads(
     assert tree(box) == before
 
 
+@pytest.mark.slow
 def test_case_run_never_replaces_a_run_output_and_no_output_holds_its_scene(
         box, fake_openfoam, capsys):
     assert main(["run", "tiny.toml", "--out", "r"]) == 0
@@ -140,6 +141,7 @@ def test_overwrite_never_removes_a_path_outside_the_output(tmp_path, monkeypatch
     assert tree(tmp_path) == before
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("edit", ["same size and time", "same size, new time"])
 def test_an_edited_file_is_refused_before_the_computation(box, capsys, monkeypatch, edit):
     assert main(["run", "tiny.toml", "--out", "r"]) == 0
@@ -203,6 +205,7 @@ def _wholly_new(target: Path, mine: bytes) -> bool:
             and all(output._unchanged(target / r, e) for r, e in manifest["files"].items()))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", ["exchange", "fallback"])
 def test_a_crash_at_any_rename_of_the_final_move_leaves_old_or_new(tmp_path, capsys, mode):
     target = tmp_path / "o"
@@ -285,6 +288,7 @@ HOLD_SCRIPT = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 def test_a_second_run_into_the_same_out_is_refused_while_the_first_writes(box, capsys):
     holder = subprocess.Popen([sys.executable, "-c", HOLD_SCRIPT, str(box / "r")],
                               stdout=subprocess.PIPE, text=True)
@@ -326,6 +330,7 @@ def _one_line(capsys, code, argv, *phrases):
     return err[0]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fault", ["disk full", "vanished directory"])
 def test_an_os_error_while_writing_keeps_the_earlier_output(box, capsys, monkeypatch, fault):
     assert main(["run", "tiny.toml", "--out", "r"]) == 0

@@ -258,6 +258,7 @@ def test_cnmc_power_selection():
     assert np.allclose(c["M01"], Y0 * c["M10"], rtol=1e-12, atol=0)
 
 
+@pytest.mark.slow
 def test_cnmc_constant_aggregation_with_constant_breakage():
     K, s, replicas = 1.0e-10, 0.25, 32
     scene = breakage_scene({"name": "cnmc", "particles": 2000, "replicas": replicas,

@@ -77,6 +77,7 @@ def _split_outcomes(p0, b0, i, trials, seed, config, outcome, errors):
         errors[4] = max(errors[4], abs(np.sum(bcnt) - n))
 
 
+@pytest.mark.slow
 def test_split_replaces_a_particle_drawn_uniformly_among_the_n_plus_one():
     """Box p = (1, 2, 3, 4, 5) p0, binder 0.1 p, uniform daughters, slot 2 splits: the result
     is the rule's prediction in every trial, the box's total mass and sum d^4 are carried

@@ -527,6 +527,7 @@ def test_injection_a_thousand_times_the_seed_rate_other_methods(method):
         assert np.max(np.abs(c["M01"] - expected) / expected) < 1e-10
 
 
+@pytest.mark.slow
 def test_injection_into_an_empty_laguerre_cell():
     pd = droplet_mass(60e-6, 1000.0)
     scene = make_scene(scene={"end_time": 10.0, "output_interval": 2.0},

@@ -150,6 +150,7 @@ def test_only_a_method_whose_own_droplets_hold_solids_takes_a_solution(method):
         assert scene(SOLIDS).binder_injection.solids_fraction == SOLIDS
 
 
+@pytest.mark.slow
 def test_plan_lists_the_schedule_and_exit_2_names_the_key(tmp_path):
     good = tmp_path / "spray.toml"
     good.write_text(_toml("rate = 2e9\nstart = 2.0\nstop = 6.0\nsolids_fraction = 0.2"))

@@ -143,7 +143,7 @@ def test_the_scene_routes_method_keys_to_the_toy_and_refuses_the_others(toy):
 
 
 def test_plan_and_bench_list_name_the_registered_method(toy):
-    from pbe_cfd.cli import _method_list
+    from pbe_cfd.cli_bench import method_list as _method_list
     from pbe_cfd.runs.plan import describe_plan
     assert "toy two-moment closure" in describe_plan(_toy_scene())
     assert _method_list("toy:1,qmom:2") == (("toy", 1), ("qmom", 2))

@@ -107,6 +107,9 @@ def test_factor_names_codes_and_switches_agree_with_the_scene_and_the_layout():
     assert (switches["geometric"], switches["physical"], switches["saturation"]) == (
         P.USE_GEOMETRIC, P.USE_PHYSICAL, P.USE_SATURATION)
     assert max(switches.values()) < P.N_CONFIG
+    by_code = {e.code: e.name for e in EFFICIENCY_REGISTRY}   # the named switches: code order
+    assert [name for name, _ in P.EFFICIENCY_FACTORS] == [
+        f"USE_{by_code[k].upper()}" for k in range(len(P.EFFICIENCY_FACTORS))]
     assert sorted(single_config_slots().values()) == list(range(P.N_SWITCHES_START))
     material = {f.name for f in dataclasses.fields(S.Material)}
     for e in EFFICIENCY_REGISTRY:
@@ -280,6 +283,7 @@ def test_an_unknown_breakage_code_gives_nan():
     assert math.isnan(B.daughter_share(unknown, 0.3))
 
 
+@pytest.mark.slow
 def test_an_unknown_method_code_gives_nan_not_another_methods_numbers():
     """The run-time method dispatch has no fallback: a code no method owns yields NaN rates
     (which stop the cell) and an unrealizable state, never QMOM's numbers."""

@@ -107,6 +107,7 @@ def test_laguerre_table_bytes_bound_the_pair_rate_matrix_and_the_limit_is_the_sh
         limits.machine_memory = original
 
 
+@pytest.mark.slow
 def test_laguerre_stop_inside_its_support_does_not_blame_the_support():
     """A ROM cell that stops with none of its mass beyond the support: the hint says the
     support is not the cause instead of "widen the support" (0.0% had left it)."""

@@ -120,6 +120,7 @@ def test_series_spreads_over_split_cells(cells, tmp_path):
     np.testing.assert_array_equal(got, np.concatenate([[0.0, 0.0], vals[1:]]))
 
 
+@pytest.mark.slow
 def test_render_series_non_blank(series_dir):
     pngs = render_series(series_dir, times=[0.0, 600.0])
     names = {p.name for p in pngs}
@@ -204,6 +205,7 @@ def test_field_figure_axes_in_metres_log_bar_named_and_no_empty_canvas(series_di
             assert gaps.max() < 0.1 * used.size, (png.name, axis, gaps.max() / used.size)
 
 
+@pytest.mark.slow
 def test_plot_bed_moments(tmp_path):
     t = np.linspace(0, 600, 31)
     cols = {

@@ -249,6 +249,7 @@ def test_extreme_cells_next_to_ordinary_ones():
        n1=st.integers(1, 4), n2=st.integers(1, 3),
        dist=st.sampled_from(["monodisperse", "exponential"]),
        binder=st.floats(0.0, 0.5), inject=st.booleans(), tau=st.floats(0.1, 5.0))
+@pytest.mark.slow
 def test_random_scenes_in_the_validated_range_run_to_the_end(kernel, n1, n2, dist, binder,
                                                              inject, tau):
     n0, p0 = 1e10, 1e-9
@@ -368,7 +369,7 @@ SWITCH_DEFECT = pytest.mark.xfail(strict=True, reason="CQMOM keeps a second poin
 
 @pytest.mark.parametrize("n1,n2", [pytest.param(2, 2, marks=SWITCH_DEFECT),
                                    pytest.param(3, 2, marks=SWITCH_DEFECT),
-                                   pytest.param(3, 3, marks=SLIDING_REFERENCE)])
+                                   pytest.param(3, 3, marks=[SLIDING_REFERENCE, pytest.mark.slow])])
 def test_steep_power_breakage_on_the_seed_scenario(n1, n2):
     """The seed scenario (eke kernel, geometric and physical efficiency, droplets a population
     of their own, injection) with a steep power selection S = 0.05 (p / p0)^3 1/s and uniform

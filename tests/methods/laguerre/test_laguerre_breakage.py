@@ -80,6 +80,7 @@ def test_block_mass_and_binder_rows_exactly_zero_and_constant_selection_diagonal
     assert np.max(np.abs(dry - np.diag([F(k) - 1.0 for k in range(order)]))) < tol
 
 
+@pytest.mark.slow
 def test_no_breakage_table_no_block():
     scene = make_scene(method={"name": "laguerre", "order": 3, "_replace": True})
     aux, _ = aux_of(scene)
@@ -87,6 +88,7 @@ def test_no_breakage_table_no_block():
 
 
 # ---------------------------------------------------------------------------- closed forms
+@pytest.mark.slow
 @pytest.mark.parametrize("daughters,F", [("uniform", uniform_F), ("equal", equal_F)])
 @pytest.mark.parametrize("order", ORDERS)
 def test_constant_selection(order, daughters, F):
@@ -149,6 +151,7 @@ def test_constant_aggregation_with_constant_breakage(order):
     assert_exact_mass_and_binder(c)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("order", ORDERS)
 def test_power_selection_rows_below_the_top_are_exact(order):
     """S = k p at the exponential start: the RHS of every moment (i, j) with i < m - 1 is

@@ -177,6 +177,7 @@ def test_univariate_scene_runs_in_the_dry_class():
     assert np.max(np.abs(c["M10"] / (n0 * p0) - 1)) < 1e-10
 
 
+@pytest.mark.slow
 def test_dry_start_with_injection_keeps_every_invariant():
     """The seed scenario without droplets at t = 0 for 30 s: M10 and M01 grow at exactly the
     injected rate, the dry granules only decrease, stored states stay realizable."""

@@ -22,6 +22,9 @@ from pbe_cfd.runs import model
 
 from test_breakage import N0, P0, Y0, breakage_scene
 
+#: the module's fixture builds the shape-axis tensors (about 12 s on a warm cache)
+pytestmark = pytest.mark.slow
+
 
 def scene(shape=True):
     method = {"name": "laguerre", "order": 3, "following_support": True,
