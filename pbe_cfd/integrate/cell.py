@@ -85,7 +85,7 @@ def _jacobian(scheme, method, y, buf, jac, pivots, coefs, n_inv, cell, aux, para
     raise NotImplementedError("numba only")
 
 
-@overload(_explicit, prefer_literal=True)
+@overload(_explicit, prefer_literal=True, inline="always")
 def _explicit_impl(scheme, method, y, h, buf, phis, expo, cell, aux, params, config, work, rtol,
                    atol, d, n):
     code = _scheme(scheme)
@@ -111,7 +111,7 @@ def _explicit_impl(scheme, method, y, h, buf, phis, expo, cell, aux, params, con
     return either
 
 
-@overload(_capture, prefer_literal=True)
+@overload(_capture, prefer_literal=True, inline="always")
 def _capture_impl(scheme, method, y, buf, cell, aux, params, config, work, d, n):
     code = _scheme(scheme)
     if code is None:
@@ -122,7 +122,7 @@ def _capture_impl(scheme, method, y, buf, cell, aux, params, config, work, d, n)
         capture_column(method, y, buf, cell, aux, params, config, work, d, n)
 
 
-@overload(_implicit, prefer_literal=True)
+@overload(_implicit, prefer_literal=True, inline="always")
 def _implicit_impl(scheme, method, y, h, buf, jac, lu, piv, cell, aux, params, config, work,
                    rtol, atol, n):
     code = _scheme(scheme)
@@ -136,7 +136,7 @@ def _implicit_impl(scheme, method, y, h, buf, jac, lu, piv, cell, aux, params, c
                                       config, work, rtol, atol, n)
 
 
-@overload(_jacobian, prefer_literal=True)
+@overload(_jacobian, prefer_literal=True, inline="always")
 def _jacobian_impl(scheme, method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params,
                    config, work, rtol, atol, n):
     code = _scheme(scheme)
@@ -455,7 +455,9 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
         step[0] = _memory(scheme, mode, h)
         return NOT_FINITE, t_start
     floor = local[P.STEP_FLOOR]
-    t, taken, have_jac = t_start, 0, False
+    # np.bool_: a variable first bound to a constant is typed as that literal at first, and
+    # numba would compile _attempt once more for the literal
+    t, taken, have_jac = t_start, 0, np.bool_(False)
     loc = location_memory()           # locating a Stokes switching time
     cap = np.zeros(N_CAP, dtype=np.int64)   # what buf[GCOL] holds (CAP_* below)
     # the step proposed after this call's first accepted step [s]; whether that step was
