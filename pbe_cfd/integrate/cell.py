@@ -85,7 +85,7 @@ def _jacobian(scheme, method, y, buf, jac, pivots, coefs, n_inv, cell, aux, para
     raise NotImplementedError("numba only")
 
 
-@overload(_explicit, prefer_literal=True, inline="always")
+@overload(_explicit, prefer_literal=True)
 def _explicit_impl(scheme, method, y, h, buf, phis, expo, cell, aux, params, config, work, rtol,
                    atol, d, n):
     code = _scheme(scheme)
@@ -111,7 +111,7 @@ def _explicit_impl(scheme, method, y, h, buf, phis, expo, cell, aux, params, con
     return either
 
 
-@overload(_capture, prefer_literal=True, inline="always")
+@overload(_capture, prefer_literal=True)
 def _capture_impl(scheme, method, y, buf, cell, aux, params, config, work, d, n):
     code = _scheme(scheme)
     if code is None:
@@ -122,7 +122,7 @@ def _capture_impl(scheme, method, y, buf, cell, aux, params, config, work, d, n)
         capture_column(method, y, buf, cell, aux, params, config, work, d, n)
 
 
-@overload(_implicit, prefer_literal=True, inline="always")
+@overload(_implicit, prefer_literal=True)
 def _implicit_impl(scheme, method, y, h, buf, jac, lu, piv, cell, aux, params, config, work,
                    rtol, atol, n):
     code = _scheme(scheme)
@@ -136,7 +136,7 @@ def _implicit_impl(scheme, method, y, h, buf, jac, lu, piv, cell, aux, params, c
                                       config, work, rtol, atol, n)
 
 
-@overload(_jacobian, prefer_literal=True, inline="always")
+@overload(_jacobian, prefer_literal=True)
 def _jacobian_impl(scheme, method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params,
                    config, work, rtol, atol, n):
     code = _scheme(scheme)

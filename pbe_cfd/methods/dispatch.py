@@ -57,7 +57,7 @@ def conserved(method, config, params, pivots, coefs):
     raise NotImplementedError("numba only")
 
 
-@overload(rhs, prefer_literal=True, inline="always")
+@overload(rhs, prefer_literal=True)
 def _rhs(method, state, out, cell, aux, params, config, work):
     entry = _entry(method)
     if entry is None:
@@ -67,7 +67,7 @@ def _rhs(method, state, out, cell, aux, params, config, work):
         state, out, cell, aux, params, config, work)
 
 
-@overload(realizable, prefer_literal=True, inline="always")
+@overload(realizable, prefer_literal=True)
 def _realizable(method, state, aux, params, config, work):
     entry = _entry(method)
     if entry is None:
@@ -76,7 +76,7 @@ def _realizable(method, state, aux, params, config, work):
     return lambda method, state, aux, params, config, work: f(state, aux, params, config, work)
 
 
-@overload(project, prefer_literal=True, inline="always")
+@overload(project, prefer_literal=True)
 def _project(method, state, aux, params, config, work):
     entry = _entry(method)
     if entry is None:
@@ -85,7 +85,7 @@ def _project(method, state, aux, params, config, work):
     return lambda method, state, aux, params, config, work: f(state, aux, params, config, work)
 
 
-@overload(conserved, prefer_literal=True, inline="always")
+@overload(conserved, prefer_literal=True)
 def _conserved(method, config, params, pivots, coefs):
     entry = _entry(method)
     if entry is None:
