@@ -81,14 +81,12 @@ def warm_stages(method: int, scheme: int, aux, params, config) -> list:
 
 def compile_group(group) -> list:
     """Compile (or load from the cache) every (name, dispatcher, signature) of ``group``;
-    returns the names numba compiled (the others were in the cache)."""
-    compiled = []
-    for name, dispatcher, sig in group:
-        misses = sum(dispatcher.stats.cache_misses.values())
+    returns the names numba compiled, here or as a callee of another (the others were in the
+    cache)."""
+    before = cache_misses([[group]])
+    for _name, dispatcher, sig in group:
         dispatcher.compile(sig)
-        if sum(dispatcher.stats.cache_misses.values()) > misses:
-            compiled.append(name)
-    return compiled
+    return recompiled([[group]], before)   # with those compiled as callees of the group
 
 
 def recompiled(stages, misses_before) -> list:

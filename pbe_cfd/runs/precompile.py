@@ -76,7 +76,7 @@ def _warm_in_parallel(scene_name, batch, jobs, say) -> dict:
                 spent.append(f"{seconds:.1f}")
             say(f"stage {k + 1} done in {_time.perf_counter() - start:.1f} s "
                 f"({' + '.join(spent)} s CPU)")
-    return {"stages": stages, "cpu_s": cpu, "compiled": names}
+    return {"stages": stages, "cpu_s": cpu, "compiled": sorted(set(names))}
 
 
 def compile_scene(scene, progress=None, jobs=1, scene_name=None) -> dict:
