@@ -37,6 +37,7 @@ def _batch_of(scene):
 
 
 def _stages_of(batch):
+    """The compile stages below the batch's kernel (``integrate.warmup.warm_stages``)."""
     from ..integrate.warmup import warm_stages
     from ..physics import parameters as P
     return warm_stages(int(batch.config[P.METHOD]), int(batch.config[P.INTEGRATOR]),
@@ -104,7 +105,11 @@ def compile_scene(scene, progress=None, jobs=1, scene_name=None) -> dict:
         from ..util.progress import compile_text
         say(f"{compile_text(batch.kernel_name())}; the functions below it in {jobs} "
             "processes, stage by stage, then the kernel here")
-        helpers = _warm_in_parallel(scene_name, batch, jobs, say)
+        try:
+            helpers = _warm_in_parallel(scene_name, batch, jobs, say)
+        except Exception as exc:       # a helper that fails costs its share, not the compile
+            say(f"the helper processes failed ({type(exc).__name__}: {exc}); compiling "
+                "everything here")
     before = cache_misses(helpers["stages"]) if helpers else {}
     batch.compile_announced(progress, extra)
     again = recompiled(helpers["stages"], before) if helpers else []
