@@ -131,12 +131,29 @@ def compile_kernels(aux, params, config, n_cells=1) -> float:
     its method and its scheme only. Returns the wall time it took [s] (near zero when the
     cache holds the kernel and it was loaded before in this process)."""
     start = time.perf_counter()
-    n = int(config[P.N_STATE])
-    states = np.zeros((n_cells, n))
-    cells = np.zeros((n_cells, P.N_CELL))
-    steps = np.zeros(n_cells)
-    stats = np.zeros((n_cells, N_STATS), dtype=np.int64)
-    status = np.full(n_cells, UNREALIZABLE_START, dtype=np.int64)  # skipped: no cell runs
-    integrate_cells(states, cells, aux, params, config, 0.0, 0.0, steps, 1e-8, 1e-14, 1,
-                    stats, status, np.zeros(n_cells))
+    integrate_cells(*_probe_args(aux, params, config, n_cells))
     return time.perf_counter() - start
+
+
+def _probe_args(aux, params, config, n_cells):
+    """Arguments of ``integrate_cells`` that run no cell (every status UNREALIZABLE_START)."""
+    n = int(config[P.N_STATE])
+    return (np.zeros((n_cells, n)), np.zeros((n_cells, P.N_CELL)), aux, params, config, 0.0,
+            0.0, np.zeros(n_cells), 1e-8, 1e-14, 1, np.zeros((n_cells, N_STATS), dtype=np.int64),
+            np.full(n_cells, UNREALIZABLE_START, dtype=np.int64), np.zeros(n_cells))
+
+
+def kernel_ready(aux, params, config) -> bool:
+    """True if the kernel of a packed scene is compiled in this process or can be loaded from
+    numba's on-disk cache (a compile would only load it); False where numba has no cache
+    interface to ask."""
+    args = _probe_args(aux, params, config, 1)
+    method, scheme = int(config[P.METHOD]), int(config[P.INTEGRATOR])
+    sig = (types.literal(method), types.literal(scheme)) + tuple(typeof(a) for a in args)
+    if sig in _KERNELS or sig in integrate_cells_kernel.overloads:
+        return True
+    try:
+        cache = integrate_cells_kernel._cache
+        return cache.load_overload(sig, integrate_cells_kernel.targetctx) is not None
+    except (AttributeError, TypeError):
+        return False

@@ -455,7 +455,9 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
         step[0] = _memory(scheme, mode, h)
         return NOT_FINITE, t_start
     floor = local[P.STEP_FLOOR]
-    t, taken, have_jac = t_start, 0, False
+    # np.bool_: a variable first bound to a constant is typed as that literal at first, and
+    # numba would compile _attempt once more for the literal
+    t, taken, have_jac = t_start, 0, np.bool_(False)
     loc = location_memory()           # locating a Stokes switching time
     cap = np.zeros(N_CAP, dtype=np.int64)   # what buf[GCOL] holds (CAP_* below)
     # the step proposed after this call's first accepted step [s]; whether that step was

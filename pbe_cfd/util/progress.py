@@ -14,13 +14,14 @@ from pathlib import Path
 
 #: Said while numba compiles the kernels a run needs (a first run; later runs load them).
 COMPILING = "compiling kernels (first run only)"
-#: Said only when the compile takes longer than this [s]: a first-run compile takes 20-60 s,
+#: Said only when the compile takes longer than this [s]: a first-run compile takes minutes,
 #: loading cached kernels well under a second (2-3 s on a heavily loaded machine).
 NOTICE_AFTER_S = 3.0
 #: How long a first compile takes where this machine has none on record: the qmom kernel with
-#: the auto integrator (all three schemes) compiled in 35 s on an idle core and in 80 s of CPU
-#: on a loaded 2-core machine; a kernel of one scheme compiles less.
-FIRST_COMPILE_HINT = "roughly 0.5-1.5 min"
+#: the auto integrator (all three schemes) took 85 s of CPU on an idle core of this project's
+#: 2-core machine and 116-144 s of CPU under loads of 13-19 (docs/results/first-run.md);
+#: the wall time is longer while other work shares the cores.
+FIRST_COMPILE_HINT = "roughly 1.5-2.5 min of CPU time"
 
 
 def _compile_record() -> Path:
@@ -59,7 +60,7 @@ def record_compile_s(kernel: str, seconds: float):
 def compile_text(kernel: str) -> str:
     """The notice of a compile: what compiles and roughly how long it takes."""
     last = last_compile_s(kernel)
-    how_long = (f"about {last:.0f} s on an idle core (the last compile on this machine)"
+    how_long = (f"about {last:.0f} s of CPU time (the last compile on this machine)"
                 if last is not None else FIRST_COMPILE_HINT)
     return f"{COMPILING}: {kernel}, {how_long}"
 

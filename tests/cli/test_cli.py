@@ -333,8 +333,8 @@ def test_the_compile_notice_names_the_kernel_and_the_last_compile_here(tmp_path,
     assert batch.compile_announced(progress_calls, extra=lambda: (time.sleep(0.05), 0.0)[1]) \
         == pytest.approx(1000.0, abs=1e-12)
     assert said == [f"{progress.COMPILING}: {name}, {progress.FIRST_COMPILE_HINT}"]
-    assert progress.compile_text(name) == (f"{progress.COMPILING}: {name}, about 42 s on an "
-                                           "idle core (the last compile on this machine)")
+    assert progress.compile_text(name) == (f"{progress.COMPILING}: {name}, about 42 s of "
+                                           "CPU time (the last compile on this machine)")
 
 
 def test_a_warm_run_says_nothing_and_compile_leaves_nothing_to_compile(tmp_path, capsys):

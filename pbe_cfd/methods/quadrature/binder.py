@@ -3,6 +3,7 @@
 M_k1 = sum_a w_a p_a^k b_a, k < N, one binder mass b_a per node with 0 <= b_a <= p_a.
 Shared by QMOM and the conditional quadrature (CQMOM)."""
 import numba as nb
+import numpy as np
 
 from .gauss import solve_vandermonde
 
@@ -75,7 +76,7 @@ def solve_node_binder(state, n_max, n, nodes, weights, binder, work):
     n_fixed = 0
     any_fixed = False
     for _ in range(n + 1):
-        n_free = 0
+        n_free = np.int64(0)     # not a literal: solve_vandermonde compiles once
         for a in range(n):
             if fixed[a] == 0.0:
                 index[n_free] = a

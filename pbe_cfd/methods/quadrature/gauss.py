@@ -21,6 +21,7 @@ serves 4 nodes and more.
 import math
 
 import numba as nb
+import numpy as np
 
 #: Relative size below which a Wheeler coefficient is treated as zero (round-off of the
 #: recurrence's subtraction is ~1e-16 of the terms; a genuine distribution whose relative
@@ -277,7 +278,7 @@ def wheeler_nodes(moments, n_max, nodes, weights, work):
         scale *= mean
     work[ia] = sig[width + 1] / sig[width + 0]
     work[ib] = 0.0
-    n_eff = 1
+    n_eff = np.int64(1)      # not a literal: tridiagonal_eigen compiles once
     for k in range(1, n_max):
         row = (k + 1) * width
         prev = k * width

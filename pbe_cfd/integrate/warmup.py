@@ -1,0 +1,103 @@
+"""The integration kernel's call tree in stages that can compile in separate processes.
+
+numba compiles a kernel on one thread, callee before caller; a callee that another process
+has compiled into the on-disk cache is loaded instead (with its code for linking), as long as
+it is asked for with the same argument types. ``warm_stages`` lists the functions below
+``integrate_cells_kernel`` with the argument types the kernel's call sites give them, in
+stages: every function of a stage needs only functions of earlier stages, and each stage is
+split into groups of about equal compile time (measured: docs/results/first-run.md). Groups of
+one stage compile in parallel (``runs.precompile``), stage after stage; the kernel itself
+then compiles in the caller, loading everything below it.
+
+A type that no longer matches its call site costs time, never correctness: the kernel then
+compiles that function itself (``recompiled`` says which).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import typeof
+from numba.core import types
+
+from ..methods import registry
+from ..physics import parameters as P
+from . import cell, explicit, exponential, rosenbrock, switches
+from .codes import AUTO, EXPLICIT, IMPLICIT, N_BUF
+
+
+def _types(aux, params, config):
+    """The numba types of the call sites' arguments (see ``integrate_cell``)."""
+    n = int(config[P.N_STATE])
+    vec = typeof(np.zeros(n))                            # states[c], buf rows, local, work
+    return dict(V=vec, M=typeof(np.zeros((N_BUF, n))), I=typeof(np.zeros(2, dtype=np.int64)),
+                A=typeof(aux), P=typeof(params), C=typeof(config),
+                f=types.float64, i=types.int64, b=types.boolean)
+
+
+def warm_stages(method: int, scheme: int, aux, params, config) -> list:
+    """Stages of (function name, dispatcher, signature) groups for the kernel of method code
+    ``method`` and scheme code ``scheme`` on the packed scene (aux, params, config): a list
+    of stages, each a list of groups, each a list of (name, dispatcher, argument types)."""
+    entry = registry.entry_of_code(method)
+    t = _types(aux, params, config)
+    V, M, I, A, C, f, i, b = (t[k] for k in "VMIACfib")
+    m, s = types.literal(method), types.literal(scheme)
+    leaves = [("held_params", switches.held_params, (t["P"], C)),
+              ("location_memory", switches.location_memory, ()),
+              ("release", switches.release, (V,))]
+    if scheme != EXPLICIT:
+        leaves += [("spectral_radius", rosenbrock.spectral_radius, (M, V, V, i)),
+                   ("lu_factor", rosenbrock.lu_factor, (M, I, i)),
+                   ("lu_solve", rosenbrock.lu_solve, (M, I, V, i))]
+    if scheme == AUTO:
+        leaves += [("phi_functions", exponential.phi_functions, (f, V))]
+    method_state = [(f"{entry.name} realizable", entry.realizable, (V, A, V, C, V)),
+                    (f"{entry.name} project", entry.project, (V, A, V, C, V)),
+                    (f"{entry.name} conserved", entry.conserved, (C, V, I, M))]
+    first = [("located", switches.located,
+              (m, f, V, f, M, V, A, V, C, V, f, f, i, I, V, V, i, f)),
+             ("_absorb_droplets", cell._absorb_droplets,
+              (m, V, i, f, I, M, i, A, V, C, V, V))]
+    second = [("_rate_after_step", cell._rate_after_step,
+               (m, b, b, b, V, M, V, A, V, C, V, i, I)),
+              ("_capture_chosen", cell._capture_chosen,
+               (s, m, V, f, M, I, V, A, V, C, V, f, f, i, i, I))]
+    if scheme != EXPLICIT:
+        first += [("jacobian", rosenbrock.jacobian,
+                   (m, V, M, M, I, M, i, V, A, V, C, V, f, f, i)),
+                  ("rodas3_attempt", rosenbrock.rodas3_attempt,
+                   (m, V, f, M, M, M, I, V, A, V, C, V, f, f, i))]
+    if scheme != IMPLICIT:
+        second += [("bs3_attempt", explicit.bs3_attempt,
+                    (m, V, f, M, V, A, V, C, V, f, f, i))]
+    if scheme == AUTO:
+        second += [("exp_bs3_attempt", exponential.exp_bs3_attempt,
+                    (m, V, f, M, M, V, A, V, C, V, f, f, i, i)),
+                   ("capture_column", exponential.capture_column,
+                    (m, V, M, V, A, V, C, V, i, i))]
+    return [[method_state, leaves],
+            [[(f"{entry.name} rhs", entry.rhs, (V, V, V, A, V, C, V))]],
+            [first, second]]
+
+
+def compile_group(group) -> list:
+    """Compile (or load from the cache) every (name, dispatcher, signature) of ``group``;
+    returns the names numba compiled, here or as a callee of another (the others were in the
+    cache)."""
+    before = cache_misses([[group]])
+    for _name, dispatcher, sig in group:
+        dispatcher.compile(sig)
+    return recompiled([[group]], before)   # with those compiled as callees of the group
+
+
+def recompiled(stages, misses_before) -> list:
+    """Names of the staged functions that numba compiled in this process since
+    ``misses_before`` (``cache_misses(stages)`` taken before the kernel's compile): a
+    function whose staged signature did not match its call site."""
+    now = cache_misses(stages)
+    return [name for name, count in now.items() if count > misses_before.get(name, 0)]
+
+
+def cache_misses(stages) -> dict:
+    """{name: numba's cache misses of its dispatcher in this process} over the stages."""
+    return {name: sum(d.stats.cache_misses.values())
+            for stage in stages for group in stage for name, d, _sig in group}
