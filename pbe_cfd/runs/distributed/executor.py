@@ -44,6 +44,9 @@ class ClusterExecutor:
     cluster     a LocalCluster this executor owns (closed by ``close``)
     halo_substeps  with transport: substeps per halo exchange (the halo's depth in upwind
                 hops); None: one exchange per transport part (depth = its substeps)
+    balance     with transport on blocks of the flux graph: re-partition at an output time by
+                the costs measured over the interval before it (``balance``) when the blocks
+                are out of balance; False keeps the blocks of equal cells
     """
     client: object
     chunks: object = None
@@ -55,6 +58,7 @@ class ClusterExecutor:
     cluster: object = None
     case_dir: Path | None = None
     halo_substeps: int | None = None
+    balance: bool = True
     _report: dict = field(default_factory=dict, repr=False)
     store: ChunkStore | None = field(default=None, repr=False)
 
@@ -168,11 +172,16 @@ class ClusterExecutor:
     def _run_independent(self, part, batch, times, shared, threads, progress):
         from distributed import as_completed
 
+        from ...io.spool import Spool
+
         states, rows = batch.states, batch.rows
         steps, stats, status, reached = (batch.steps, batch.stats_counts, batch.status,
                                          batch.reached)
         n_t = len(times)
-        history = np.empty((n_t,) + states.shape)
+        # the history goes to disk as the chunks arrive: one memory map per output time
+        history = Spool()
+        for _ in range(n_t):
+            history.reserve(states.shape)
         fail_interval = np.full(states.shape[0], -1, dtype=np.int64)
         done = self.store.finished_chunks() if (self.store and self.resume) else set()
         done &= set(range(part.n_chunks))
@@ -182,7 +191,8 @@ class ClusterExecutor:
         def accept(k, res):
             nonlocal cells_done
             pos = part.chunks[k]
-            history[:, pos, :] = res["history"]
+            for j in range(n_t):
+                history.fill(j, pos, res["history"][j])
             steps[pos] = res["steps"]
             stats[pos] += res["stats"]
             status[pos] = res["status"]
@@ -234,7 +244,7 @@ class ClusterExecutor:
         if bad.any():
             first = int(fail_interval[bad].min())
             batch.raise_if_failed(failed=np.flatnonzero(fail_interval == first))
-        return [history[k] for k in range(n_t)]
+        return history
 
     def _run_transport(self, part, batch, times, transport, shared, threads, progress):
         from .halo_run import run_on_workers

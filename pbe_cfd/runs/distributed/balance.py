@@ -1,0 +1,80 @@
+"""A partition of the flux graph weighted by each cell's measured cost, for a transport run
+with the states on the workers (``halo_run``).
+
+Why: blocks of equal cells are not blocks of equal work. A cell of the spray zone takes more
+integrator steps than one outside it (the droplets' capture and the wet granules' growth are
+fast), so under a partition of equal cells the run waits at every split step for the block
+that holds more of the spray zone. The cost of a cell is known after it has been integrated:
+over one output interval each block reports the wall seconds its tasks spent in the sources
+and in the transport, and every cell its right-hand-side evaluations (the
+``RHS_CALLS`` counter, Jacobian columns included). The cost model is then
+
+    w_c = S * r_c / sum(r) + T / n
+
+with S and T the source and transport seconds of all blocks in the interval, r_c the
+right-hand-side calls of cell c in it and n the cells: the sources shared out by the
+evaluations, the transport (the same few operations per cell and substep) evenly. The
+partition is ``transport.halo.level_partition`` with these weights: the same reverse
+Cuthill-McKee order as the unweighted one, cut into runs of equal summed cost, so the cut
+still falls along a section of the bed.
+
+When: at an output time, where the client holds every cell's counters anyway (nothing extra
+crosses the network to measure), if the current blocks' predicted loads (the weights summed
+per block) differ by more than ``REBALANCE_ABOVE`` from their mean and the weighted
+partition predicts a lower maximum. A re-placement sends every block its cells once (the
+bytes of one output time's gather). Results do not depend on the partition (``halo_run``):
+the re-partitioned run is bitwise the serial one.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ...integrate import codes
+from ...transport.halo import block_loads, level_partition
+
+#: Predicted max/mean block load above which an output time re-partitions (ours: a
+#: re-placement costs about one output time's gather, a few per cent of an interval's wall).
+REBALANCE_ABOVE = 1.05
+
+
+def cell_costs(rhs_calls, source_s: float, transport_s: float) -> np.ndarray:
+    """Cost of each cell over one interval [s] (see the module): ``rhs_calls`` (n,) the
+    right-hand-side evaluations of each cell in the interval; ``source_s`` and
+    ``transport_s`` the summed wall seconds [s] of all blocks' source and transport tasks
+    in it. Cells without a call share the sources evenly if no cell made one."""
+    r = np.asarray(rhs_calls, dtype=float)
+    n = r.size
+    if n == 0:
+        return r
+    total = float(r.sum())
+    share = r / total if total > 0.0 else np.full(n, 1.0 / n)
+    return float(source_s) * share + float(transport_s) / n
+
+
+def imbalance(labels, weights, n_blocks: int) -> float:
+    """Largest block load over the mean block load [-] (1: balanced)."""
+    loads = block_loads(labels, weights, n_blocks)
+    mean = float(loads.mean()) if loads.size else 0.0
+    return float(loads.max()) / mean if mean > 0.0 else 1.0
+
+
+def rhs_calls(stats) -> np.ndarray:
+    """The right-hand-side calls column (n,) of per-cell counters (n, N_STATS) [-]."""
+    return np.array(np.asarray(stats)[:, codes.RHS_CALLS], dtype=np.int64)
+
+
+def rebalanced(generator, labels, weights, threshold: float = REBALANCE_ABOVE):
+    """New block labels balancing ``weights`` (``level_partition`` with weights), or None
+    when the current ``labels`` are within ``threshold`` (max/mean) or the weighted
+    partition would not lower the largest block load. Returns (labels or None, predicted
+    imbalance now, predicted imbalance of the new labels)."""
+    labels = np.asarray(labels, dtype=np.int64)
+    n_blocks = int(labels.max()) + 1 if labels.size else 0
+    now = imbalance(labels, weights, n_blocks) if n_blocks else 1.0
+    if n_blocks < 2 or now <= threshold:
+        return None, now, now
+    new = level_partition(generator, n_blocks, weights=weights)
+    after = imbalance(new, weights, n_blocks)
+    if after >= now:
+        return None, now, after
+    return new, now, after

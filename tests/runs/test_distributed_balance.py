@@ -1,0 +1,55 @@
+"""The cost-weighted partition of a transport run on the workers (runs/distributed/balance):
+the cost model shares the measured source seconds by right-hand-side calls and the transport
+seconds evenly (the seconds are conserved); blocks out of balance under the measured costs are
+re-cut into blocks of equal cost, blocks in balance are left alone. The reference for the
+loads is a direct sum over the cells of each block."""
+import numpy as np
+import pytest
+
+from pbe_cfd.runs.distributed.balance import REBALANCE_ABOVE, cell_costs, imbalance, rebalanced
+from pbe_cfd.runs.domain import build_cells, load_domain
+from pbe_cfd.scene.scene import load_scene
+from pbe_cfd.transport.halo import level_partition
+from pbe_cfd.transport.operator import build_transport
+
+
+@pytest.fixture(scope="module")
+def generator():
+    scene = load_scene("fluid-bed-transport")
+    domain = load_domain(scene, need_flux=True)
+    rows, active, _, _ = build_cells(scene, domain.cells)
+    return build_transport(scene, domain, active, rows).generator
+
+
+def test_costs_share_the_measured_seconds():
+    rhs = np.array([10, 30, 0, 60])
+    w = cell_costs(rhs, source_s=2.0, transport_s=0.4)
+    assert w.sum() == pytest.approx(2.4, abs=1e-12)
+    # sources by the calls (0.2, 0.6, 0, 1.2 s), transport evenly (0.1 s each)
+    assert np.allclose(w, [0.3, 0.7, 0.1, 1.3], atol=1e-12)
+    # no calls at all: the sources evenly
+    assert np.allclose(cell_costs(np.zeros(4), 2.0, 0.0), 0.5, atol=1e-12)
+
+
+def test_loads_against_a_direct_sum():
+    labels = np.array([0, 1, 1, 0, 2])
+    w = np.array([1.0, 2.0, 3.0, 4.0, 5.0])
+    direct = [sum(w[c] for c in range(5) if labels[c] == b) for b in range(3)]
+    assert imbalance(labels, w, 3) == pytest.approx(max(direct) / np.mean(direct), abs=1e-12)
+
+
+@pytest.mark.parametrize("n_blocks", [2, 3])
+def test_out_of_balance_blocks_are_recut_balanced_ones_kept(generator, n_blocks):
+    n = generator.shape[0]
+    equal = level_partition(generator, n_blocks)
+    # costly cells in the first block of the equal-cell split (as the spray zone may be)
+    w = np.where(equal == 0, 3.0, 1.0)
+    new, before, after = rebalanced(generator, equal, w)
+    assert before > REBALANCE_ABOVE and new is not None
+    assert np.bincount(new, minlength=n_blocks).min() > 0 and new.size == n
+    # the weighted cut moves at most one cell's weight per block boundary
+    assert after <= 1.0 + n_blocks * w.max() / w.sum() + 1e-12
+    assert after == pytest.approx(imbalance(new, w, n_blocks), abs=1e-12)
+    # blocks already in balance under the costs are not moved
+    kept, now, _ = rebalanced(generator, equal, np.ones(n))
+    assert kept is None and now <= 1.0 + n_blocks / n
