@@ -2,8 +2,8 @@
 time: the states of the active cells and the cell fields of a coupled run (1e6 cells x 13
 output times would otherwise be held in memory for the whole run).
 
-A ``Spool`` is a list-like sequence (append or reserve, len, index, negative index, iteration)
-whose items live in a private temporary directory (the system's, or ``directory``), one ``.npy``
+A ``Spool`` is a list-like sequence (append, len, index, negative index, iteration) whose
+items live in a private temporary directory (the system's, or ``directory``), one ``.npy``
 file per array, written uncompressed (memory-mapped back on reading, so a read costs only the
 pages touched). The directory is the program's own: it is removed by ``close()``, and when the
 spool is garbage-collected or the interpreter exits. Nothing in it is an output of the run.
@@ -47,27 +47,6 @@ class Spool:
         else:
             self._write(f"{k}.npy", item)
             self._items.append(None)
-
-    def reserve(self, shape, dtype=np.float64) -> int:
-        """Add output time len(self) as one array of ``shape`` (zeros) to be filled in pieces
-        by ``fill`` (for example the cells of one chunk of a run at a time). Returns its
-        index."""
-        k = len(self._items)
-        arr = np.lib.format.open_memmap(self.path / f"{k}.npy", mode="w+", dtype=dtype,
-                                        shape=tuple(int(x) for x in shape))
-        self._bytes += arr.nbytes
-        del arr
-        self._items.append(None)
-        return k
-
-    def fill(self, k: int, rows, values) -> None:
-        """Write ``values`` into the rows ``rows`` (positions along the first axis) of the
-        reserved item ``k``, through a memory map held only for this write (the pages go to
-        the file, not the process's resident memory)."""
-        arr = np.load(self.path / f"{int(k)}.npy", mmap_mode="r+", allow_pickle=False)
-        arr[rows] = values
-        arr.flush()
-        del arr
 
     def _write(self, name, value):
         arr = np.ascontiguousarray(value)

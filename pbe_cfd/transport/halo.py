@@ -15,13 +15,12 @@ in the global product: the block result is bitwise the serial one.
 Partition. Where the case has a processor decomposition, its blocks are used as they are
 (``runs.distributed.processor_partition``). Otherwise a partition of our own, with no
 dependency and deterministic: ``rcb_partition`` (recursive coordinate bisection of the cell
-centres, each cut normal to the longest extent at the median: equal numbers of cells, not
-equal work where the spray zone's cells take more steps) where centres are known, and ``level_partition`` (contiguous runs of a
+centres, each cut normal to the longest extent at the median: equal numbers of cells, so equal
+source work per block) where centres are known, and ``level_partition`` (contiguous runs of a
 reverse Cuthill-McKee order of the flux graph) where only the operator is. On the box-like
 beds here both cut along a section of the bed, the smallest cut a balanced split can have,
 which is what a graph partitioner such as METIS finds on such meshes too; ``cut_faces``
-reports the cut of the partition used. ``level_partition`` with ``weights`` (each cell's
-measured cost) cuts the same order into runs of equal summed cost instead of equal cells.
+reports the cut of the partition used.
 
 All sizes are counts; the generator is in 1/s; substeps dt in s.
 """
@@ -59,14 +58,13 @@ def rcb_partition(centres, n_blocks: int) -> np.ndarray:
     return labels
 
 
-def level_partition(generator: sp.csr_matrix, n_blocks: int, weights=None) -> np.ndarray:
+def level_partition(generator: sp.csr_matrix, n_blocks: int) -> np.ndarray:
     """Block label (0..n_blocks-1) of each cell from the flux graph alone: the cells in reverse
     Cuthill-McKee order (breadth-first level sets of the symmetrised upwind graph, from a
-    peripheral cell) cut into ``n_blocks`` contiguous runs of near-equal size, or, with
-    ``weights`` (n,) (a cell's cost, any unit, >= 0), of near-equal summed weight. Each cut
-    falls inside one level set, a section of the bed, so the cut stays near the smallest
-    section the breadth-first fronts cross; used where no processor decomposition is at
-    hand."""
+    peripheral cell) cut into ``n_blocks`` contiguous runs of near-equal size. Each cut falls
+    inside one level set, a section of the bed, so the cut stays near the smallest section
+    the breadth-first fronts cross; used where neither a processor decomposition nor cell
+    centres are at hand."""
     from scipy.sparse.csgraph import reverse_cuthill_mckee
 
     n = generator.shape[0]
@@ -74,34 +72,9 @@ def level_partition(generator: sp.csr_matrix, n_blocks: int, weights=None) -> np
     pattern = abs(generator) + abs(generator).T
     order = np.asarray(reverse_cuthill_mckee(pattern.tocsr(), symmetric_mode=True))
     labels = np.empty(n, dtype=np.int64)
-    if weights is None:
-        for b, run in enumerate(np.array_split(order, n_blocks)):
-            labels[run] = b
-        return labels
-    w = np.asarray(weights, dtype=float)
-    if w.shape != (n,) or not np.all(np.isfinite(w)) or np.any(w < 0.0):
-        raise ValueError(f"level_partition: weights must be {n} finite values >= 0")
-    cum = np.cumsum(w[order])
-    total = float(cum[-1]) if n else 0.0
-    if total <= 0.0:
-        return level_partition(generator, n_blocks)
-    # run b ends where the cumulative weight first reaches (b + 1) / n_blocks of the total;
-    # each run keeps at least one cell
-    want = np.searchsorted(cum, total * np.arange(1, n_blocks) / n_blocks, side="left") + 1
-    cuts, prev = [], 0
-    for j, c in enumerate(want):
-        prev = int(min(max(int(c), prev + 1), n - (n_blocks - 1 - j)))
-        cuts.append(prev)
-    for b, run in enumerate(np.split(order, cuts)):
+    for b, run in enumerate(np.array_split(order, n_blocks)):
         labels[run] = b
     return labels
-
-
-def block_loads(labels, weights, n_blocks: int | None = None) -> np.ndarray:
-    """Summed weight of each block (same unit as ``weights``) [-]."""
-    labels = np.asarray(labels, dtype=np.int64)
-    n_blocks = int(labels.max()) + 1 if n_blocks is None else int(n_blocks)
-    return np.bincount(labels, weights=np.asarray(weights, dtype=float), minlength=n_blocks)
 
 
 def cut_faces(generator: sp.csr_matrix, labels) -> int:

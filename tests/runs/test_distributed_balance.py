@@ -6,19 +6,25 @@ loads is a direct sum over the cells of each block."""
 import numpy as np
 import pytest
 
-from pbe_cfd.runs.distributed.balance import REBALANCE_ABOVE, cell_costs, imbalance, rebalanced
+from pbe_cfd.runs.distributed.balance import (REBALANCE_ABOVE, block_loads, cell_costs,
+                                              imbalance, rebalanced, weighted_level_partition)
 from pbe_cfd.runs.domain import build_cells, load_domain
 from pbe_cfd.scene.scene import load_scene
-from pbe_cfd.transport.halo import level_partition
+from pbe_cfd.transport.halo import cut_faces, level_partition
 from pbe_cfd.transport.operator import build_transport
 
 
 @pytest.fixture(scope="module")
-def generator():
+def transport():
     scene = load_scene("fluid-bed-transport")
     domain = load_domain(scene, need_flux=True)
     rows, active, _, _ = build_cells(scene, domain.cells)
-    return build_transport(scene, domain, active, rows).generator
+    return build_transport(scene, domain, active, rows)
+
+
+@pytest.fixture(scope="module")
+def generator(transport):
+    return transport.generator
 
 
 def test_costs_share_the_measured_seconds():
@@ -53,3 +59,33 @@ def test_out_of_balance_blocks_are_recut_balanced_ones_kept(generator, n_blocks)
     # blocks already in balance under the costs are not moved
     kept, now, _ = rebalanced(generator, equal, np.ones(n))
     assert kept is None and now <= 1.0 + n_blocks / n
+
+
+@pytest.mark.parametrize("n_blocks", [2, 3, 4])
+def test_weighted_level_partition_balances_the_weights(transport, n_blocks):
+    """Cut at the cumulative weight's quantiles, each block's summed weight is within one
+    cell's weight of the even share (a cut moves at most the cell it falls on); the cut of
+    the flux graph stays far below a random split's; equal weights give the unweighted
+    blocks."""
+    tr = transport
+    rng = np.random.default_rng(11 + n_blocks)
+    w = rng.uniform(0.5, 1.0, tr.n)
+    w[: tr.n // 5] *= 4.0                  # a costly region, like the spray zone
+    labels = weighted_level_partition(tr.generator, n_blocks, w)
+    loads = block_loads(labels, w, n_blocks)
+    assert np.bincount(labels, minlength=n_blocks).min() > 0
+    assert loads.sum() == pytest.approx(w.sum(), abs=1e-9 * w.sum())
+    assert np.abs(loads - w.sum() / n_blocks).max() <= w.max()
+    equal = level_partition(tr.generator, n_blocks)
+    # the equal-cell blocks are out of balance under these weights, the weighted are not
+    assert np.abs(block_loads(equal, w, n_blocks) - w.sum() / n_blocks).max() > w.max()
+    random = rng.permutation(labels)
+    assert cut_faces(tr.generator, labels) < 0.25 * cut_faces(tr.generator, random)
+    assert np.array_equal(weighted_level_partition(tr.generator, n_blocks, np.ones(tr.n)),
+                          equal)
+
+
+def test_weighted_partition_refuses_bad_weights(transport):
+    tr = transport
+    with pytest.raises(ValueError, match="weights"):
+        weighted_level_partition(tr.generator, 2, -np.ones(tr.n))

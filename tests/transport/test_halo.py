@@ -9,8 +9,8 @@ import scipy.sparse as sp
 
 from pbe_cfd.runs.domain import build_cells, load_domain
 from pbe_cfd.scene.scene import load_scene
-from pbe_cfd.transport.halo import (advance_block, block_loads, block_operators, cut_faces,
-                                    halo_closure, level_partition, rcb_partition)
+from pbe_cfd.transport.halo import (advance_block, block_operators, cut_faces, halo_closure,
+                                    level_partition, rcb_partition)
 from pbe_cfd.transport.operator import build_transport
 
 
@@ -89,33 +89,3 @@ def test_partitions_balance_and_cut_less_than_random(small_transport, kind):
         rng = np.random.default_rng(n_blocks)
         random = rng.permutation(labels)
         assert cut_faces(tr.generator, labels) < 0.25 * cut_faces(tr.generator, random)
-
-
-@pytest.mark.parametrize("n_blocks", [2, 3, 4])
-def test_weighted_level_partition_balances_the_weights(small_transport, n_blocks):
-    """Cut at the cumulative weight's quantiles, each block's summed weight is within one
-    cell's weight of the even share (a cut moves at most the cell it falls on); the cut of
-    the flux graph stays far below a random split's; equal weights give the unweighted
-    blocks."""
-    tr, _ = small_transport
-    rng = np.random.default_rng(11 + n_blocks)
-    w = rng.uniform(0.5, 1.0, tr.n)
-    w[: tr.n // 5] *= 4.0                  # a costly region, like the spray zone
-    labels = level_partition(tr.generator, n_blocks, weights=w)
-    loads = block_loads(labels, w, n_blocks)
-    assert np.bincount(labels, minlength=n_blocks).min() > 0
-    assert loads.sum() == pytest.approx(w.sum(), abs=1e-9 * w.sum())
-    assert np.abs(loads - w.sum() / n_blocks).max() <= w.max()
-    equal = level_partition(tr.generator, n_blocks)
-    # the equal-cell blocks are out of balance under these weights, the weighted are not
-    assert np.abs(block_loads(equal, w, n_blocks) - w.sum() / n_blocks).max() > w.max()
-    random = rng.permutation(labels)
-    assert cut_faces(tr.generator, labels) < 0.25 * cut_faces(tr.generator, random)
-    assert np.array_equal(level_partition(tr.generator, n_blocks, weights=np.ones(tr.n)),
-                          equal)
-
-
-def test_weighted_partition_refuses_bad_weights(small_transport):
-    tr, _ = small_transport
-    with pytest.raises(ValueError, match="weights"):
-        level_partition(tr.generator, 2, weights=-np.ones(tr.n))

@@ -56,7 +56,7 @@ command-line options).
 from .cluster import host_cores, numba_thread_table, start_local_cluster
 from .decompose import (decompose_case, decomposition_dict, processor_dirs, read_decomposition,
                         write_processor_fields)
-from .executor import ChunksFailed, ClusterExecutor
+from .executor import ChunkedSpool, ChunksFailed, ClusterExecutor
 from .faults import FAULT_ENV, parse_fault
 from .launch import check_store, make_executor, resume_manifest
 from .partition import Partition, block_partition, processor_partition
@@ -65,7 +65,7 @@ from .tasks import chunk_history
 
 __all__ = ["host_cores", "numba_thread_table", "start_local_cluster", "decompose_case",
            "decomposition_dict", "processor_dirs", "read_decomposition",
-           "write_processor_fields", "ChunksFailed", "ClusterExecutor", "FAULT_ENV",
-           "parse_fault", "check_store", "make_executor", "resume_manifest", "Partition", "block_partition",
-           "processor_partition", "STORE_SUFFIX", "ChunkStore", "ChunkStoreError",
-           "fingerprint", "store_path", "chunk_history"]
+           "write_processor_fields", "ChunkedSpool", "ChunksFailed", "ClusterExecutor",
+           "FAULT_ENV", "parse_fault", "check_store", "make_executor", "resume_manifest",
+           "Partition", "block_partition", "processor_partition", "STORE_SUFFIX", "ChunkStore",
+           "ChunkStoreError", "fingerprint", "store_path", "chunk_history"]

@@ -14,9 +14,10 @@ and in the transport, and every cell its right-hand-side evaluations (the
 with S and T the source and transport seconds of all blocks in the interval, r_c the
 right-hand-side calls of cell c in it and n the cells: the sources shared out by the
 evaluations, the transport (the same few operations per cell and substep) evenly. The
-partition is ``transport.halo.level_partition`` with these weights: the same reverse
-Cuthill-McKee order as the unweighted one, cut into runs of equal summed cost, so the cut
-still falls along a section of the bed.
+partition is ``weighted_level_partition``: the reverse Cuthill-McKee order of
+``transport.halo.level_partition`` (level sets of the flux graph, sections of the bed), cut
+into runs of equal summed cost instead of equal cells, so the cut still falls along a section
+of the bed.
 
 When: at an output time, where the client holds every cell's counters anyway (nothing extra
 crosses the network to measure), if the current blocks' predicted loads (the weights summed
@@ -30,11 +31,47 @@ from __future__ import annotations
 import numpy as np
 
 from ...integrate import codes
-from ...transport.halo import block_loads, level_partition
 
 #: Predicted max/mean block load above which an output time re-partitions (ours: a
 #: re-placement costs about one output time's gather, a few per cent of an interval's wall).
 REBALANCE_ABOVE = 1.05
+
+
+def weighted_level_partition(generator, n_blocks: int, weights) -> np.ndarray:
+    """Block label (0..n_blocks-1) of each cell: the cells in reverse Cuthill-McKee order of
+    the symmetrised flux graph (as ``transport.halo.level_partition``) cut into
+    ``n_blocks`` contiguous runs of near-equal summed ``weights`` (n,) (a cell's cost, any
+    unit, >= 0): each run's sum is within one cell's weight of the even share. Every block
+    keeps at least one cell."""
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+    n = generator.shape[0]
+    n_blocks = max(1, min(int(n_blocks), n))
+    w = np.asarray(weights, dtype=float)
+    if w.shape != (n,) or not np.all(np.isfinite(w)) or np.any(w < 0.0):
+        raise ValueError(f"weighted_level_partition: weights must be {n} finite values >= 0")
+    pattern = abs(generator) + abs(generator).T
+    order = np.asarray(reverse_cuthill_mckee(pattern.tocsr(), symmetric_mode=True))
+    cum = np.cumsum(w[order])
+    total = float(cum[-1]) if n else 0.0
+    if total <= 0.0:
+        cum, total = np.arange(1.0, n + 1.0), float(n)
+    # run b ends where the cumulative weight first reaches (b + 1) / n_blocks of the total
+    want = np.searchsorted(cum, total * np.arange(1, n_blocks) / n_blocks, side="left") + 1
+    cuts, prev = [], 0
+    for j, c in enumerate(want):
+        prev = int(min(max(int(c), prev + 1), n - (n_blocks - 1 - j)))
+        cuts.append(prev)
+    labels = np.empty(n, dtype=np.int64)
+    for b, run in enumerate(np.split(order, cuts)):
+        labels[run] = b
+    return labels
+
+
+def block_loads(labels, weights, n_blocks: int) -> np.ndarray:
+    """Summed weight of each block (the unit of ``weights``)."""
+    return np.bincount(np.asarray(labels, dtype=np.int64),
+                       weights=np.asarray(weights, dtype=float), minlength=int(n_blocks))
 
 
 def cell_costs(rhs_calls, source_s: float, transport_s: float) -> np.ndarray:
@@ -64,7 +101,7 @@ def rhs_calls(stats) -> np.ndarray:
 
 
 def rebalanced(generator, labels, weights, threshold: float = REBALANCE_ABOVE):
-    """New block labels balancing ``weights`` (``level_partition`` with weights), or None
+    """New block labels balancing ``weights`` (``weighted_level_partition``), or None
     when the current ``labels`` are within ``threshold`` (max/mean) or the weighted
     partition would not lower the largest block load. Returns (labels or None, predicted
     imbalance now, predicted imbalance of the new labels)."""
@@ -73,7 +110,7 @@ def rebalanced(generator, labels, weights, threshold: float = REBALANCE_ABOVE):
     now = imbalance(labels, weights, n_blocks) if n_blocks else 1.0
     if n_blocks < 2 or now <= threshold:
         return None, now, now
-    new = level_partition(generator, n_blocks, weights=weights)
+    new = weighted_level_partition(generator, n_blocks, weights)
     after = imbalance(new, weights, n_blocks)
     if after >= now:
         return None, now, after

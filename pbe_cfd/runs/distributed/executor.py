@@ -12,12 +12,36 @@ from pathlib import Path
 import numpy as np
 
 from ... import integrate
+from ...io.spool import Spool
 from ..batch import SimulationError
 from .decompose import write_processor_fields
 from .partition import Partition, block_partition, processor_partition
 from .store import STORE_SUFFIX, ChunkStore, fingerprint
 from .cluster import numba_thread_table
 from .tasks import _identity, chunk_history
+
+
+class ChunkedSpool(Spool):
+    """A ``Spool`` whose items are filled in pieces: ``reserve`` adds an output time as a
+    file of zeros, ``fill`` writes the rows of one chunk into it through a memory map held
+    only for that write (the pages go to the file, not the client's resident memory)."""
+
+    def reserve(self, shape, dtype=np.float64) -> int:
+        """Add output time len(self), an array of ``shape`` (zeros); returns its index."""
+        k = len(self._items)
+        arr = np.lib.format.open_memmap(self.path / f"{k}.npy", mode="w+", dtype=dtype,
+                                        shape=tuple(int(x) for x in shape))
+        self._bytes += arr.nbytes
+        del arr
+        self._items.append(None)
+        return k
+
+    def fill(self, k: int, rows, values) -> None:
+        """Write ``values`` into rows ``rows`` (positions along the first axis) of item k."""
+        arr = np.load(self.path / f"{int(k)}.npy", mmap_mode="r+", allow_pickle=False)
+        arr[rows] = values
+        arr.flush()
+        del arr
 
 
 class ChunksFailed(SimulationError):
@@ -172,14 +196,12 @@ class ClusterExecutor:
     def _run_independent(self, part, batch, times, shared, threads, progress):
         from distributed import as_completed
 
-        from ...io.spool import Spool
-
         states, rows = batch.states, batch.rows
         steps, stats, status, reached = (batch.steps, batch.stats_counts, batch.status,
                                          batch.reached)
         n_t = len(times)
         # the history goes to disk as the chunks arrive: one memory map per output time
-        history = Spool()
+        history = ChunkedSpool()
         for _ in range(n_t):
             history.reserve(states.shape)
         fail_interval = np.full(states.shape[0], -1, dtype=np.int64)
