@@ -27,14 +27,15 @@ def generator(transport):
     return transport.generator
 
 
-def test_costs_share_the_measured_seconds():
-    rhs = np.array([10, 30, 0, 60])
-    w = cell_costs(rhs, source_s=2.0, transport_s=0.4)
-    assert w.sum() == pytest.approx(2.4, abs=1e-12)
-    # sources by the calls (0.2, 0.6, 0, 1.2 s), transport evenly (0.1 s each)
-    assert np.allclose(w, [0.3, 0.7, 0.1, 1.3], atol=1e-12)
-    # no calls at all: the sources evenly
-    assert np.allclose(cell_costs(np.zeros(4), 2.0, 0.0), 0.5, atol=1e-12)
+def test_costs_share_each_blocks_measured_seconds():
+    rhs = np.array([10, 30, 0, 60, 0, 0])
+    labels = np.array([0, 0, 1, 1, 2, 2])
+    w = cell_costs(rhs, labels, source_s=[2.0, 3.0, 1.0], transport_s=[0.4, 0.2, 0.6])
+    # each block's costs sum to its measured seconds
+    assert np.allclose(np.bincount(labels, weights=w), [2.4, 3.2, 1.6], atol=1e-12)
+    # block 0: sources by the calls (0.5, 1.5 s); block 1: all to the cell with calls;
+    # block 2 made no call: its sources evenly; the transport evenly in each block
+    assert np.allclose(w, [0.7, 1.7, 0.1, 3.1, 0.8, 0.8], atol=1e-12)
 
 
 def test_loads_against_a_direct_sum():

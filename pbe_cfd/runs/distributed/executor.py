@@ -69,8 +69,9 @@ class ClusterExecutor:
     halo_substeps  with transport: substeps per halo exchange (the halo's depth in upwind
                 hops); None: one exchange per transport part (depth = its substeps)
     balance     with transport on blocks of the flux graph: re-partition at an output time by
-                the costs measured over the interval before it (``balance``) when the blocks
-                are out of balance; False keeps the blocks of equal cells
+                the costs measured over the interval before it (``balance``) when the blocks'
+                predicted max/mean load exceeds ``balance.REBALANCE_ABOVE`` (True) or the
+                number given; False keeps the blocks of equal cells
     """
     client: object
     chunks: object = None
@@ -82,7 +83,7 @@ class ClusterExecutor:
     cluster: object = None
     case_dir: Path | None = None
     halo_substeps: int | None = None
-    balance: bool = True
+    balance: bool | float = True
     _report: dict = field(default_factory=dict, repr=False)
     store: ChunkStore | None = field(default=None, repr=False)
 

@@ -25,7 +25,7 @@ import time as _time
 import numpy as np
 
 from ..batch import SimulationError
-from .balance import cell_costs, rebalanced, rhs_calls
+from .balance import REBALANCE_ABOVE, cell_costs, rebalanced, rhs_calls
 from .halo_tasks import BLOCK_ARRAYS, BlockFailed, block_source, block_state, block_transport, \
     halo_take
 
@@ -263,8 +263,10 @@ def _rebalance(run, k, rhs) -> bool:
     from .partition import Partition
 
     src, trs = run.moved["block_source_s"][-1], run.moved["block_transport_s"][-1]
-    weights = cell_costs(rhs, sum(src), sum(trs))
-    new, now, after = rebalanced(run.tr.generator, run.labels, weights)
+    weights = cell_costs(rhs, run.labels, src, trs)
+    limit = run.ex.balance
+    limit = REBALANCE_ABOVE if limit is True else float(limit)
+    new, now, after = rebalanced(run.tr.generator, run.labels, weights, limit)
     run.moved["rebalanced"].append({"output": int(k), "predicted_before": round(now, 4),
                                     "predicted_after": round(after, 4),
                                     "moved": new is not None})
@@ -301,7 +303,7 @@ def run_on_workers(ex, part, batch, times, transport, shared, threads, progress)
             transport._count["repair_max_rel_change"] = float(z.get("repair_max", 0.0))
     run = HaloRun(ex, part, batch, times, transport, shared, threads)
     base_repaired = transport._count["repaired_cells"]
-    balance = getattr(ex, "balance", True) and part.kind == "flux graph"
+    balance = ex.balance is not False and part.kind == "flux graph"
     try:
         run.place()
         for k in range(k0 + 1, len(times)):
