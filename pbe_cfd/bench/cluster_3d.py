@@ -90,6 +90,8 @@ def _child(spec: dict) -> dict:
             "substeps_per_part": tr.get("substeps_per_part"),
             "block_compute_s": tr.get("block_compute_s"),
             "block_source_s_per_interval": tr.get("block_source_s_per_interval"),
+            "block_transport_s_per_interval": tr.get("block_transport_s_per_interval"),
+            "interval_wall_s": tr.get("interval_wall_s"), "place_s": tr.get("place_s"),
             "block_cells": tr.get("block_cells"), "rebalanced": tr.get("rebalanced"),
             "phases": {k: float(v) for k, v in res.phases.items()},
             "transport_wall_s": res.stats.get("transport", {}).get("transport_wall_s"),
@@ -200,7 +202,7 @@ def multi_machine_model(runs, n_cells=1e7, sim_time=1800.0, split_step=0.25,
     ser = [r for r in tr if r["workers"] == 0 and r["active_cells"] == n_meas][0]
     two = [r for r in tr if r["workers"] == 2 and r["active_cells"] == n_meas
            and r.get("balance", True)][0]
-    rate = ser["cell_steps_per_s"]
+    rate = _solve_rate(ser)
     steps_per_cell_s = ser["accepted_steps"] / ser["active_cells"] / ser["end_time"]
     scale = (n_cells / n_meas) ** (1.0 / 3.0)
     depth = two.get("halo_depth") or 1
@@ -229,14 +231,23 @@ def multi_machine_model(runs, n_cells=1e7, sim_time=1800.0, split_step=0.25,
             "measured_at_active_cells": n_meas}
 
 
+def _solve_rate(run) -> float:
+    """Accepted cell-steps per second of the solve phase [1/s]."""
+    solve = float(run["phases"].get("solve_s") or 0.0)
+    return run["accepted_steps"] / solve if solve > 0 else 0.0
+
+
 def cluster_markdown(res) -> str:
     """The study's report (markdown)."""
     m0, m1 = res["machine"], res["machine_after"]
     lines = [f"3-D bed (`pbe-cfd case make --3d`), QMOM N = 2, {res['end_time_s']:g} s of "
              f"process per run, {res.get('outputs', 2)} output intervals. Machine: {m0.get('logical_cores')} cores, load "
              f"{m0.get('load_average_1_5_15min')} before, {m1.get('load_average_1_5_15min')} after (shared).", "",
+             "Rates: accepted cell-steps over the solve phase (the executor's run, after the "
+             "setup), and in brackets over setup + solve (the run's own "
+             "`cell_steps_per_second`).", "",
              "| cells (active) | transport | run | cell-steps/s | x serial | client B/split "
-             "step | client peak MiB | worker peak MiB | solve s | same as serial |",
+             "step | client peak MiB | worker peak MiB | solve s (setup s) | same as serial |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for r in res["runs"]:
         ser = [s for s in res["runs"] if s["transport"] == r["transport"]
@@ -244,13 +255,15 @@ def cluster_markdown(res) -> str:
         run = "serial" if not r["workers"] else f"{r['workers']} worker(s)" + (
             "" if r.get("balance", True) or not r["transport"] else ", equal cells")
         sent = r["client_sent_bytes_per_split_step"]
+        rate, rate_ser = _solve_rate(r), _solve_rate(ser)
         lines.append(
             f"| {r['bed_cells']} ({r['active_cells']}) | {'yes' if r['transport'] else 'no'} "
-            f"| {run} | {r['cell_steps_per_s']:.3g} | "
-            f"{r['cell_steps_per_s'] / ser['cell_steps_per_s']:.2f} | "
+            f"| {run} | {rate:.3g} ({r['cell_steps_per_s']:.3g}) | "
+            f"{rate / rate_ser:.2f} ({r['cell_steps_per_s'] / ser['cell_steps_per_s']:.2f}) | "
             f"{'-' if sent is None else f'{sent:.0f}'} | {r['client_peak_rss'] / 2**20:.0f} | "
             f"{', '.join(str(round(x / 2**20)) for x in r['worker_peak_rss']) or '-'} | "
-            f"{r['solve_wall_s']:.1f} | {'yes' if r['final_hash'] == ser['final_hash'] else 'NO'} |")
+            f"{r['phases']['solve_s']:.1f} ({r['phases']['setup_s']:.1f}) | "
+            f"{'yes' if r['final_hash'] == ser['final_hash'] else 'NO'} |")
     mod = res.get("model") or {}
     if mod:
         lines += ["", f"Model (an estimate from the measured parts): {mod['n_cells']:.0e} cells, "

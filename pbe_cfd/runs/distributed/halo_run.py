@@ -73,7 +73,7 @@ class HaloRun:
         self.workers = workers
         self.moved = {"client_sent": [], "gathered": [], "interval_wall": [],
                       "split_steps": [], "block_source_s": [], "block_transport_s": [],
-                      "rebalanced": []}
+                      "rebalanced": [], "place_s": []}
         self._layout(part)
 
     def _layout(self, part):
@@ -92,8 +92,10 @@ class HaloRun:
     def repartition(self, part):
         """Move the run onto Partition ``part``: drop the blocks on the workers and place the
         new ones from the batch's arrays (the states of the last output time)."""
+        start = _time.perf_counter()
         self.release()
         self._layout(part)
+        self.moved["rebalanced"][-1]["layout_s"] = round(_time.perf_counter() - start, 4)
         self.place()
 
     # -- placement --------------------------------------------------------------------
@@ -105,7 +107,13 @@ class HaloRun:
                                   allow_other_workers=False, pure=False)
 
     def place(self):
-        """Send each block its operator, cell rows, method data and state (once)."""
+        """Send each block its operator, cell rows, method data and state (once per
+        partition)."""
+        start = _time.perf_counter()
+        self._place()
+        self.moved["place_s"].append(round(_time.perf_counter() - start, 4))
+
+    def _place(self):
         b_ = self.batch
         self.shared_f = {w: self.client.scatter([self.shared], workers=[w], hash=False)[0]
                          for w in sorted(set(self.where.values()))}
@@ -250,6 +258,8 @@ class HaloRun:
                 "client_sent_bytes_per_split_step": med(self.moved["client_sent"]),
                 "gathered_bytes_per_output_time": med(self.moved["gathered"]),
                 "interval_wall_s_median": med(self.moved["interval_wall"]),
+                "interval_wall_s": [round(x, 4) for x in self.moved["interval_wall"]],
+                "place_s": self.moved["place_s"],
                 "split_steps": int(sum(self.moved["split_steps"])),
                 "workers_of_blocks": [self.where[b] for b in range(len(self.ops))],
                 "note": "the client sends task messages only (keys, times, substeps); "
