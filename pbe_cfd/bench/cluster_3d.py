@@ -241,8 +241,9 @@ def cluster_markdown(res) -> str:
     """The study's report (markdown)."""
     m0, m1 = res["machine"], res["machine_after"]
     lines = [f"3-D bed (`pbe-cfd case make --3d`), QMOM N = 2, {res['end_time_s']:g} s of "
-             f"process per run, {res.get('outputs', 2)} output intervals. Machine: {m0.get('logical_cores')} cores, load "
-             f"{m0.get('load_average_1_5_15min')} before, {m1.get('load_average_1_5_15min')} after (shared).", "",
+             f"process per run, {res.get('outputs', 2)} output intervals. Machine: "
+             f"{m0.get('logical_cores')} cores, load {m0.get('load_average_1_5_15min')} "
+             f"before, {m1.get('load_average_1_5_15min')} after (shared).", "",
              "Rates: accepted cell-steps over the solve phase (the executor's run, after the "
              "setup), and in brackets over setup + solve (the run's own "
              "`cell_steps_per_second`).", "",
