@@ -6,8 +6,8 @@ dot product of 6e4 doubles measured 31 ms with the default threads and 0.13 ms w
 (load average 19 on 2 cores), so the conjugate gradients of the divergence correction
 (``transport.solids_flux``: two dot products per iteration) took 59 s at 1e5 cells and some
 7 min at 1e6, almost all of it waiting. The vectors of a coupled run (a few times 1e5-1e6
-entries, one pass each) gain little from threads even on an idle machine, so the run keeps
-one BLAS thread while it builds the transport and assembles its outputs.
+entries, one pass each) gain little from threads even on an idle machine, so
+``couple.run_coupled`` keeps one BLAS thread for the whole run.
 
 ``blas_threads(n)`` sets the thread count of every OpenBLAS library loaded in this process
 (through its own ``*set_num_threads*`` entry point, found with ctypes; the loaded libraries
