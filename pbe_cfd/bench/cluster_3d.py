@@ -25,7 +25,8 @@ TASK_HOP_S = 0.01
 
 def _child(spec: dict) -> dict:
     """One run (in a child process): spec {vtu, end_time [s], interval [s], transport,
-    workers (0: serial)}. Returns the measured numbers."""
+    workers (0: serial), balance (re-partition by measured cost, default True)}. Returns the
+    measured numbers."""
     import dataclasses
     import resource
     import time
@@ -48,13 +49,18 @@ def _child(spec: dict) -> dict:
         from ..runs import distributed as D
         client, cluster = D.start_local_cluster(spec["workers"])
         chunks = spec.get("blocks") or spec["workers"] if spec["transport"] else None
-        halo = spec.get("halo_substeps")
-        # warm-up: every worker loads the numba kernels (from the cache) before the timing
-        warm = dataclasses.replace(scene, end_time=min(0.1, spec["end_time"]),
-                                   output_interval=min(0.1, spec["end_time"]))
-        run_coupled(warm, domain, executor=D.ClusterExecutor(client=client, chunks=chunks,
-                                                             halo_substeps=halo))
-        executor = D.ClusterExecutor(client=client, chunks=chunks, halo_substeps=halo)
+        halo, balance = spec.get("halo_substeps"), spec.get("balance", True)
+        # warm-up: every worker loads the numba kernels (from the cache) before the timing,
+        # on the bundled small case (the same kernels, a fraction of the setup)
+        warm = dataclasses.replace(load_scene("fluid-bed-transport"), end_time=0.1,
+                                   output_interval=0.1)
+        if not spec["transport"]:
+            warm = dataclasses.replace(warm, transport=None)
+        run_coupled(warm, load_domain(warm, need_flux=spec["transport"]),
+                    executor=D.ClusterExecutor(client=client, chunks=chunks,
+                                               halo_substeps=halo))
+        executor = D.ClusterExecutor(client=client, chunks=chunks, halo_substeps=halo,
+                                     balance=balance)
     t0 = time.perf_counter()
     try:
         res = run_coupled(scene, domain, executor=executor)
@@ -83,6 +89,10 @@ def _child(spec: dict) -> dict:
             "halo_cells": tr.get("halo_cells"), "halo_depth": tr.get("halo_depth_substeps"),
             "substeps_per_part": tr.get("substeps_per_part"),
             "block_compute_s": tr.get("block_compute_s"),
+            "block_source_s_per_interval": tr.get("block_source_s_per_interval"),
+            "block_transport_s_per_interval": tr.get("block_transport_s_per_interval"),
+            "interval_wall_s": tr.get("interval_wall_s"), "place_s": tr.get("place_s"),
+            "block_cells": tr.get("block_cells"), "rebalanced": tr.get("rebalanced"),
             "phases": {k: float(v) for k, v in res.phases.items()},
             "transport_wall_s": res.stats.get("transport", {}).get("transport_wall_s"),
             "source_wall_s": res.stats.get("transport", {}).get("source_wall_s"),
@@ -107,7 +117,8 @@ def _run_child(spec: dict, log) -> dict:
         raise RuntimeError(f"bench cluster run {spec} failed: {tail}")
     out = json.loads(line[0][len("RESULT "):])
     log(f"  {'transport' if spec['transport'] else 'no transport'}, "
-        f"{spec['workers'] or 'serial'}{' worker(s)' if spec['workers'] else ''}: "
+        f"{spec['workers'] or 'serial'}{' worker(s)' if spec['workers'] else ''}"
+        f"{'' if spec.get('balance', True) else ' (equal cells)'}: "
         f"{out['accepted_steps']} cell-steps in {out['solve_wall_s']:.1f} s -> "
         f"{out['cell_steps_per_s']:.3g} cell-steps/s; client peak "
         f"{out['client_peak_rss'] / 2**20:.0f} MiB"
@@ -119,19 +130,24 @@ def _run_child(spec: dict, log) -> dict:
 
 
 def cluster_study(out_dir, quick: bool = False, cells=None, end_time=None, log=print,
-                  transports=(True, False), workers_list=(0, 1, 2)) -> dict:
+                  transports=(True, False), workers_list=(0, 1, 2), outputs: int = 2,
+                  balances=(True,)) -> dict:
     """The study (see the module docstring). ``cells``: list of bed sizes (default 1e5;
     quick 2000); ``end_time`` [s] of process per run (default 2 s, quick 0.5 s: the 60 s the
     issue names does not fit a shared 2-core machine; the rates are per cell-step);
-    ``transports`` and ``workers_list`` (0: serial) the runs made. Writes
-    cluster.json, cluster.csv and cluster.md into ``out_dir``."""
+    ``outputs`` output intervals per run; ``transports`` and ``workers_list`` (0: serial)
+    the runs made; ``balances``: with transport on 2 or more workers, one run per entry
+    (True: re-partitioned by the measured cost after the first output time; False: blocks
+    of equal cells). Runs of one bed are made back to back. Writes cluster.json,
+    cluster.csv and cluster.md into ``out_dir``."""
     from ..io.openfoam.bed3d import VTU_NAME, write_bed
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     cells = cells or ([2000] if quick else [100_000])
     end_time = float(end_time or (0.5 if quick else 2.0))
-    res = {"machine": machine_info(), "end_time_s": end_time, "runs": []}
+    res = {"machine": machine_info(), "end_time_s": end_time, "outputs": int(outputs),
+           "runs": []}
     with tempfile.TemporaryDirectory(prefix="pbe-bench-cluster-") as tmp:
         for n in cells:
             bed = Path(tmp) / f"bed{n}"
@@ -139,10 +155,12 @@ def cluster_study(out_dir, quick: bool = False, cells=None, end_time=None, log=p
             info = write_bed(bed, n)
             log(f"bed of {info['cells']} cells ({info['grid']})")
             for transport in transports:
-                for workers in workers_list:
+                for workers, balance in ((w, b) for w in workers_list
+                                         for b in (balances if transport and w > 1
+                                                   else (True,))):
                     spec = {"vtu": str(bed / VTU_NAME), "end_time": end_time,
-                            "interval": end_time / 2, "transport": transport,
-                            "workers": workers}
+                            "interval": end_time / int(outputs), "transport": transport,
+                            "workers": workers, "balance": bool(balance)}
                     r = _run_child(spec, log)
                     res["runs"].append({**spec, **r, "bed_cells": info["cells"],
                                         "grid": info["grid"]})
@@ -182,8 +200,9 @@ def multi_machine_model(runs, n_cells=1e7, sim_time=1800.0, split_step=0.25,
         return {}
     n_meas = max(r["active_cells"] for r in tr)
     ser = [r for r in tr if r["workers"] == 0 and r["active_cells"] == n_meas][0]
-    two = [r for r in tr if r["workers"] == 2 and r["active_cells"] == n_meas][0]
-    rate = ser["cell_steps_per_s"]
+    two = [r for r in tr if r["workers"] == 2 and r["active_cells"] == n_meas
+           and r.get("balance", True)][0]
+    rate = _solve_rate(ser)
     steps_per_cell_s = ser["accepted_steps"] / ser["active_cells"] / ser["end_time"]
     scale = (n_cells / n_meas) ** (1.0 / 3.0)
     depth = two.get("halo_depth") or 1
@@ -212,27 +231,40 @@ def multi_machine_model(runs, n_cells=1e7, sim_time=1800.0, split_step=0.25,
             "measured_at_active_cells": n_meas}
 
 
+def _solve_rate(run) -> float:
+    """Accepted cell-steps per second of the solve phase [1/s]."""
+    solve = float(run["phases"].get("solve_s") or 0.0)
+    return run["accepted_steps"] / solve if solve > 0 else 0.0
+
+
 def cluster_markdown(res) -> str:
     """The study's report (markdown)."""
     m0, m1 = res["machine"], res["machine_after"]
     lines = [f"3-D bed (`pbe-cfd case make --3d`), QMOM N = 2, {res['end_time_s']:g} s of "
-             f"process per run, 2 output times. Machine: {m0.get('logical_cores')} cores, load "
-             f"{m0.get('load_average_1_5_15min')} before, {m1.get('load_average_1_5_15min')} after (shared).", "",
+             f"process per run, {res.get('outputs', 2)} output intervals. Machine: "
+             f"{m0.get('logical_cores')} cores, load {m0.get('load_average_1_5_15min')} "
+             f"before, {m1.get('load_average_1_5_15min')} after (shared).", "",
+             "Rates: accepted cell-steps over the solve phase (the executor's run, after the "
+             "setup), and in brackets over setup + solve (the run's own "
+             "`cell_steps_per_second`).", "",
              "| cells (active) | transport | run | cell-steps/s | x serial | client B/split "
-             "step | client peak MiB | worker peak MiB | solve s | same as serial |",
+             "step | client peak MiB | worker peak MiB | solve s (setup s) | same as serial |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for r in res["runs"]:
         ser = [s for s in res["runs"] if s["transport"] == r["transport"]
                and s["bed_cells"] == r["bed_cells"] and s["workers"] == 0][0]
-        run = "serial" if not r["workers"] else f"{r['workers']} worker(s)"
+        run = "serial" if not r["workers"] else f"{r['workers']} worker(s)" + (
+            "" if r.get("balance", True) or not r["transport"] else ", equal cells")
         sent = r["client_sent_bytes_per_split_step"]
+        rate, rate_ser = _solve_rate(r), _solve_rate(ser)
         lines.append(
             f"| {r['bed_cells']} ({r['active_cells']}) | {'yes' if r['transport'] else 'no'} "
-            f"| {run} | {r['cell_steps_per_s']:.3g} | "
-            f"{r['cell_steps_per_s'] / ser['cell_steps_per_s']:.2f} | "
+            f"| {run} | {rate:.3g} ({r['cell_steps_per_s']:.3g}) | "
+            f"{rate / rate_ser:.2f} ({r['cell_steps_per_s'] / ser['cell_steps_per_s']:.2f}) | "
             f"{'-' if sent is None else f'{sent:.0f}'} | {r['client_peak_rss'] / 2**20:.0f} | "
             f"{', '.join(str(round(x / 2**20)) for x in r['worker_peak_rss']) or '-'} | "
-            f"{r['solve_wall_s']:.1f} | {'yes' if r['final_hash'] == ser['final_hash'] else 'NO'} |")
+            f"{r['phases']['solve_s']:.1f} ({r['phases']['setup_s']:.1f}) | "
+            f"{'yes' if r['final_hash'] == ser['final_hash'] else 'NO'} |")
     mod = res.get("model") or {}
     if mod:
         lines += ["", f"Model (an estimate from the measured parts): {mod['n_cells']:.0e} cells, "

@@ -52,7 +52,15 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
     """Solve the population balance in every active cell of ``domain`` to the scene's end
     time. ``progress(fraction, text)`` is called after each output interval. ``executor``
     integrates the per-cell sources (``pbe_cfd.runs.executor``; default serial in this process,
-    ``pbe_cfd.runs.distributed.ClusterExecutor`` on a Dask cluster, with the same results)."""
+    ``pbe_cfd.runs.distributed.ClusterExecutor`` on a Dask cluster, with the same results).
+    The run keeps one OpenBLAS thread (``runs.blas``: its vector work waits for busy cores
+    otherwise)."""
+    from .blas import blas_threads
+    with blas_threads(1):
+        return _run_coupled(scene, domain, progress, threads, executor)
+
+
+def _run_coupled(scene, domain: Domain, progress, threads, executor) -> CoupledResult:
     import numba
 
     check_physics(scene)

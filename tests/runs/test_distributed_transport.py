@@ -79,6 +79,24 @@ def test_states_on_the_workers_equal_serial(client, problems, case, blocks):
     assert rep["gathered_bytes_per_output_time"] >= n_active * 8 * 5   # states once per output
 
 
+@pytest.mark.parametrize("blocks", [2, 3])
+def test_blocks_recut_by_measured_cost_equal_serial(client, problems, blocks):
+    """Re-partitioned at the output time by the measured cost of each cell (``balance=1.0``:
+    whenever the weighted cut lowers the largest predicted block load): the cells move to
+    other blocks and the result is still bitwise the serial run's."""
+    scene, domain, ref = problems["3d"]
+    res = run_coupled(scene, domain, executor=D.ClusterExecutor(client=client, chunks=blocks,
+                                                                balance=1.0))
+    assert_same(ref, res)
+    rep = res.stats["cluster"]["transport"]
+    assert [r["output"] for r in rep["rebalanced"]] == [1]    # the last output time: none
+    moved = rep["rebalanced"][0]
+    assert moved["moved"] and moved["predicted_after"] < moved["predicted_before"]
+    assert len(rep["block_cells"]) == blocks and sum(rep["block_cells"]) == \
+        ref.stats["active_cells"]
+    assert len(rep["block_source_s_per_interval"]) == 2
+
+
 @pytest.mark.parametrize("per_exchange", [1, 4])
 def test_shallow_halo_exchanged_per_round_equals_serial(client, problems, per_exchange):
     """Halos exchanged every ``per_exchange`` substeps (a halo that many hops deep) instead

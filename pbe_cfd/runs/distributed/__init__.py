@@ -14,10 +14,12 @@ Design
   bitwise equal to the serial run (the same cell sees the same floating-point operations).
 * **Without transport** chunks are independent over the whole run: one task per chunk
   integrates its cells over *all* output intervals and returns the history (states at every
-  output time), the step memory, the counters and the status. Data moves once each way.
+  output time), the step memory, the counters and the status. Data moves once each way; the
+  client writes each chunk's history into a spool on disk as it arrives (``ChunkedSpool``).
 * **With** ``[transport]`` the states stay on the workers (``halo_run``). Each block of cells
   (one per processor directory of a decomposed case, else ``--chunks K`` or one per worker
-  blocks of the flux graph, ``transport.halo.level_partition``) lives on one worker. Per
+  blocks of the flux graph, ``transport.halo.level_partition``, re-cut at an output time into
+  blocks of equal measured cost when out of balance: ``balance``) lives on one worker. Per
   transport part a block reads, worker to worker through Dask's dependency transfer, only the
   states of its halo (the cells within k upwind hops in other blocks, k the CFL substeps of the
   part) and advances its own cells through the k substeps; per source part it integrates its
@@ -49,14 +51,15 @@ Design
 
 Modules: ``partition`` (chunks), ``decompose`` (decomposePar, processor directories), ``store``
 (the chunk store), ``faults`` (fault injection), ``tasks`` (what a worker runs), ``halo_run``
-and ``halo_tasks`` (transport with the states on the workers), ``cluster``
+and ``halo_tasks`` (transport with the states on the workers), ``balance`` (blocks of equal
+measured cost), ``cluster``
 (local clusters, threads), ``executor`` (``ClusterExecutor``), ``launch`` (an executor from the
 command-line options).
 """
 from .cluster import host_cores, numba_thread_table, start_local_cluster
 from .decompose import (decompose_case, decomposition_dict, processor_dirs, read_decomposition,
                         write_processor_fields)
-from .executor import ChunksFailed, ClusterExecutor
+from .executor import ChunkedSpool, ChunksFailed, ClusterExecutor
 from .faults import FAULT_ENV, parse_fault
 from .launch import check_store, make_executor, resume_manifest
 from .partition import Partition, block_partition, processor_partition
@@ -65,7 +68,7 @@ from .tasks import chunk_history
 
 __all__ = ["host_cores", "numba_thread_table", "start_local_cluster", "decompose_case",
            "decomposition_dict", "processor_dirs", "read_decomposition",
-           "write_processor_fields", "ChunksFailed", "ClusterExecutor", "FAULT_ENV",
-           "parse_fault", "check_store", "make_executor", "resume_manifest", "Partition", "block_partition",
-           "processor_partition", "STORE_SUFFIX", "ChunkStore", "ChunkStoreError",
-           "fingerprint", "store_path", "chunk_history"]
+           "write_processor_fields", "ChunkedSpool", "ChunksFailed", "ClusterExecutor",
+           "FAULT_ENV", "parse_fault", "check_store", "make_executor", "resume_manifest",
+           "Partition", "block_partition", "processor_partition", "STORE_SUFFIX", "ChunkStore",
+           "ChunkStoreError", "fingerprint", "store_path", "chunk_history"]

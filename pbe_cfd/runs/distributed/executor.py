@@ -12,12 +12,36 @@ from pathlib import Path
 import numpy as np
 
 from ... import integrate
+from ...io.spool import Spool
 from ..batch import SimulationError
 from .decompose import write_processor_fields
 from .partition import Partition, block_partition, processor_partition
 from .store import STORE_SUFFIX, ChunkStore, fingerprint
 from .cluster import numba_thread_table
 from .tasks import _identity, chunk_history
+
+
+class ChunkedSpool(Spool):
+    """A ``Spool`` whose items are filled in pieces: ``reserve`` adds an output time as a
+    file of zeros, ``fill`` writes the rows of one chunk into it through a memory map held
+    only for that write (the pages go to the file, not the client's resident memory)."""
+
+    def reserve(self, shape, dtype=np.float64) -> int:
+        """Add output time len(self), an array of ``shape`` (zeros); returns its index."""
+        k = len(self._items)
+        arr = np.lib.format.open_memmap(self.path / f"{k}.npy", mode="w+", dtype=dtype,
+                                        shape=tuple(int(x) for x in shape))
+        self._bytes += arr.nbytes
+        del arr
+        self._items.append(None)
+        return k
+
+    def fill(self, k: int, rows, values) -> None:
+        """Write ``values`` into rows ``rows`` (positions along the first axis) of item k."""
+        arr = np.load(self.path / f"{int(k)}.npy", mmap_mode="r+", allow_pickle=False)
+        arr[rows] = values
+        arr.flush()
+        del arr
 
 
 class ChunksFailed(SimulationError):
@@ -44,6 +68,10 @@ class ClusterExecutor:
     cluster     a LocalCluster this executor owns (closed by ``close``)
     halo_substeps  with transport: substeps per halo exchange (the halo's depth in upwind
                 hops); None: one exchange per transport part (depth = its substeps)
+    balance     with transport on blocks of the flux graph: re-partition at an output time by
+                the costs measured over the interval before it (``balance``) when the blocks'
+                predicted max/mean load exceeds ``balance.REBALANCE_ABOVE`` (True) or the
+                number given; False keeps the blocks of equal cells
     """
     client: object
     chunks: object = None
@@ -55,6 +83,7 @@ class ClusterExecutor:
     cluster: object = None
     case_dir: Path | None = None
     halo_substeps: int | None = None
+    balance: bool | float = True
     _report: dict = field(default_factory=dict, repr=False)
     store: ChunkStore | None = field(default=None, repr=False)
 
@@ -172,7 +201,10 @@ class ClusterExecutor:
         steps, stats, status, reached = (batch.steps, batch.stats_counts, batch.status,
                                          batch.reached)
         n_t = len(times)
-        history = np.empty((n_t,) + states.shape)
+        # the history goes to disk as the chunks arrive: one memory map per output time
+        history = ChunkedSpool()
+        for _ in range(n_t):
+            history.reserve(states.shape)
         fail_interval = np.full(states.shape[0], -1, dtype=np.int64)
         done = self.store.finished_chunks() if (self.store and self.resume) else set()
         done &= set(range(part.n_chunks))
@@ -182,7 +214,8 @@ class ClusterExecutor:
         def accept(k, res):
             nonlocal cells_done
             pos = part.chunks[k]
-            history[:, pos, :] = res["history"]
+            for j in range(n_t):
+                history.fill(j, pos, res["history"][j])
             steps[pos] = res["steps"]
             stats[pos] += res["stats"]
             status[pos] = res["status"]
@@ -234,7 +267,7 @@ class ClusterExecutor:
         if bad.any():
             first = int(fail_interval[bad].min())
             batch.raise_if_failed(failed=np.flatnonzero(fail_interval == first))
-        return [history[k] for k in range(n_t)]
+        return history
 
     def _run_transport(self, part, batch, times, transport, shared, threads, progress):
         from .halo_run import run_on_workers

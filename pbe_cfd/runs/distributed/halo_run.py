@@ -25,6 +25,7 @@ import time as _time
 import numpy as np
 
 from ..batch import SimulationError
+from .balance import REBALANCE_ABOVE, cell_costs, rebalanced, rhs_calls
 from .halo_tasks import BLOCK_ARRAYS, BlockFailed, block_source, block_state, block_transport, \
     halo_take
 
@@ -58,28 +59,44 @@ class HaloRun:
     """One transport run of a ClusterExecutor ``ex`` over Partition ``part`` (see module)."""
 
     def __init__(self, ex, part, batch, times, transport, shared, threads):
-        from ...transport.halo import block_operators, cut_faces
-
         self.ex, self.part, self.batch, self.times = ex, part, batch, np.asarray(times)
         self.tr, self.shared, self.threads = transport, shared, threads
         self.client = ex.client
-        n = batch.states.shape[0]
-        labels = np.empty(n, dtype=np.int64)
-        for b, pos in enumerate(part.chunks):
-            labels[pos] = b
         durations = [p[1] for k in range(1, len(times))
                      for p in _interval_parts(transport, times[k - 1], times[k]) if p[0] == "T"]
         self.depth = max([_substeps(transport, d)[0] for d in durations] or [0])
         per = getattr(ex, "halo_substeps", None)
         self.exchange = max(1, self.depth if per is None else min(int(per), self.depth))
-        self.ops = block_operators(transport.generator, labels, self.exchange)
-        self.cut = cut_faces(transport.generator, labels)
         workers = sorted(self.client.scheduler_info().get("workers", {}))
         if not workers:
             raise SimulationError("the Dask cluster has no workers")
-        self.where = {b: workers[b % len(workers)] for b in range(part.n_chunks)}
+        self.workers = workers
         self.moved = {"client_sent": [], "gathered": [], "interval_wall": [],
-                      "split_steps": []}
+                      "split_steps": [], "block_source_s": [], "block_transport_s": [],
+                      "rebalanced": [], "place_s": []}
+        self._layout(part)
+
+    def _layout(self, part):
+        """The blocks of Partition ``part``: labels, operators, cut and workers."""
+        from ...transport.halo import block_operators, cut_faces
+
+        self.part = part
+        self.labels = np.empty(self.batch.states.shape[0], dtype=np.int64)
+        for b, pos in enumerate(part.chunks):
+            self.labels[pos] = b
+        self.ops = block_operators(self.tr.generator, self.labels, self.exchange)
+        self.cut = cut_faces(self.tr.generator, self.labels)
+        self.where = {b: self.workers[b % len(self.workers)] for b in range(part.n_chunks)}
+        self._spent = np.zeros((part.n_chunks, 2))
+
+    def repartition(self, part):
+        """Move the run onto Partition ``part``: drop the blocks on the workers and place the
+        new ones from the batch's arrays (the states of the last output time)."""
+        start = _time.perf_counter()
+        self.release()
+        self._layout(part)
+        self.moved["rebalanced"][-1]["layout_s"] = round(_time.perf_counter() - start, 4)
+        self.place()
 
     # -- placement --------------------------------------------------------------------
     def _put(self, value, b):
@@ -90,7 +107,13 @@ class HaloRun:
                                   allow_other_workers=False, pure=False)
 
     def place(self):
-        """Send each block its operator, cell rows, method data and state (once)."""
+        """Send each block its operator, cell rows, method data and state (once per
+        partition)."""
+        start = _time.perf_counter()
+        self._place()
+        self.moved["place_s"].append(round(_time.perf_counter() - start, 4))
+
+    def _place(self):
         b_ = self.batch
         self.shared_f = {w: self.client.scatter([self.shared], workers=[w], hash=False)[0]
                          for w in sorted(set(self.where.values()))}
@@ -159,6 +182,12 @@ class HaloRun:
                                           for a in BLOCK_ARRAYS))
         self.moved["interval_wall"].append(_time.perf_counter() - start)
         self.moved["block_compute_s"] = [float(blk["compute_s"]) for blk in blocks]
+        spent = np.array([[float(blk["source_s"]), float(blk["transport_s"])]
+                          for blk in blocks])
+        step = spent - self._spent
+        self._spent = spent
+        self.moved["block_source_s"].append([round(x, 4) for x in step[:, 0]])
+        self.moved["block_transport_s"].append([round(x, 4) for x in step[:, 1]])
         self.moved["split_steps"].append(n_split)
         return blocks
 
@@ -222,15 +251,41 @@ class HaloRun:
                 "halo_depth_substeps": int(self.exchange), "halo_cells": halo,
                 "block_cells": [int(op.owned.size) for op in self.ops],
                 "block_compute_s": self.moved.get("block_compute_s", []),
+                "block_source_s_per_interval": self.moved["block_source_s"],
+                "block_transport_s_per_interval": self.moved["block_transport_s"],
+                "rebalanced": self.moved["rebalanced"],
                 "halo_bytes_per_transport_part": int(sum(halo) * n_state * 8),
                 "client_sent_bytes_per_split_step": med(self.moved["client_sent"]),
                 "gathered_bytes_per_output_time": med(self.moved["gathered"]),
                 "interval_wall_s_median": med(self.moved["interval_wall"]),
+                "interval_wall_s": [round(x, 4) for x in self.moved["interval_wall"]],
+                "place_s": self.moved["place_s"],
                 "split_steps": int(sum(self.moved["split_steps"])),
                 "workers_of_blocks": [self.where[b] for b in range(len(self.ops))],
                 "note": "the client sends task messages only (keys, times, substeps); "
                         "halos move worker to worker; states come to the client once per "
                         "output time"}
+
+
+def _rebalance(run, k, rhs) -> bool:
+    """After output time k: re-partition ``run`` by the measured costs of the interval that
+    ended there (``balance``), if its blocks are out of balance. True if it did."""
+    from .partition import Partition
+
+    src, trs = run.moved["block_source_s"][-1], run.moved["block_transport_s"][-1]
+    weights = cell_costs(rhs, run.labels, src, trs)
+    limit = run.ex.balance
+    limit = REBALANCE_ABOVE if limit is True else float(limit)
+    new, now, after = rebalanced(run.tr.generator, run.labels, weights, limit)
+    run.moved["rebalanced"].append({"output": int(k), "predicted_before": round(now, 4),
+                                    "predicted_after": round(after, 4),
+                                    "moved": new is not None})
+    if new is None:
+        return False
+    blocks = [np.flatnonzero(new == b) for b in range(int(new.max()) + 1)]
+    run.repartition(Partition(chunks=blocks, labels=list(run.part.labels),
+                              kind=run.part.kind))
+    return True
 
 
 def run_on_workers(ex, part, batch, times, transport, shared, threads, progress) -> list:
@@ -258,10 +313,13 @@ def run_on_workers(ex, part, batch, times, transport, shared, threads, progress)
             transport._count["repair_max_rel_change"] = float(z.get("repair_max", 0.0))
     run = HaloRun(ex, part, batch, times, transport, shared, threads)
     base_repaired = transport._count["repaired_cells"]
+    balance = ex.balance is not False and part.kind == "flux graph"
     try:
         run.place()
         for k in range(k0 + 1, len(times)):
+            rhs_before = rhs_calls(stats) if balance else None
             blocks = run.interval(float(times[k - 1]), float(times[k]))
+            part = run.part
             for pos, blk in zip(part.chunks, blocks):
                 states[pos], steps[pos], stats[pos] = blk["states"], blk["steps"], blk["stats"]
                 status[pos], reached[pos] = blk["status"], blk["reached"]
@@ -281,6 +339,9 @@ def run_on_workers(ex, part, batch, times, transport, shared, threads, progress)
             if progress is not None:
                 progress(times[k] / times[-1], f"t = {times[k]:.4g} s ({part.n_chunks} "
                          "blocks on the workers)")
+            if (balance and k < len(times) - 1
+                    and _rebalance(run, k, rhs_calls(stats) - rhs_before)):
+                base_repaired = repaired          # the new blocks count their repairs anew
     finally:
         ex._report["transport"] = run.report(k0)
         run.release()

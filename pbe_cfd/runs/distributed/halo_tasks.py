@@ -30,14 +30,17 @@ class BlockFailed(Exception):
 
 
 def block_state(states, steps, stats, status, reached, smoothed) -> dict:
-    """A block's state dict from its arrays (copies), with the repair counters at zero."""
+    """A block's state dict from its arrays (copies), with the repair counters and the
+    compute seconds (``compute_s`` = ``source_s`` + ``transport_s``, wall time in the tasks
+    [s]) at zero."""
     return {"states": np.array(states, dtype=np.float64, order="C", copy=True),
             "steps": np.array(steps, dtype=np.float64, copy=True),
             "stats": np.array(stats, dtype=np.int64, copy=True),
             "status": np.array(status, dtype=np.int64, copy=True),
             "reached": np.array(reached, dtype=np.float64, copy=True),
             "smoothed": np.array(smoothed, dtype=bool, copy=True),
-            "repaired": 0, "repair_max": 0.0, "compute_s": 0.0}
+            "repaired": 0, "repair_max": 0.0, "compute_s": 0.0, "source_s": 0.0,
+            "transport_s": 0.0}
 
 
 def halo_take(block: dict, positions) -> np.ndarray:
@@ -73,7 +76,9 @@ def block_transport(block: dict, op: dict, pieces: list, dt: float, k: int, repa
                                            shared["config"], fix=True)
         out["repaired"] = block["repaired"] + fixed
         out["repair_max"] = max(block["repair_max"], change)
-    out["compute_s"] = block["compute_s"] + _time.perf_counter() - start
+    spent = _time.perf_counter() - start
+    out["compute_s"] = block["compute_s"] + spent
+    out["transport_s"] = block["transport_s"] + spent
     return out
 
 
@@ -101,9 +106,10 @@ def block_source(block: dict, rows: dict, shared: dict, t0: float, t1: float, th
         raise BlockFailed(number, f"cell {int(rows['cells'][c])} stopped at t = "
                           f"{batch.reached[c]:.6g} s: {why}", stopped=True)
     out = dict(block)
+    spent = _time.perf_counter() - start
     out.update(states=batch.states, steps=batch.steps, stats=block["stats"] + batch.stats_counts,
                status=batch.status, reached=batch.reached, smoothed=batch.smoothed,
-               compute_s=block["compute_s"] + _time.perf_counter() - start)
+               compute_s=block["compute_s"] + spent, source_s=block["source_s"] + spent)
     return out
 
 
