@@ -194,7 +194,7 @@ def test_the_reconstruction_is_chosen_in_the_method_table():
 def test_the_seed_scenes_d10_stays_at_or_above_the_primary_granule():
     """The default run (seed-wurster, QMOM N = 2, no breakage): no granule is lighter than the
     dry primary of 100.4 um, so d10 >= 100.4 um at every output time; the former fit on
-    [0, inf) of the same run's moments puts d10 below it (the 95 um of docs/results/psd.md)."""
+    [0, inf) of the same run's moments puts d10 below it (94.6 um at 130 s)."""
     from pbe_cfd.runs.simulate import run_well_mixed
     from pbe_cfd.scene.scene import load_scene
     scene = load_scene("seed-wurster")
@@ -204,4 +204,4 @@ def test_the_seed_scenes_d10_stays_at_or_above_the_primary_granule():
     d10 = np.asarray(res.columns["d10_m"])
     assert np.all(d10 >= d_primary * (1.0 - 1e-12)), d10.min()
     former = run_well_mixed(scene.with_method(size_distribution="semi-infinite"))
-    assert np.asarray(former.columns["d10_m"])[-1] < 0.97 * d_primary
+    assert np.asarray(former.columns["d10_m"]).min() < 0.97 * d_primary
