@@ -89,6 +89,7 @@ RULES = (
     ("test_distribution", "distribution"),
     ("test_reference_particles", "distribution"),
     ("test_psd_against_particles", "distribution"),
+    ("test_support_fit", "distribution"),
     # studies and their result documents
     ("test_bench", "bench"),
     ("test_peer", "bench"),

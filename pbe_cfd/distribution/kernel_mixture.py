@@ -1,36 +1,45 @@
-"""EQMOM's own continuous size distribution: per row a mixture of gamma kernels in granule
-mass p (``methods.eqmom``; docs/physics.md, section "EQMOM").
+"""EQMOM's own continuous size distribution, and gamma-kernel fits of other methods'
+moments: per row a mixture of gamma kernels in granule mass p (``methods.eqmom``;
+docs/physics.md, sections "EQMOM" and 11.1).
 
-Row r holds kernels a of centre x_a [kg], number weight w_a [1/m3], binder fraction y_a [-] and
-one width sigma [kg]; kernel a's number density is gamma of shape l_a = x_a / sigma and scale
-sigma, its mass density p n_a(p) gamma of shape l_a + 1 (times w_a x_a), so
+Row r holds kernels a of centre x_a [kg], number weight w_a [1/m3], binder fraction y_a [-],
+one width sigma [kg] and a support floor s [kg] (0: the kernels live on [0, inf)). Kernel a's
+number density is gamma of shape l_a = x_a / sigma and scale sigma in u = p - s; its mass
+density p n_a = (s + u) n_a is the mixture s Gamma(l_a) + x_a Gamma(l_a + 1) (times w_a), so
 
-    Q3(d) = sum_a w_a x_a P(l_a + 1, p(d) / sigma) / sum_a w_a x_a,
+    Q3(d) = sum_a w_a [s P(l_a, u / sigma) + x_a P(l_a + 1, u / sigma)] / sum_a w_a (s + x_a),
 
-P the regularised lower incomplete gamma function. sigma = 0 (a discrete fit) makes every
-kernel a step at its centre. The binder fraction of a size class is the kernels' y_a weighted by
-their mass in the class (exact for the per-kernel binder model). Percentiles: a row of one
-kernel in closed form (the inverse of P, or its centre for sigma = 0); a row of several by
-bisection between its kernels' own percentiles (the mixture's Q3 is a mean of theirs, so its
-percentile lies between the lowest and the highest of them).
+u = p(d) - s, P the regularised lower incomplete gamma function (s = 0: sum_a w_a x_a P(l_a +
+1, p / sigma) / sum_a w_a x_a). sigma = 0 (a discrete fit) makes every kernel a step at s +
+x_a. The binder fraction of a size class is the kernels' y_a weighted by their mass in the
+class (exact for the per-kernel binder model). Percentiles: a row of one kernel without a
+floor in closed form (the inverse of P, or its centre for sigma = 0); any other row by
+bisection between the lowest and the highest percentile of its gamma components (the row's
+Q3 is a mass-weighted mean of theirs, so its percentile lies between them).
 A row whose inversion fell back is named in ``notes`` with the fallback.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .quantiles import bisect_quantiles, check_fractions
-from .reconstruct import _rows_text, diameter_of_mass, mass_of_diameter
+from .quantiles import BISECTIONS, bisect_quantiles, check_fractions
+from .reconstruct import DELTA_REL_VAR, _rows_text, diameter_of_mass, mass_of_diameter
+
+#: Newton's method for a percentile between its components' own stops at a step below this
+#: relative to the mass, or where Q3 is within Q3_ROUNDOFF of the fraction (at most
+#: BISECTIONS steps)
+QUANTILE_PRECISION, Q3_ROUNDOFF = 1.0e-13, 1.0e-15
 
 
 class KernelMixture:
     """Rows of gamma-kernel mixtures: ``kernels`` a list per row of (sigma [kg], x [kg],
     w [1/m3], y [-], status); ``rho`` the granule density [kg/m3]; ``status_text`` the
     inversion branches' names; ``reported`` the branch codes worth a note, ``failed`` the
-    code of a row without kernels."""
+    code of a row without kernels; ``floor`` the support's lower end s [kg] per row (or one
+    for all; None: 0)."""
 
     def __init__(self, kernels, rho, bivariate, status_text, reported=(), failed=None,
-                 labels=str):
+                 labels=str, floor=None):
         self.rho = float(rho)
         self.rows = len(kernels)
         n = max((len(k[1]) for k in kernels), default=0)
@@ -41,7 +50,9 @@ class KernelMixture:
         for r, (_, x, w, y, _) in enumerate(kernels):
             self.x[r, :len(x)], self.w[r, :len(x)], self.y[r, :len(x)] = x, w, y
         self.bivariate = bivariate
-        self.kernel_mass = np.where(self.w > 0, self.w * self.x, 0.0)
+        self.floor = np.broadcast_to(np.asarray(0.0 if floor is None else floor, float),
+                                     (self.rows,)).copy()
+        self.kernel_mass = np.where(self.w > 0, self.w * (self.x + self.floor[:, None]), 0.0)
         self.mass = self.kernel_mass.sum(axis=1)
         self.empty = ~(self.mass > 0)
         self.notes = []
@@ -54,19 +65,32 @@ class KernelMixture:
                                   + ("; no granules drawn, d10/d50/d90 = 0 there"
                                      if code == failed else ""))
 
-    def _kernel_cdf(self, p, rows=slice(None)):
+    def _kernel_cdf(self, p, rows=slice(None), slope=False):
         """Per row (of ``rows``) and kernel the mass fraction of the kernel below p [kg]
-        (rows, n, k)."""
-        from scipy.special import gammainc
+        (rows, n, k); ``slope``: also its derivative in p [1/kg]. With u = (p - s) / sigma
+        and g = u^l e^-u / Gamma(l + 1) (the recurrence P(l, u) = P(l + 1, u) + g), the
+        fraction is P(l + 1, u) + c g and its slope g (1 + c (l / u - 1)) / sigma, c = s /
+        (s + x_a) the floor's share of the kernel's mean mass."""
+        from scipy.special import gammainc, gammaln
         p = np.asarray(p, dtype=float)
-        sigma, x = self.sigma[rows], self.x[rows]
+        sigma, x, s = self.sigma[rows], self.x[rows], self.floor[rows][:, None, None]
         smooth = (sigma > 0)[:, None, None]
         sig = np.where(sigma > 0, sigma, 1.0)[:, None, None]
-        shape = np.where(x > 0, x, 1.0)[:, :, None] / sig + 1.0
-        with np.errstate(invalid="ignore", over="ignore"):
-            g = gammainc(shape, p[:, None, :] / sig)
-        step = (p[:, None, :] >= x[:, :, None]) * 1.0
-        return np.where(smooth, g, step)
+        l = np.where(x > 0, x, 1.0)[:, :, None] / sig
+        u = np.maximum(p[:, None, :] - s, 0.0) / sig
+        floored = np.any(s > 0)
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            q = gammainc(l + 1.0, u)
+            if floored or slope:
+                g = np.where(u > 0, np.exp(l * np.log(u) - u - gammaln(l + 1.0)), 0.0)
+                c = s / (s + l * sig)
+                q = q + c * g
+            step = (p[:, None, :] >= s + x[:, :, None]) * 1.0
+            q = np.where(smooth, q, step)
+            if not slope:
+                return q
+            dq = np.where(u > 0, g * (1.0 + c * (l / u - 1.0)) / sig, 0.0)
+        return q, np.where(smooth, dq, 0.0)
 
     def cdf(self, d, rows=slice(None)):
         """Q3 [-] at diameters d [m] ((k,) or (rows, k)) per row (0 in an empty row);
@@ -80,16 +104,25 @@ class KernelMixture:
         return np.where(empty[:, None], 0.0, num / tot)
 
     def kernel_quantiles(self, fractions):
-        """Per row, kernel and fraction the kernel's own percentile [kg] of granule mass
-        (rows, n, len(fractions)): P^-1(l_a + 1, f) sigma, the centre where sigma = 0; NaN
-        for a kernel without mass."""
+        """Per row, kernel and fraction the (lowest, highest) percentile [kg] of granule mass
+        of the kernel's gamma components, each (rows, n, len(fractions)): s + P^-1(l_a, f)
+        sigma and s + P^-1(l_a + 1, f) sigma (without a floor both the kernel's own
+        percentile P^-1(l_a + 1, f) sigma), s + x_a where sigma = 0; NaN for a kernel
+        without mass."""
         from scipy.special import gammaincinv
         f = check_fractions(fractions)
         sig = np.where(self.sigma > 0, self.sigma, 1.0)[:, None, None]
-        shape = np.where(self.x > 0, self.x, 1.0)[:, :, None] / sig + 1.0
-        p = gammaincinv(shape, f[None, None, :]) * sig
-        p = np.where((self.sigma > 0)[:, None, None], p, self.x[:, :, None])
-        return np.where((self.kernel_mass > 0)[:, :, None], p, np.nan)
+        s = self.floor[:, None, None]
+        shape = np.where(self.x > 0, self.x, 1.0)[:, :, None] / sig
+        hi = gammaincinv(shape + 1.0, f[None, None, :]) * sig + s
+        lo = hi
+        if np.any(s > 0):
+            lo = np.where(s > 0, gammaincinv(shape, f[None, None, :]) * sig + s, hi)
+        discrete = (self.sigma > 0)[:, None, None]
+        lo = np.where(discrete, lo, (self.x + self.floor[:, None])[:, :, None])
+        hi = np.where(discrete, hi, (self.x + self.floor[:, None])[:, :, None])
+        has = (self.kernel_mass > 0)[:, :, None]
+        return np.where(has, lo, np.nan), np.where(has, hi, np.nan)
 
     def quantiles(self, fractions):
         """Diameters [m] at the mass fractions per row (0 in an empty row): closed-form in a
@@ -106,19 +139,62 @@ class KernelMixture:
         q = np.zeros((self.rows, f.size))
         if not np.any(full):
             return q
-        kq = self.kernel_quantiles(f)[full]                    # (full rows, n, k)
+        kl, kh = (v[full] for v in self.kernel_quantiles(f))    # (full rows, n, k)
         with np.errstate(invalid="ignore"):
-            lo, hi = np.nanmin(kq, axis=1), np.nanmax(kq, axis=1)
+            lo, hi = np.nanmin(kl, axis=1), np.nanmax(kh, axis=1)
         q[full] = diameter_of_mass(lo, self.rho)
         several = np.flatnonzero(full)[np.any(hi > lo, axis=1)]
-        if several.size:
+        smooth = several[self.sigma[several] > 0]
+        if smooth.size:
+            sub = np.isin(np.flatnonzero(full), smooth)
+            q[smooth] = diameter_of_mass(self._newton(smooth, f, lo[sub], hi[sub]), self.rho)
+        steps = several[~(self.sigma[several] > 0)]
+        if steps.size:
             # a relative 1e-9 outside the kernels' own: a step at the top is reached
-            sub = np.isin(np.flatnonzero(full), several)
+            sub = np.isin(np.flatnonzero(full), steps)
             d_lo = diameter_of_mass(lo[sub], self.rho) * (1 - 1e-9)
             d_hi = diameter_of_mass(hi[sub], self.rho) * (1 + 1e-9)
-            q[several] = bisect_quantiles(lambda d: self.cdf(d, several), f, several.size,
-                                          lo=d_lo, hi=d_hi)
+            q[steps] = bisect_quantiles(lambda d: self.cdf(d, steps), f, steps.size,
+                                        lo=d_lo, hi=d_hi)
         return q
+
+    def _newton(self, rows, f, lo, hi):
+        """Masses p [kg] (len(rows), len(f)) where Q3 of the smooth ``rows`` reaches f:
+        Newton's method on Q3 - f in ln u, u = p - s (Q3 ~ u^l near the floor, ~ 1 - u^l
+        e^-u in the tail: both nearly linear or convex in ln u), inside the bracket [lo, hi]
+        [kg] (the components' own percentiles); a bisection step (geometric in u) wherever
+        Newton's would leave the bracket; until a step is below QUANTILE_PRECISION p (at most
+        BISECTIONS steps), or Q3 is within Q3_ROUNDOFF of f (the round-off of Q3 near 1)."""
+        s = self.floor[rows][:, None]
+        weight = self.kernel_mass[rows][:, :, None] / self.mass[rows][:, None, None]
+
+        def excess(p, slope=False):
+            out = self._kernel_cdf(p, rows, slope=slope)
+            q = out[0] if slope else out
+            F = np.sum(weight * q, axis=1) - f[None, :]
+            return (F, np.sum(weight * out[1], axis=1)) if slope else F
+
+        a, b = lo.copy(), hi.copy()
+        # a percentile within QUANTILE_PRECISION of the floor is the floor's (no root in u)
+        edge = s * (1.0 + QUANTILE_PRECISION)
+        at_floor = (s > 0) & (excess(np.broadcast_to(edge, a.shape)) >= 0)
+        a = np.where((s > 0) & ~at_floor, np.maximum(a, edge), a)
+        b = np.where(at_floor, edge, b)
+        p = np.where(a > s, s + np.sqrt((a - s) * (b - s)), 0.5 * (a + b))
+        for _ in range(BISECTIONS):
+            F, slope = excess(p, slope=True)
+            a, b = np.where(F < 0, p, a), np.where(F >= 0, p, b)
+            u = p - s
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                newton = s + u * np.exp(-F / (slope * u))
+            inside = (newton >= a) & (newton <= b)
+            half = np.where(a > s, s + np.sqrt((a - s) * (b - s)), 0.5 * (a + b))
+            done = (inside & (np.abs(newton - p) <= QUANTILE_PRECISION * p)) | (
+                b - a <= QUANTILE_PRECISION * b) | (np.abs(F) <= Q3_ROUNDOFF)
+            p = np.where(inside, newton, half)
+            if np.all(done | at_floor):
+                break
+        return np.where(at_floor, edge, p)
 
     def class_binder(self, d_lo, d_hi):
         """Binder mass over granule mass [-] in each class [d_lo, d_hi] (rows, k)."""
@@ -146,15 +222,18 @@ def of_states(states, aux, arrays, rho, bivariate, labels=str) -> KernelMixture:
 
 
 #: the branch names of ``of_nodes`` rows (after the EQMOM inversion's own)
-ONE_KERNEL_FALLBACK = "not invertible with n - 1 kernels: one gamma kernel on M00, M10, M20"
+ONE_KERNEL_FALLBACK = "not invertible with n kernels: one gamma kernel on M00, M10, M20"
 DELTA_FALLBACK = "not realizable (M20 < M10^2/M00): a delta at the mean mass"
 NOT_FINITE = "a node not finite: no granules drawn, d10/d50/d90 = 0 there"
+BELOW_FLOOR = ("mean mass not above the support's floor: kernels on [0, inf) instead of "
+               "[floor, inf)")
 
 
-def _size_nodes(w, p):
+def _size_nodes(w, p, signed=False):
     """(masses [kg], number weights [1/m3]) of one row's distinct size nodes (CQMOM's binder
-    nodes of one size node merged), nodes with w <= 0 or p <= 0 left out."""
-    ok = (w > 0) & (p > 0)
+    nodes of one size node merged), nodes with w <= 0 (``signed``: w = 0) or p <= 0 left
+    out."""
+    ok = ((w != 0) if signed else (w > 0)) & (p > 0)
     masses, inverse = np.unique(p[ok], return_inverse=True)
     return masses, np.bincount(inverse, weights=w[ok], minlength=masses.size)
 
@@ -174,51 +253,80 @@ def _fit_row(x, w, kernels):
     return result[0] * mean, nodes[:n] * mean, weights[:n] * m0, status
 
 
-def of_nodes(populations, rho, bivariate, labels=str) -> KernelMixture:
-    """QMOM and CQMOM: per row the gamma EQMOM of n - 1 kernels (n the row's distinct size
-    nodes, one kernel at least) fitted to the size moments M00 .. M(2n-2)0 the nodes carry
-    exactly (docs/physics.md section 11.1; M(2n-1)0 is not used). Populations: (w [1/m3],
-    p [kg], b [kg]) per row. One node: a delta. A row the n - 1 kernels cannot invert takes
-    one kernel on M00, M10, M20; a row not realizable even so a delta at its mean; both are
-    named in ``notes``, as are a closest-sigma fit and a row with a node not finite (drawn
-    empty). The binder fraction per size class is
+def of_nodes(populations, rho, bivariate, labels=str, floor=0.0, kernels=None,
+             signed=False) -> KernelMixture:
+    """Per row the gamma EQMOM of n kernels of one width on the support [floor, inf) fitted
+    to the moments of p - floor that the row's population carries exactly
+    (docs/physics.md section 11.1). Populations: (w [1/m3], p [kg], b [kg]) per row (QMOM,
+    CQMOM: the quadrature nodes; EQMOM: its kernels' secondary nodes; Laguerre ROM: its
+    reconstruction's weighted points, ``signed``: negative weights kept). ``kernels``: n
+    (None: the row's distinct size nodes less one, one at least, fitted to M00 .. M(2n)0:
+    QMOM's and CQMOM's M(2N-1)0 not used); ``floor`` [kg]: the granules' smallest mass (0:
+    [0, inf)). One node: a delta; with a floor, so is a row of relative variance at most
+    DELTA_REL_VAR, and a row whose mean mass is not above the floor takes [0, inf) (named). A
+    row the n kernels cannot invert takes one kernel on M00, M10, M20; a row not realizable
+    even so a delta at its mean; both are named in ``notes``, as are a closest-sigma fit and
+    a row with a node not finite (drawn empty). The binder fraction per size class is
     interpolated in ln p between the nodes' binder fractions (``reconstruct.node_binder``)."""
     from ..methods.quadrature import gamma_inversion as I
     from .reconstruct import node_binder, padded_rows
     w_all, p_all = (padded_rows(populations, k) for k in range(2))
-    kernels, one, delta, bad = [], [], [], []
-    two = _two_node_fits(w_all, p_all)
+    out, one, delta, bad, below = [], [], [], [], []
+    floors = np.full(w_all.shape[0], float(floor))
+    two = (_two_node_fits(w_all, p_all - floor) if kernels is None and not signed else None)
+    if two is not None and floor > 0:       # a row of no spread is a delta (general path)
+        for r in np.flatnonzero(_no_spread(w_all, p_all)):
+            two[r] = None
     for r in range(w_all.shape[0]):
         if two is not None and two[r] is not None:
-            kernels.append(two[r][:5])
+            out.append(two[r][:5])
             if two[r][5]:
                 delta.append(r)
             continue
         if not (np.all(np.isfinite(w_all[r])) and np.all(np.isfinite(p_all[r]))):
-            kernels.append((0.0, np.zeros(0), np.zeros(0), np.zeros(0), I.FAILED))
+            out.append((0.0, np.zeros(0), np.zeros(0), np.zeros(0), I.FAILED))
             bad.append(r)
             continue
-        x, w = _size_nodes(w_all[r], p_all[r])
-        if x.size <= 1:
-            kernels.append((0.0, x, w, np.zeros(x.size), I.DISCRETE))
+        x, w = _size_nodes(w_all[r], p_all[r], signed)
+        m0 = w.sum()
+        mean = (w * x).sum() / m0 if m0 > 0 else 0.0
+        if floor > 0 and x.size > 1 and m0 > 0:
+            if (w * (x - mean) ** 2).sum() / m0 <= DELTA_REL_VAR * mean * mean:
+                x, w = np.array([mean]), np.array([m0])
+            elif not mean > floor:
+                floors[r] = 0.0
+                below.append(r)
+        if x.size <= 1 or not m0 > 0:
+            out.append((0.0, x - floors[r], w, np.zeros(x.size), I.DISCRETE))
             continue
-        sigma, c, cw, status = _fit_row(x, w, x.size - 1)
-        if status == I.FAILED and x.size > 2:
-            sigma, c, cw, status = _fit_row(x, w, 1)
+        n = x.size - 1 if kernels is None else int(kernels)
+        sigma, c, cw, status = _fit_row(x - floors[r], w, n)
+        if status == I.FAILED and n > 1:
+            sigma, c, cw, status = _fit_row(x - floors[r], w, 1)
             one.append(r)
         if status == I.FAILED:
-            mean = (w * x).sum() / w.sum()
-            sigma, c, cw, status = 0.0, np.array([mean]), np.array([w.sum()]), I.DISCRETE
+            sigma, c, cw, status = 0.0, np.array([mean - floors[r]]), np.array([m0]), I.DISCRETE
             delta.append(r)
-        kernels.append((sigma, c, cw, np.zeros(c.size), status))
-    mix = NodeMixture(kernels, rho, bivariate, I.STATUS_TEXT, reported=(I.CLOSEST,),
-                      labels=labels)
-    for rows, text in ((one, ONE_KERNEL_FALLBACK), (delta, DELTA_FALLBACK), (bad, NOT_FINITE)):
+        out.append((sigma, c, cw, np.zeros(c.size), status))
+    mix = NodeMixture(out, rho, bivariate, I.STATUS_TEXT, reported=(I.CLOSEST,),
+                      labels=labels, floor=floors)
+    for rows, text in ((one, ONE_KERNEL_FALLBACK), (delta, DELTA_FALLBACK), (bad, NOT_FINITE),
+                       (below, BELOW_FLOOR)):
         if rows:
             mix.notes.append(f"size distribution: {text} at "
                              f"{_rows_text(np.array(rows), labels)}")
     mix.node_binder = node_binder(populations) if bivariate else None
     return mix
+
+
+def _no_spread(w, p):
+    """Per row of nodes (w [1/m3], p [kg], (rows, n)) whether its relative variance var /
+    mean^2 is at most DELTA_REL_VAR (a monodisperse row)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        m0 = w.sum(axis=1)
+        mean = (w * p).sum(axis=1) / m0
+        var = (w * (p - mean[:, None]) ** 2).sum(axis=1) / m0
+        return var <= DELTA_REL_VAR * mean * mean
 
 
 def _two_node_fits(w, p):

@@ -17,6 +17,7 @@ from . import kernel_mixture
 from . import reconstruct as R
 from ..methods.registry import method_of
 from .quantiles import FRACTIONS, DistributionError, check_grid_covers, log_grid
+from ..physics.injection import droplet_mass
 
 #: the size columns added to moments.csv, bed_moments.csv and the VTK cell fields
 SIZE_COLUMNS = ("d10_m", "d50_m", "d90_m", "span")
@@ -25,20 +26,92 @@ PSD_POINTS = 40
 GRID_FRACTIONS = (1.0e-4, 1.0 - 1.0e-4)
 GRID_MARGIN = 1.25
 
+#: the reconstructions of ``[method] size_distribution`` (docs/physics.md section 11.1)
+SUPPORT, SEMI_INFINITE, EXPANSION = "support", "semi-infinite", "expansion"
+
+
+def support_floor(scene) -> float:
+    """The granules' smallest possible mass p_min [kg]: without breakage no granule is below
+    the smallest initial granule's solids (a monodisperse start of mass p0 [kg]: p0, or
+    (1 - binder fraction) p0 with drying; droplets counted as particles lower it to their mass
+    p_d [kg], to 0 with drying); 0 with breakage or an initial distribution reaching 0."""
+    init = scene.initial
+    if scene.breakage is not None or init.distribution != "monodisperse":
+        return 0.0
+    drying = scene.drying is not None
+    floor = init.mean_mass * ((1.0 - init.binder_fraction) if drying else 1.0)
+    inj = scene.binder_injection
+    if not scene.separate_droplets and (inj is not None or init.droplet_number_density > 0):
+        p_d = (0.0 if inj is None else
+               droplet_mass(inj.droplet_diameter, scene.material.binder_density))
+        floor = 0.0 if drying else min(floor, p_d)
+    return float(floor)
+
+
+def size_distribution(scene) -> str:
+    """The scene's reconstruction: ``[method] size_distribution``, or the method's first."""
+    chosen = getattr(scene.method, "size_distribution", None)
+    offered = method_of(scene).distributions
+    return chosen if chosen is not None else (offered[0] if offered else "")
+
+
+def _support_kernels(scene):
+    """Gamma kernels of the support fit: None for the quadrature nodes (the row's distinct
+    nodes less one), N for the EQMOM (its M00 .. M(2N)0), (m - 1) // 2 for the Laguerre ROM
+    of order m (its carried M00 .. M(m-1)0; one kernel at least)."""
+    entry = method_of(scene)
+    order = entry.order(scene.method)
+    return {"gamma": None, "kernel_mixture": order,
+            "laguerre_density": max(1, (order - 1) // 2)}[entry.distribution]
+
+
 def reconstruction_of(scene, arrays, states, aux, populations, labels=str):
     """The reconstruction of a moment method's scaled states (rows: times or cells);
     ``populations``: the rows' weighted particles from ``model.moment_outputs``."""
-    kind = method_of(scene).distribution
-    if kind == "laguerre_density":
-        return R.laguerre_table(states, aux, arrays, scene.bivariate, labels)
-    if kind == "kernel_mixture":
-        return kernel_mixture.of_states(states, aux, arrays, scene.material.density,
-                                        scene.bivariate, labels)
+    entry = method_of(scene)
+    kind, choice = entry.distribution, size_distribution(scene)
+    rho, bivariate = scene.material.density, scene.bivariate
+    if kind is None:
+        raise DistributionError(f"method {scene.method.name!r}: no size-distribution "
+                                "reconstruction")
+    if choice == EXPANSION:
+        return R.laguerre_table(states, aux, arrays, bivariate, labels)
+    floor = support_floor(scene) if choice == SUPPORT else 0.0
+    if kind == "kernel_mixture" and floor == 0.0:         # the EQMOM's own kernels
+        return kernel_mixture.of_states(states, aux, arrays, rho, bivariate, labels)
+    return kernel_mixture.of_nodes(populations, rho, bivariate, labels, floor=floor,
+                                   kernels=_support_kernels(scene),
+                                   signed=kind == "laguerre_density")
+
+
+def distribution_text(scene) -> str:
+    """The scene's reconstruction in words (columns.json, ``plan``)."""
+    entry = method_of(scene)
+    kind, choice = entry.distribution, size_distribution(scene)
+    if kind is None or choice in (EXPANSION, ""):
+        return entry.distribution_text
+    floor = support_floor(scene) if choice == SUPPORT else 0.0
+    if kind == "kernel_mixture" and floor == 0.0:
+        return entry.distribution_text
+    n = _support_kernels(scene) or 0
     if kind == "gamma":
-        return kernel_mixture.of_nodes(populations, scene.material.density, scene.bivariate,
-                                       labels)
-    raise DistributionError(f"method {scene.method.name!r}: no size-distribution "
-                            "reconstruction")
+        fitted = ("N - 1 gamma kernels of one width (one for N = 2) fitted to the carried "
+                  "M00 .. M(2N-2)0")
+    elif kind == "kernel_mixture":
+        fitted = f"{n} gamma kernels of one width refitted to the carried M00 .. M{2 * n}0"
+    else:
+        fitted = (f"{n} gamma kernel{'s' * (n > 1)} of one width fitted to the carried "
+                  f"M00 .. M{2 * n}0")
+    where = (f"on [p_min, inf), p_min = {floor:.4g} kg the smallest granule possible (no "
+             "breakage), moments of p - p_min" if floor > 0 else
+             "on [0, inf)" + (" (no floor: breakage, or a start reaching 0)"
+                              if choice == SUPPORT else ""))
+    if kind == "laguerre_density":
+        where += ("; a positive density by construction (the ROM's own expansion: "
+                  "size_distribution = \"expansion\")")
+    binder = ("; binder fraction per size class interpolated in ln p between the nodes' "
+              "binder values" if scene.bivariate else "")
+    return f"{fitted} {where} ([method] size_distribution = \"{choice}\"){binder}"
 
 
 def size_columns(recon, labels=str) -> tuple[dict, list]:
@@ -126,7 +199,7 @@ def column_labels(scene, state_names, columns, bed: bool = False) -> dict:
     """name -> what the column is: carried (a moment of the method's state), derived or
     reconstructed (how), for the columns.json sidecar."""
     entry = method_of(scene)
-    how = entry.distribution_text
+    how = distribution_text(scene)
     out = {}
     for name in columns:
         base = name[:-3] if name.endswith(("_lo", "_hi")) else name
@@ -157,7 +230,7 @@ def column_labels(scene, state_names, columns, bed: bool = False) -> dict:
 
 def psd_labels(scene, columns) -> dict:
     """name -> meaning of the psd.csv columns."""
-    how = method_of(scene).distribution_text
+    how = distribution_text(scene)
     texts = {"time_s": "time [s]", "d_m": "diameter [m], log-spaced",
              "Q3": "reconstructed: mass fraction of the granules below d [-]; " + how,
              "q3_per_ln_d": "reconstructed: mean of dQ3/d(ln d) over the class [d e^(-h/2), "

@@ -81,6 +81,11 @@ class MethodEntry(NamedTuple):
                     (from the populations), "laguerre_density" (its own), "kernel_mixture"
                     (EQMOM's gamma kernels, ``distribution.kernel_mixture``), None (none)
     distribution_text   that reconstruction in words (columns.json, docs/physics.md 11.1)
+    distributions   the reconstructions ``[method] size_distribution`` may name, the first
+                    the default: "support" (gamma kernels on the granules' support [p_min,
+                    inf), ``distribution.tables``), "semi-infinite" (on [0, inf): the
+                    quadrature nodes' fit, EQMOM's own kernels), "expansion" (the Laguerre
+                    ROM's own density); () : none to choose
     moments_text    how the moments it does not carry are reconstructed (columns.json)
     accuracy_knobs  f(quick) -> ((label, {options field: value}), ...): the settings of its
                     accuracy knob the accuracy study runs (``bench.accuracy``; quick: the
@@ -130,6 +135,7 @@ class MethodEntry(NamedTuple):
     bench_versus_baseline: bool = False
     distribution: str | None = None
     distribution_text: str = ""
+    distributions: tuple = ()
     moments_text: str = ""
     accuracy_knobs: Callable | None = None
     table_build: Callable | None = None

@@ -82,8 +82,8 @@ def describe_plan(scene) -> str:
         lines.append(f"  transport: upwind by the granular face flux, Courant <= "
                      f"{scene.transport.courant:g}")
     lines.append(f"  method: {method_of(scene).plan_line(scene)}")
-    lines.append(f"  size distribution (d10/d50/d90, psd.csv): "
-                 f"{method_of(scene).distribution_text}")
+    from ..distribution.tables import distribution_text
+    lines.append(f"  size distribution (d10/d50/d90, psd.csv): {distribution_text(scene)}")
     if not scene.bivariate:
         left_out.append("binder coordinate (dry start, no injection)")
     lines.append(f"  cell fields needed: {', '.join(sorted(fields)) or 'none'}")

@@ -9,20 +9,23 @@ from typing import Any
 from ..methods import registry
 
 #: the [method] keys every method reads (the Method's own fields)
-COMMON_METHOD_KEYS = ("name", "rtol", "atol", "integrator")
+COMMON_METHOD_KEYS = ("name", "rtol", "atol", "integrator", "size_distribution")
 
 
 @dataclass(frozen=True)
 class Method:
     """Numerical method: its name, the keys every method reads (the tolerances rtol [-] and
-    atol [-] on the scaled state, the per-cell integrator, which the cNMC ignores), and
-    ``options``, the method's own keys (its package's options dataclass; None: that method's
+    atol [-] on the scaled state, the per-cell integrator, which the cNMC ignores, and the
+    size_distribution reconstruction of d10/d50/d90 and psd.csv, docs/physics.md section
+    11.1: "support", "semi-infinite" or, for the Laguerre ROM, "expansion"; None: the
+    method's first, "support"; the cNMC takes none), and ``options``, the method's own keys (its package's options dataclass; None: that method's
     defaults). The TOML table stays flat: the scene routes each key to these fields or to
     the method's options, and refuses a key of another method."""
     name: str
     rtol: float = 1.0e-8
     atol: float = 1.0e-14
     integrator: str = "auto"
+    size_distribution: str | None = None
     options: Any = field(default=None, metadata={"table": "the method's own keys"})
 
     def __post_init__(self):
@@ -45,4 +48,7 @@ class Method:
                 if name != self.name and hasattr(self.options, k)}
         options = (dataclasses.replace(self.options, **changes) if name == self.name
                    else cls(**(kept | changes)))
+        if name != self.name and "size_distribution" not in common and (
+                self.size_distribution not in registry.METHODS[name].distributions):
+            common["size_distribution"] = None      # the new method's default
         return dataclasses.replace(self, **common, options=options)

@@ -479,6 +479,11 @@ def _method(path, data):
     kw["atol"] = t.number("atol", 1.0e-14, positive=True)
     # per-cell time integrator of the moment methods (pbe_cfd.integrate); cnmc ignores it
     kw["integrator"] = t.choice("integrator", ("explicit", "implicit", "auto"), "auto")
+    # the size-distribution reconstruction (docs/physics.md 11.1); None: the method's first
+    if t.has("size_distribution") and not entry.distributions:
+        raise SceneError(path, "method.size_distribution",
+                         f"the {name} method has no reconstruction to choose; remove the key")
+    kw["size_distribution"] = t.choice("size_distribution", entry.distributions, None)
     options = entry.options_class(**entry.scene_keys(t, entry.options_class))
     unknown = sorted(set(t.data) - t.used)
     if unknown:

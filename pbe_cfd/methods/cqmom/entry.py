@@ -56,6 +56,7 @@ ENTRY = MethodEntry(
     bench_quick=("2x2",), bench_full=("2x2", "3x2", "3x3"), bench_ceiling="points",
     bench_versus_baseline=True,
     distribution="gamma",
+    distributions=("support", "semi-infinite"),
     distribution_text="gamma EQMOM of N - 1 kernels of one width fitted to the carried "
                       "M00 .. M(2N-2)0 (one kernel for N = 2; M(2N-1)0 not used); binder "
                       "fraction per size class interpolated in ln p between the "

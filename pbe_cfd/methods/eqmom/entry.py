@@ -97,6 +97,7 @@ ENTRY = MethodEntry(
     bench_orders=int, bench_scene=lambda scene, order: scene.with_method(nodes=order),
     bench_quick=("3",), bench_full=("2", "3"),
     distribution="kernel_mixture",
+    distributions=("support", "semi-infinite"),
     distribution_text="the EQMOM's own density: N gamma kernels in granule mass fitted to the "
                       "carried M00 .. M(2N)0; binder fraction per size class from the kernels' "
                       "binder fractions",

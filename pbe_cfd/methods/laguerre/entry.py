@@ -116,6 +116,7 @@ ENTRY = MethodEntry(
     bench_quick=("2", "3"), bench_full=("2", "3", "4"), bench_ceiling="contraction",
     bench_breakdown="contraction",
     distribution="laguerre_density",
+    distributions=("support", "semi-infinite", "expansion"),
     distribution_text="the Laguerre ROM's own density (wet and dry classes) integrated per "
                       "size class",
     moments_text="integral of the Laguerre density over its support",

@@ -42,6 +42,7 @@ ENTRY = MethodEntry(
     bench_quick=("2", "3"), bench_full=("2", "3", "4"), bench_ceiling="nodes",
     bench_baseline="3", bench_breakdown="nodes",
     distribution="gamma",
+    distributions=("support", "semi-infinite"),
     distribution_text="gamma EQMOM of N - 1 kernels of one width fitted to the carried "
                       "M00 .. M(2N-2)0 (one kernel for N = 2; M(2N-1)0 not used); binder "
                       "fraction per size class interpolated in ln p between the "
