@@ -105,7 +105,7 @@ def test_pure_liquid_droplets_evaporate_by_the_d2_law_to_zero_mass(method):
     b0 = b[0]
     _check(c, b, b0)
     after = t > tau
-    assert after.sum() >= 5 and (t < 0.9 * tau).sum() >= 20
+    assert after.sum() >= 5 and (t < 0.9 * tau).sum() >= 15
     # at zero mass the droplets stay: no liquid left, none negative, all of it evaporated
     assert np.all(c["liquid_droplets"][after] == 0.0)
     assert np.allclose(c["liquid_evaporated"][after], ND * b0, rtol=1e-12, atol=0.0)
