@@ -30,7 +30,7 @@ from numba.extending import overload
 
 from ..methods.dispatch import WORK_SIZE, conserved, project, realizable, rhs
 from ..physics import parameters as P
-from ..physics.injection import droplet_liquid
+from ..physics.injection import droplet_liquid, droplet_liquid_entry
 from .codes import (ACCEPT, ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, F0, FTMP, GCOL,
                     IMPLICIT, IMPLICIT_STEPS, JACOBIANS, KC, N_BUF, NOT_FINITE, OK,
                     REJECT_ERROR, REJECT_NOT_FINITE,
@@ -353,7 +353,7 @@ def _absorb_droplets(method, state, d, atol, pivots, coefs, n_inv, aux, params, 
         return
     for i in range(state.shape[0]):
         saved[i] = state[i]
-    liquid = config[P.DROPLET_LIQUID]
+    liquid = droplet_liquid_entry(config)
     for r in range(n_inv):
         p = pivots[r]
         held = coefs[r, d] * nd + (coefs[r, liquid] * state[liquid] if liquid >= 0 else 0.0)
@@ -373,7 +373,7 @@ def _dry_out_droplets(state, d, params, config, rtol, atol):
     liquid joins the evaporated liquid (entry N_STATE - 2; both count alike in the invariants),
     so that a pure liquid's d^2 law, whose rate grows without bound relative to L_d as it
     vanishes, ends at exactly zero instead of in ever shorter steps."""
-    liquid = config[P.DROPLET_LIQUID]
+    liquid = droplet_liquid_entry(config)
     if liquid < 0:
         return
     held = state[liquid]

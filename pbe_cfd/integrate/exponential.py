@@ -30,7 +30,7 @@ import numba as nb
 
 from ..methods.dispatch import realizable, rhs
 from ..physics import parameters as P
-from ..physics.injection import droplet_liquid
+from ..physics.injection import droplet_liquid, droplet_liquid_entry
 from .codes import (ACCEPT, F0, FTMP, GCOL, KA, KB, KC, REJECT_ERROR, REJECT_NOT_FINITE,
                     REJECT_REALIZABILITY, STAGE, YNEW, YTMP)
 
@@ -74,7 +74,7 @@ def capture_column(method, y, buf, cell, aux, params, config, work, d, n):
         yp[i] = y[i]
     delta = y[d] if y[d] > 0.0 else 1.0
     yp[d] = y[d] + delta
-    liquid = config[P.DROPLET_LIQUID]
+    liquid = droplet_liquid_entry(config)
     if liquid >= 0:
         per_droplet = (y[liquid] / y[d] if y[d] > 0.0
                        else droplet_liquid(params) / params[P.MASS_SCALE])

@@ -140,7 +140,9 @@ def pack(scene) -> Arrays:
         config[slot] = value
     names = method.state_names(scene)
     config[P.N_STATE] = len(names)
-    config[P.DROPLET_LIQUID] = names.index("droplet_liquid") if "droplet_liquid" in names else -1
+    if "droplet_liquid" in names:       # entry N_STATE - 3 (``injection.droplet_liquid_entry``)
+        config[P.DROPLET_LIQUID] = 1
+        assert names.index("droplet_liquid") == len(names) - 3, names
     config[P.INTEGRATOR] = SCHEMES[scene.method.integrator]
     need = int(method.work_size(config))
     if need > WORK_SIZE:

@@ -34,6 +34,7 @@ import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
+from ...physics.injection import droplet_liquid_entry
 from ...physics.properties import N_PROPS
 from .conditional import fraction_moments, gauss_unit_interval, restore_binder_mass
 from ..qmom.qmom import qmom_conserved
@@ -343,7 +344,7 @@ def cqmom_realizable(state, aux, params, config, work):
         return False
     if config[P.DRYING] == 1 and state[n_state - 1 - separate] < 0.0:
         return False
-    if config[P.DROPLET_LIQUID] >= 0 and state[config[P.DROPLET_LIQUID]] < 0.0:
+    if droplet_liquid_entry(config) >= 0 and state[droplet_liquid_entry(config)] < 0.0:
         return False
     if state[0] == 0.0:
         for k in range(n_state - tail_entries(config)):

@@ -14,7 +14,7 @@ quantities are scaled (see ``methods.cqmom``); no allocation.
 import numba as nb
 
 from ...physics import parameters as P
-from ...physics.injection import droplet_liquid
+from ...physics.injection import droplet_liquid, droplet_liquid_entry
 from ...physics.breakage import daughter_moment_factor
 from ...physics.efficiency import efficiency_property_groups, pair_success_probability
 from ...physics.kernels import (kernel_cell_factor, kernel_property_groups, kernel_uses_d43,
@@ -400,7 +400,7 @@ def cqmom_rhs(state, out, cell, aux, params, config, work):
         captured = 0.0
         pd, bd = droplet_point(state, params, config)
         if (state[n_state - 1] > 0.0 and factor != 0.0 and n > 0
-                and (pd > 0.0 or config[P.DROPLET_LIQUID] < 0)):
+                and (pd > 0.0 or droplet_liquid_entry(config) < 0)):
             captured = _droplet_capture(out, state, work, n_max, m, n, factor, u0, params,
                                         config, bivariate)
         out[n_state - 1] += inj

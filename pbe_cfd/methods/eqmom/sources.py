@@ -15,6 +15,7 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.breakage import cell_selection_factor, daughter_moment_factor
+from ...physics.injection import droplet_liquid_entry
 from ...physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ...physics.properties import DIAMETER, N_PROPS
 from ...physics.rates import pair_rate, particle_properties
@@ -72,7 +73,8 @@ def _droplets(state, out, X, W, B, m, props, factor, u0, cell, n_size, n_max, bi
     if config[P.SEPARATE_DROPLETS] == 1:
         nd = state[n_state - 1]
         captured = 0.0
-        if nd > 0.0 and factor != 0.0 and m > 0 and (pd > 0.0 or config[P.DROPLET_LIQUID] < 0):
+        if (nd > 0.0 and factor != 0.0 and m > 0
+                and (pd > 0.0 or droplet_liquid_entry(config) < 0)):
             particle_properties(pd, bd, params, config, props, row)
             droplet_factor = number_scale * params[P.DROPLET_FACTOR]
             for a in range(m):
@@ -232,7 +234,7 @@ def eqmom_realizable(state, aux, params, config, work):
         return False
     if config[P.DRYING] == 1 and state[n_state - 1 - config[P.SEPARATE_DROPLETS]] < 0.0:
         return False
-    if config[P.DROPLET_LIQUID] >= 0 and state[config[P.DROPLET_LIQUID]] < 0.0:
+    if droplet_liquid_entry(config) >= 0 and state[droplet_liquid_entry(config)] < 0.0:
         return False
     if state[0] == 0.0:
         for k in range(n_state - tail_entries(config)):

@@ -20,7 +20,7 @@ import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
-from ...physics.injection import droplet_liquid
+from ...physics.injection import droplet_liquid, droplet_liquid_entry
 from ...physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ...physics.properties import DIAMETER, N_PROPS
 from ...physics.rates import pair_rate, particle_properties
@@ -202,7 +202,8 @@ def _droplet_sources(state, out, cell, params, config, nodes, weights, binder, p
     if config[P.SEPARATE_DROPLETS] == 1:
         nd = state[n_state - 1]
         captured = 0.0
-        if nd > 0.0 and factor != 0.0 and n > 0 and (pd > 0.0 or config[P.DROPLET_LIQUID] < 0):
+        if (nd > 0.0 and factor != 0.0 and n > 0
+                and (pd > 0.0 or droplet_liquid_entry(config) < 0)):
             particle_properties(pd, bd, params, config, props, n_max)
             droplet_factor = number_scale * params[P.DROPLET_FACTOR]
             for a in range(n):
@@ -359,7 +360,7 @@ def qmom_realizable(state, aux, params, config, work):
         return False
     if config[P.DRYING] == 1 and state[n_state - 1 - config[P.SEPARATE_DROPLETS]] < 0.0:
         return False
-    if config[P.DROPLET_LIQUID] >= 0 and state[config[P.DROPLET_LIQUID]] < 0.0:
+    if droplet_liquid_entry(config) >= 0 and state[droplet_liquid_entry(config)] < 0.0:
         return False
     if state[0] == 0.0:
         for k in range(n_state - tail_entries(config)):

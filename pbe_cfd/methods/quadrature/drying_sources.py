@@ -16,7 +16,7 @@ import numba as nb
 
 from ...physics import parameters as P
 from ...physics.drying import drying_rate
-from ...physics.injection import droplet_liquid
+from ...physics.injection import droplet_liquid, droplet_liquid_entry
 
 
 @nb.njit(cache=True, inline="always")
@@ -61,12 +61,12 @@ def add_qmom_drying(out, nodes, weights, binder, n, params, config):
 
 
 # ---- free droplets of their own (docs/physics.md section 15, "Free droplets' evaporation") --
-# With drying the droplet class carries its liquid L_d (state entry config[DROPLET_LIQUID],
+# With drying the droplet class carries its liquid L_d (state entry ``droplet_liquid_entry``,
 # scaled as a mass moment) beside its number n_d (the last entry): the one-mass closure gives
 # every droplet the class's mean liquid l = L_d / n_d and its solids s p_d, so a droplet is the
 # point (s p_d + l, l); it evaporates at e(s p_d + l, l) (the liquid sphere's d^2 law, then the
 # skeleton's periods for a solution), E_d = n_d e(L_d / n_d), and a capture hands the granule
-# that point. Without the entry (config[DROPLET_LIQUID] = -1) a droplet is (p_d, b_d).
+# that point. Without the entry (config[DROPLET_LIQUID] = 0) a droplet is (p_d, b_d).
 
 
 @nb.njit(cache=True)
@@ -76,7 +76,7 @@ def droplet_point(state, params, config):
     (a fresh droplet's b_d while the class is empty)."""
     pd = params[P.DROPLET_MASS]
     bd = droplet_liquid(params)
-    entry = config[P.DROPLET_LIQUID]
+    entry = droplet_liquid_entry(config)
     if entry < 0:
         return pd, bd
     nd = state[config[P.N_STATE] - 1]
@@ -92,7 +92,7 @@ def add_droplet_class_terms(state, out, injection, captured, liquid, params, con
     with b_d), its capture (``captured`` scaled droplets per s, each with ``liquid``, scaled)
     and its evaporation n_d e(droplet point) into ``out``, the evaporated liquid (entry
     N_STATE - 2) gaining what evaporates. Without the entry nothing."""
-    entry = config[P.DROPLET_LIQUID]
+    entry = droplet_liquid_entry(config)
     if entry < 0:
         return
     scale = params[P.MASS_SCALE]
@@ -111,7 +111,7 @@ def tail_entries(config):
     """Number of state entries after the moments: the droplets' liquid, the evaporated liquid
     and the droplet number, those present."""
     return (config[P.SEPARATE_DROPLETS] + config[P.DRYING]
-            + (1 if config[P.DROPLET_LIQUID] >= 0 else 0))
+            + (1 if droplet_liquid_entry(config) >= 0 else 0))
 
 
 @nb.njit(cache=True)
@@ -119,7 +119,7 @@ def set_droplet_invariants(coefs, r, params, config):
     """Row r of the linear invariants (r = 0: mass, 1: liquid binder) for the droplet entries
     with a droplet-liquid entry: the mass row counts the droplets' solids s p_d n_d and their
     liquid L_d, the liquid row L_d. Returns False (nothing set) without the entry."""
-    entry = config[P.DROPLET_LIQUID]
+    entry = droplet_liquid_entry(config)
     if entry < 0:
         return False
     pd = params[P.DROPLET_MASS]
