@@ -168,7 +168,7 @@ def test_sprayed_droplets_evaporate_the_closure_share_before_capture():
     run's own droplet number. The inventory balances (sprayed = held by granules + held by
     droplets + evaporated, 1e-8). The closure's share differs from the age-resolved one by
     (3/8) eps^3 (both series: 3/2 eps - 3/4 eps^2, then 0 against -3/8 eps^3)."""
-    rate, factor, k0, n0 = 1.0e8, 1.0e10, 1.0e-20, 1.0e10
+    rate, factor, k0, n0 = 1.0e8, 1.0e12, 1.0e-20, 1.0e10      # kappa = f k0 N0 = 100 /s
     _, tau = _pure_liquid(0.0)
     scene = make_scene(scene={"end_time": 0.6, "output_interval": 0.05},
                        material={"density": RHO_S, "binder_density": RHO_L},
