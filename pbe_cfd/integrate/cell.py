@@ -30,6 +30,7 @@ from numba.extending import overload
 
 from ..methods.dispatch import WORK_SIZE, conserved, project, realizable, rhs
 from ..physics import parameters as P
+from ..physics.injection import droplet_liquid, droplet_liquid_entry
 from .codes import (ACCEPT, ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, F0, FTMP, GCOL,
                     IMPLICIT, IMPLICIT_STEPS, JACOBIANS, KC, N_BUF, NOT_FINITE, OK,
                     REJECT_ERROR, REJECT_NOT_FINITE,
@@ -345,19 +346,41 @@ def _absorb_droplets(method, state, d, atol, pivots, coefs, n_inv, aux, params, 
     """A free-droplet density in (0, atol] (numerically zero: below the absolute tolerance)
     is handed to the granules along the linear invariants (their mass and binder keep
     x_d n_d), so that a decaying droplet number ends at exactly zero instead of creeping
-    through denormal numbers; kept as it was if the result would not be realizable."""
+    through denormal numbers; kept as it was if the result would not be realizable. With a
+    droplet-liquid entry (drying) their liquid goes with them (its invariant coefficients)."""
     nd = state[d]
     if not (nd > 0.0 and nd <= atol):
         return
     for i in range(state.shape[0]):
         saved[i] = state[i]
+    liquid = droplet_liquid_entry(config)
     for r in range(n_inv):
         p = pivots[r]
-        state[p] += coefs[r, d] * nd / coefs[r, p]
+        held = coefs[r, d] * nd + (coefs[r, liquid] * state[liquid] if liquid >= 0 else 0.0)
+        state[p] += held / coefs[r, p]
     state[d] = 0.0
+    if liquid >= 0:
+        state[liquid] = 0.0
     if not realizable(method, state, aux, params, config, work):
         for i in range(state.shape[0]):
             state[i] = saved[i]
+
+
+@nb.njit(cache=True)
+def _dry_out_droplets(state, d, params, config, rtol, atol):
+    """With a droplet-liquid entry (drying): free droplets whose liquid is numerically zero
+    (L_d in (0, atol] and below rtol of a fresh droplet's liquid per droplet) have dried; that
+    liquid joins the evaporated liquid (entry N_STATE - 2; both count alike in the invariants),
+    so that a pure liquid's d^2 law, whose rate grows without bound relative to L_d as it
+    vanishes, ends at exactly zero instead of in ever shorter steps."""
+    liquid = droplet_liquid_entry(config)
+    if liquid < 0:
+        return
+    held = state[liquid]
+    fresh = state[d] * droplet_liquid(params) / params[P.MASS_SCALE]
+    if held > 0.0 and held <= atol and held < rtol * fresh:
+        state[config[P.N_STATE] - 2] += held
+        state[liquid] = 0.0
 
 
 @nb.njit(cache=True)
@@ -487,6 +510,8 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
             if scheme != EXPLICIT and droplet >= 0:
                 _absorb_droplets(method, state, droplet, atol, pivots, coefs, n_inv, aux,
                                  local, config, work, buf[FTMP])
+            if droplet >= 0:
+                _dry_out_droplets(state, droplet, local, config, rtol, atol)
             project(method, state, aux, local, config, work)
             _rate_after_step(method, mode == 0, expo, crossed, state, buf, cell, aux, local,
                              config, work, n, stats)

@@ -29,6 +29,8 @@ import math
 import numba as nb
 
 from ..methods.dispatch import realizable, rhs
+from ..physics import parameters as P
+from ..physics.injection import droplet_liquid, droplet_liquid_entry
 from .codes import (ACCEPT, F0, FTMP, GCOL, KA, KB, KC, REJECT_ERROR, REJECT_NOT_FINITE,
                     REJECT_REALIZABILITY, STAGE, YNEW, YTMP)
 
@@ -60,7 +62,10 @@ def phi_functions(z, out):
 def capture_column(method, y, buf, cell, aux, params, config, work, d, n):
     """buf[GCOL] = d f / d n_d at y (exact: the RHS is linear in the droplet number), from one
     RHS evaluation at y with n_d raised (buf[F0] = f(y)). Returns the capture rate lambda
-    [1/s] (minus the droplet entry)."""
+    [1/s] (minus the droplet entry). With a droplet-liquid entry (drying) the droplets' liquid
+    is raised with their number at the class's liquid per droplet (a fresh droplet's where
+    there are none): the RHS is linear in the droplet population (n_d, L_d) at a fixed liquid
+    per droplet, so the column is that population's, and the exact part moves L_d with n_d."""
     yp = buf[YTMP]
     g = buf[GCOL]
     fp = buf[FTMP]
@@ -69,6 +74,11 @@ def capture_column(method, y, buf, cell, aux, params, config, work, d, n):
         yp[i] = y[i]
     delta = y[d] if y[d] > 0.0 else 1.0
     yp[d] = y[d] + delta
+    liquid = droplet_liquid_entry(config)
+    if liquid >= 0:
+        per_droplet = (y[liquid] / y[d] if y[d] > 0.0
+                       else droplet_liquid(params) / params[P.MASS_SCALE])
+        yp[liquid] = y[liquid] + delta * per_droplet
     rhs(method, yp, fp, cell, aux, params, config, work)
     step = yp[d] - y[d]
     for i in range(n):

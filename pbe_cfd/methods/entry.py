@@ -98,6 +98,9 @@ class MethodEntry(NamedTuple):
                     section 15) and its evaporated-liquid entry
     solute_droplets True if its free droplets of their own may carry binder solids
                     ([binder_injection] solids_fraction > 0: liquid b_d < mass p_d)
+    evaporates_droplets
+                    True if its free droplets of their own evaporate with [drying] (their
+                    liquid a state entry "droplet_liquid", docs/physics.md section 15)
     """
     name: str
     code: int
@@ -141,6 +144,7 @@ class MethodEntry(NamedTuple):
     table_build: Callable | None = None
     dries: bool = False
     solute_droplets: bool = True
+    evaporates_droplets: bool = False
 
     def order(self, method) -> int:
         """config[P.ORDER] of the scene's ``Method`` (its options' nodes, order; 0)."""

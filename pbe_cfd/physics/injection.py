@@ -15,6 +15,13 @@ def droplet_mass(diameter, binder_density):
 
 
 @nb.njit(cache=True, inline="always")
+def droplet_liquid_entry(config):
+    """State entry of the free droplets' liquid L_d (config[DROPLET_LIQUID] = 1: drying with
+    droplets of their own; the entries end L_d, evaporated liquid, n_d), -1 without."""
+    return config[P.N_STATE] - 3 if config[P.DROPLET_LIQUID] == 1 else -1
+
+
+@nb.njit(cache=True, inline="always")
 def droplet_liquid(params):
     """Liquid binder b_d = (1 - s) p_d [kg] of one droplet (p_d = params[DROPLET_MASS] [kg],
     s = params[DROPLET_SOLIDS] [-]); exactly p_d when s = 0."""

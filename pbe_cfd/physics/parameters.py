@@ -96,6 +96,8 @@ CONFIG = (
     ("BREAKAGE_DAUGHTERS", "code of the breakage daughter rule (physics.breakage)"),
     ("INTEGRATOR", "per-cell time integrator: 0 explicit, 1 implicit, 2 auto (integrate)"),
     ("DRYING", "1 if a [drying] table is present: the state holds the evaporated liquid"),
+    ("DROPLET_LIQUID", "1 if the state carries the free droplets' liquid (entry N_STATE - 3: "
+                       "drying with droplets of their own, which then evaporate)"),
 )
 #: a new single slot is one more name in CONFIG; the efficiency switches follow them
 N_SWITCHES_START = numbered(CONFIG, globals())

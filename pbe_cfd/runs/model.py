@@ -140,6 +140,9 @@ def pack(scene) -> Arrays:
         config[slot] = value
     names = method.state_names(scene)
     config[P.N_STATE] = len(names)
+    if "droplet_liquid" in names:       # entry N_STATE - 3 (``injection.droplet_liquid_entry``)
+        config[P.DROPLET_LIQUID] = 1
+        assert names.index("droplet_liquid") == len(names) - 3, names
     config[P.INTEGRATOR] = SCHEMES[scene.method.integrator]
     need = int(method.work_size(config))
     if need > WORK_SIZE:
@@ -194,6 +197,10 @@ def initial_moments(scene, arrays: Arrays, names) -> np.ndarray:
             continue
         if name == "evaporated_liquid":          # nothing has evaporated at the start
             continue
+        if name == "droplet_liquid":             # the initial droplets hold b_d each
+            state[idx] = nd0 * droplet_liquid(arrays.params) / (arrays.number_scale
+                                                                 * arrays.mass_scale)
+            continue
         i, j = int(name[1]), int(name[2])
         value = size_moment(scene, i, j)
         if not scene.separate_droplets and nd0 > 0.0:
@@ -215,7 +222,7 @@ def product_gel_time(scene) -> float | None:
 
 def _outputs_by_row(out, rows, states, names, cols, nd, pd, bd, n_ref, p_ref, rho):
     """``moment_outputs``'s moments, d32 and d43 row by row (populations of different
-    sizes): see there."""
+    sizes): see there; pd, bd [kg] one droplet's mass and liquid, per row."""
     for r, (w, p, b) in enumerate(rows):
         state = states[r]
         estimated = columns_from_particles(w, p, b, cols)
@@ -223,10 +230,25 @@ def _outputs_by_row(out, rows, states, names, cols, nd, pd, bd, n_ref, p_ref, rh
             k = int(c[1]) + int(c[2])
             value = (state[names.index(c)] * n_ref * p_ref ** k if c in names
                      else estimated[c])
-            out[c][r] = value + nd[r] * droplet_moment(pd, bd, int(c[1]), int(c[2]))
+            out[c][r] = value + nd[r] * droplet_moment(pd[r], bd[r], int(c[1]), int(c[2]))
         ww = np.append(w, nd[r]) if nd[r] > 0 else w
-        pp = np.append(p, pd) if nd[r] > 0 else p
+        pp = np.append(p, pd[r]) if nd[r] > 0 else p
         out["d32_m"][r], out["d43_m"][r] = mean_diameters(ww, pp, rho)
+
+
+def droplet_points(arrays: Arrays, states: np.ndarray, nd: np.ndarray):
+    """(mass [kg], liquid [kg]) of one free droplet in each row of scaled ``states`` (nd
+    [1/m3] the rows' droplets): (p_d, b_d), or with a "droplet_liquid" entry (drying) the
+    class's mean liquid l = L_d / n_d and the mass s p_d + l (b_d where there are none)."""
+    pd = arrays.droplet_mass
+    bd = float(droplet_liquid(arrays.params))
+    n_rows = states.shape[0]
+    if "droplet_liquid" not in arrays.state_names:
+        return np.full(n_rows, pd), np.full(n_rows, bd)
+    held = states[:, arrays.state_names.index("droplet_liquid")] * (arrays.number_scale
+                                                                    * arrays.mass_scale)
+    liquid = np.where(nd > 0, np.maximum(held, 0.0) / np.where(nd > 0, nd, 1.0), bd)
+    return (pd - bd) + liquid, liquid
 
 
 def _liquid_columns(out, evaporated, in_droplets):
@@ -269,9 +291,9 @@ def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
     if n_rows == 0:
         return out
     nd = states[:, -1] * n_ref if separate else np.zeros(n_rows)
+    pd_rows, bd_rows = droplet_points(arrays, states, nd)
     if len({len(w) for w, _, _ in rows}) > 1:       # populations of different sizes
-        _outputs_by_row(out, rows, states, names, cols, nd, pd, droplet_liquid(arrays.params),
-                        n_ref, p_ref, rho)
+        _outputs_by_row(out, rows, states, names, cols, nd, pd_rows, bd_rows, n_ref, p_ref, rho)
     else:                                            # one (rows, particles) array each
         w_all, p_all, b_all = (np.array([r[k] for r in rows], dtype=float) for k in range(3))
         estimated = columns_from_particle_rows(w_all, p_all, b_all,
@@ -280,8 +302,10 @@ def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
             k = int(c[1]) + int(c[2])
             value = (states[:, names.index(c)] * n_ref * p_ref ** k if c in names
                      else estimated[c])
-            out[c][:] = value + nd * droplet_moment(pd, droplet_liquid(arrays.params),
-                                                    int(c[1]), int(c[2]))
+            out[c][:] = value + nd * (droplet_moment(pd, droplet_liquid(arrays.params),
+                                                     int(c[1]), int(c[2]))
+                                      if "droplet_liquid" not in names
+                                      else pd_rows ** int(c[1]) * bd_rows ** int(c[2]))
         with_droplets = nd > 0
         for sel in (with_droplets, ~with_droplets):
             if not np.any(sel):
@@ -289,13 +313,13 @@ def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
             ww, pp = w_all[sel], p_all[sel]
             if sel is with_droplets:
                 ww = np.hstack([ww, nd[sel, None]])
-                pp = np.hstack([pp, np.full((pp.shape[0], 1), pd)])
+                pp = np.hstack([pp, pd_rows[sel, None]])
             out["d32_m"][sel], out["d43_m"][sel] = mean_diameters_rows(ww, pp, rho)
     if separate:
         out["droplet_number_density"][:] = nd
     if "evaporated_liquid" in names:
         _liquid_columns(out, states[:, names.index("evaporated_liquid")] * n_ref * p_ref,
-                        nd * droplet_liquid(arrays.params))
+                        nd * bd_rows)
     m10 = out["M10"]
     out["binder_fraction"][:] = (np.where(m10 > 0, out["M01"] / np.where(m10 > 0, m10, 1.0),
                                           0.0) if bivariate else 0.0)

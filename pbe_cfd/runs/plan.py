@@ -74,6 +74,10 @@ def describe_plan(scene) -> str:
         left_out.append("drying (no [drying] table)")
     else:
         lines.extend(_drying_lines(scene.drying))
+        if scene.separate_droplets:
+            lines.append("    free droplets evaporate: their liquid L_d carried beside their "
+                         "number, each droplet at the class's mean liquid (d^2 law of the "
+                         "liquid sphere, then the skeleton's periods)")
         lines.extend(air_lines(scene))
     if scene.transport is None:
         if dom.type == "openfoam":

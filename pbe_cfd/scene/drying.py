@@ -89,6 +89,13 @@ def drying_refusals(scene, methods):
     air = _air_refusals(scene)
     if air:
         return air
+    entry = next(m for m in methods if m.name == scene.method.name)
+    if scene.separate_droplets and not entry.evaporates_droplets:
+        evaporate = [m.name for m in methods if m.evaporates_droplets]
+        return [("aggregation.droplet_factor",
+                 f"the {entry.name} method's free droplets do not evaporate: expected no "
+                 f"droplet_factor with [drying], or method.name = "
+                 f"{' or '.join(repr(n) for n in evaporate)}")]
     inj = scene.binder_injection
     if inj is not None and not scene.separate_droplets and inj.solids_fraction == 0.0:
         return [("binder_injection.solids_fraction",

@@ -34,10 +34,12 @@ import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
+from ...physics.injection import droplet_liquid_entry
 from ...physics.properties import N_PROPS
 from .conditional import fraction_moments, gauss_unit_interval, restore_binder_mass
 from ..qmom.qmom import qmom_conserved
 from ..quadrature.binder import solve_node_binder
+from ..quadrature.drying_sources import tail_entries
 from ..quadrature.gauss import wheeler_nodes
 
 _as_strided = np.lib.stride_tricks.as_strided
@@ -52,17 +54,20 @@ MAX_BINDER_NODES = 3
 def state_length(nodes, binder_nodes, bivariate, separate_droplets, drying=False):
     """Number of entries of one cell's CQMOM state."""
     mixed = nodes * (2 * binder_nodes - 1) if bivariate else 0
-    return 2 * nodes + mixed + (1 if drying else 0) + (1 if separate_droplets else 0)
+    return (2 * nodes + mixed + (1 if drying else 0) + (1 if separate_droplets else 0)
+            + (1 if drying and separate_droplets else 0))
 
 
 def state_names(nodes, binder_nodes, bivariate, separate_droplets, drying=False):
-    """Names of the state entries: 'M{i}{j}' in state order, 'evaporated_liquid' (with
-    drying: the liquid evaporated so far, scaled as a mass moment, as QMOM), then
-    'droplet_number_density'."""
+    """Names of the state entries: 'M{i}{j}' in state order, 'droplet_liquid' (drying with
+    separate droplets), 'evaporated_liquid' (with drying: the liquid evaporated so far, scaled
+    as a mass moment, as QMOM), then 'droplet_number_density'."""
     names = [f"M{k}0" for k in range(2 * nodes)]
     if bivariate:
         for l in range(1, 2 * binder_nodes):
             names += [f"M{k}{l}" for k in range(nodes)]
+    if drying and separate_droplets:
+        names.append("droplet_liquid")
     if drying:
         names.append("evaporated_liquid")
     if separate_droplets:
@@ -298,8 +303,8 @@ def _project_into(state, target, config, work, n):
                 for k in range(n_max):
                     target[mixed_index(n_max, k, l)] += power
                     power *= work[a]
-    for k in range(n_state - config[P.SEPARATE_DROPLETS] - config[P.DRYING], n_state):
-        target[k] = state[k]         # the evaporated liquid and the droplets, as carried
+    for k in range(n_state - tail_entries(config), n_state):
+        target[k] = state[k]         # the droplets' and the evaporated liquid, the droplets
 
 
 @nb.njit(cache=True)
@@ -339,8 +344,10 @@ def cqmom_realizable(state, aux, params, config, work):
         return False
     if config[P.DRYING] == 1 and state[n_state - 1 - separate] < 0.0:
         return False
+    if droplet_liquid_entry(config) >= 0 and state[droplet_liquid_entry(config)] < 0.0:
+        return False
     if state[0] == 0.0:
-        for k in range(n_state - separate - config[P.DRYING]):
+        for k in range(n_state - tail_entries(config)):
             if state[k] != 0.0:
                 return False
         return True
@@ -420,7 +427,7 @@ def cqmom_project(state, aux, params, config, work):
     target = work[ot:ot + n_state]
     _project_into(state, target, config, work, n)
     m01 = 2 * n_max
-    for k in range(2, n_state - config[P.SEPARATE_DROPLETS] - config[P.DRYING]):
+    for k in range(2, n_state - tail_entries(config)):
         if k != m01:
             state[k] = target[k]
 

@@ -65,4 +65,4 @@ ENTRY = MethodEntry(
     accuracy_knobs=lambda quick: tuple(
         (f"N1={n1} N2={n2}", {"nodes": n1, "binder_nodes": n2})
         for n1, n2 in (((2, 2),) if quick else ((2, 2), (3, 2), (3, 3), (4, 2)))),
-    dries=True)
+    dries=True, evaporates_droplets=True)

@@ -14,7 +14,7 @@ quantities are scaled (see ``methods.cqmom``); no allocation.
 import numba as nb
 
 from ...physics import parameters as P
-from ...physics.injection import droplet_liquid
+from ...physics.injection import droplet_liquid, droplet_liquid_entry
 from ...physics.breakage import daughter_moment_factor
 from ...physics.efficiency import efficiency_property_groups, pair_success_probability
 from ...physics.kernels import (kernel_cell_factor, kernel_property_groups, kernel_uses_d43,
@@ -23,7 +23,8 @@ from ...physics.properties import (BINDER_LAYER, DIAMETER, EKE_CBRT, EKE_INV, IN
                                    WETTING, fill_properties)
 from ...physics.rates import particle_properties
 from ..quadrature.breakage_sources import cell_selection_factor, node_selection_rate
-from ..quadrature.drying_sources import drift_moment_rate, point_drying_rate
+from ..quadrature.drying_sources import (add_droplet_class_terms, drift_moment_rate,
+                                         droplet_point, point_drying_rate)
 from .cqmom import (invert_cached, mixed_index, off_acc, off_bpowers, off_counts, off_points,
                     off_powers, props_view)
 
@@ -188,11 +189,11 @@ def _droplet_capture(out, state, work, n_max, m, n, factor, u0, params, config, 
     acc = off_acc(n_max, m)
     lmax = 2 * m if bivariate else 1
     n_size = 2 * n_max
-    pd = params[P.DROPLET_MASS]
+    pd, bd = droplet_point(state, params, config)          # one droplet now (p_d, b_d: fresh)
     xd = pd / params[P.MASS_SCALE]
-    xl = droplet_liquid(params) / params[P.MASS_SCALE]     # the droplet's liquid binder
+    xl = bd / params[P.MASS_SCALE]                         # the droplet's liquid binder
     drop = n_max * m
-    particle_properties(pd, droplet_liquid(params), params, config, props, drop)
+    particle_properties(pd, bd, params, config, props, drop)
     droplet_factor = params[P.NUMBER_SCALE] * params[P.DROPLET_FACTOR]
     code = config[P.KERNEL]
     captured = 0.0
@@ -237,6 +238,7 @@ def _droplet_capture(out, state, work, n_max, m, n, factor, u0, params, config, 
             for l in range(1, lmax):
                 out[mixed_index(n_max, 0, l)] += work[acc + 8 * m + lmax + l]
     out[n_state - 1] -= captured
+    return captured
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -395,10 +397,15 @@ def cqmom_rhs(state, out, cell, aux, params, config, work):
     xd = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
     xl = droplet_liquid(params) / params[P.MASS_SCALE]
     if separate:
-        if state[n_state - 1] > 0.0 and factor != 0.0 and n > 0:
-            _droplet_capture(out, state, work, n_max, m, n, factor, u0, params, config,
-                             bivariate)
+        captured = 0.0
+        pd, bd = droplet_point(state, params, config)
+        if (state[n_state - 1] > 0.0 and factor != 0.0 and n > 0
+                and (pd > 0.0 or droplet_liquid_entry(config) < 0)):
+            captured = _droplet_capture(out, state, work, n_max, m, n, factor, u0, params,
+                                        config, bivariate)
         out[n_state - 1] += inj
+        add_droplet_class_terms(state, out, inj, captured, bd / params[P.MASS_SCALE], params,
+                                config)
     elif inj != 0.0:
         # droplets as ordinary particles: S_kl = rate x_d^k x_l^l
         value = inj

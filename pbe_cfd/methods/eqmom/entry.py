@@ -90,7 +90,7 @@ ENTRY = MethodEntry(
     repairs_mixture=lambda scene: True,
     # its droplet sources take the droplet as pure binder liquid (b = p_d): the scene refuses
     # a solids fraction with droplets of their own for it
-    solute_droplets=False, dries=True,
+    solute_droplets=False, dries=True, evaporates_droplets=True,
     rhs=eqmom_rhs, realizable=eqmom_realizable, project=eqmom_project,
     conserved=eqmom_conserved,
     work_size=lambda config: S.work_size(int(config[P.ORDER]), int(config[P.N_STATE])),

@@ -15,13 +15,15 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.breakage import cell_selection_factor, daughter_moment_factor
-from ...physics.injection import droplet_liquid
+from ...physics.injection import droplet_liquid_entry
 from ...physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ...physics.properties import DIAMETER, N_PROPS
 from ...physics.rates import pair_rate, particle_properties
 from ..quadrature.aggregation_sources import add_pair_sources
 from ..quadrature.breakage_sources import node_selection_rate
-from ..quadrature.drying_sources import drift_moment_rate, point_drying_rate
+from ..quadrature.drying_sources import (add_droplet_class_terms, drift_moment_rate,
+                                         droplet_point, point_drying_rate,
+                                         set_droplet_invariants, tail_entries)
 import pbe_cfd.methods.quadrature.gamma_inversion as I
 import pbe_cfd.methods.eqmom.state as S
 
@@ -64,14 +66,16 @@ def _droplets(state, out, X, W, B, m, props, factor, u0, cell, n_size, n_max, bi
     n_state = config[P.N_STATE]
     number_scale = params[P.NUMBER_SCALE]
     inj = cell[P.INJECTION] / number_scale
-    pd = params[P.DROPLET_MASS]
+    pd, bd = droplet_point(state, params, config)   # one droplet now (p_d, b_d = p_d: fresh)
     xd = pd / params[P.MASS_SCALE]
+    xl = bd / params[P.MASS_SCALE]
     row = S.max_particles(n_max)
     if config[P.SEPARATE_DROPLETS] == 1:
         nd = state[n_state - 1]
-        if nd > 0.0 and factor != 0.0 and m > 0:
-            particle_properties(pd, pd, params, config, props, row)
-            captured = 0.0
+        captured = 0.0
+        if (nd > 0.0 and factor != 0.0 and m > 0
+                and (pd > 0.0 or droplet_liquid_entry(config) < 0)):
+            particle_properties(pd, bd, params, config, props, row)
             droplet_factor = number_scale * params[P.DROPLET_FACTOR]
             for a in range(m):
                 flux = nd * W[a] * droplet_factor * pair_rate(props, a, row, factor, u0,
@@ -91,14 +95,14 @@ def _droplets(state, out, X, W, B, m, props, factor, u0, cell, n_size, n_max, bi
                     pa = 1.0
                     total = 1.0
                     for k in range(n_max):
-                        out[n_size + k] += flux * (ba * h + xd * total)
+                        out[n_size + k] += flux * (ba * h + xl * total)
                         h = s * h + xd * pa
                         pa *= xa
                         total *= s
             out[n_state - 1] -= captured
         out[n_state - 1] += inj
+        add_droplet_class_terms(state, out, inj, captured, xl, params, config)
     elif inj != 0.0:
-        xl = droplet_liquid(params) / params[P.MASS_SCALE]    # a solution's liquid (x_d: pure)
         value = inj
         for k in range(n_size):
             out[k] += value
@@ -187,7 +191,7 @@ def eqmom_conserved(config, params, pivots, coefs):
             coefs[r, k] = 0.0
         pivots[r] = 1 if r == 0 else 2 * n_max + 1
         coefs[r, pivots[r]] = 1.0
-        if separate:
+        if separate and not set_droplet_invariants(coefs, r, params, config):
             coefs[r, n_state - 1] = xd
         if config[P.DRYING] == 1:        # what evaporates leaves M10 and M01 for this entry
             coefs[r, n_state - 1 - config[P.SEPARATE_DROPLETS]] = 1.0
@@ -230,8 +234,10 @@ def eqmom_realizable(state, aux, params, config, work):
         return False
     if config[P.DRYING] == 1 and state[n_state - 1 - config[P.SEPARATE_DROPLETS]] < 0.0:
         return False
+    if droplet_liquid_entry(config) >= 0 and state[droplet_liquid_entry(config)] < 0.0:
+        return False
     if state[0] == 0.0:
-        for k in range(n_state - config[P.SEPARATE_DROPLETS] - config[P.DRYING]):
+        for k in range(n_state - tail_entries(config)):
             if state[k] != 0.0:
                 return False
         return True

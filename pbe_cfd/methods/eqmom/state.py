@@ -95,15 +95,17 @@ def work_size(n_max, n_state):
 def state_length(nodes, bivariate, separate_droplets, drying=False):
     """Number of entries of one cell's EQMOM state (N kernels)."""
     return (2 * nodes + 1 + (nodes if bivariate else 0) + (1 if drying else 0)
-            + (1 if separate_droplets else 0))
+            + (1 if separate_droplets else 0) + (1 if drying and separate_droplets else 0))
 
 
 def state_names(nodes, bivariate, separate_droplets, drying=False):
-    """Names of the state entries: 'M{i}{j}', 'evaporated_liquid' (with drying, as QMOM),
-    then 'droplet_number_density'."""
+    """Names of the state entries: 'M{i}{j}', 'droplet_liquid' and 'evaporated_liquid' (with
+    drying, as QMOM), then 'droplet_number_density'."""
     names = [f"M{k}0" for k in range(2 * nodes + 1)]
     if bivariate:
         names += [f"M{k}1" for k in range(nodes)]
+    if drying and separate_droplets:
+        names.append("droplet_liquid")
     if drying:
         names.append("evaporated_liquid")
     if separate_droplets:

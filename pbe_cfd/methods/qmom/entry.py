@@ -50,4 +50,4 @@ ENTRY = MethodEntry(
     moments_text="from the quadrature nodes (one binder value per size node)",
     accuracy_knobs=lambda quick: tuple((f"N={n}", {"nodes": n})
                                        for n in ((1, 2, 3) if quick else (1, 2, 3, 4))),
-    dries=True)
+    dries=True, evaporates_droplets=True)

@@ -5,6 +5,8 @@ N_ref = params[NUMBER_SCALE] [1/m3] and p_ref = params[MASS_SCALE] [kg] for both
 
     [M_00, M_10, ..., M_(2N-1)0]                 size moments, 2N entries
     [M_01, M_11, ..., M_(N-1)1]                  binder-weighted moments (bivariate only), N entries
+    [L_d]                                        free droplets' liquid (drying, separate droplets)
+    [E]                                          evaporated liquid (drying)
     [n_d]                                        free droplets (only with separate droplets)
 
 The N-node quadrature (Wheeler, Golub-Welsch) of the size moments gives masses p_a and weights
@@ -18,13 +20,14 @@ import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
-from ...physics.injection import droplet_liquid
+from ...physics.injection import droplet_liquid, droplet_liquid_entry
 from ...physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ...physics.properties import DIAMETER, N_PROPS
 from ...physics.rates import pair_rate, particle_properties
 from ..quadrature.aggregation_sources import add_pair_sources
 from ..quadrature.breakage_sources import add_qmom_breakage
-from ..quadrature.drying_sources import add_qmom_drying
+from ..quadrature.drying_sources import (add_droplet_class_terms, add_qmom_drying,
+                                         droplet_point, set_droplet_invariants, tail_entries)
 from ..quadrature.binder import solve_node_binder
 from ..quadrature.gauss import wheeler_nodes
 
@@ -45,15 +48,19 @@ BINDER_TOLERANCE = 1.0e-6
 def state_length(nodes, bivariate, separate_droplets, drying=False):
     """Number of entries of one cell's QMOM state."""
     return (2 * nodes + (nodes if bivariate else 0) + (1 if drying else 0)
-            + (1 if separate_droplets else 0))
+            + (1 if separate_droplets else 0) + (1 if drying and separate_droplets else 0))
 
 
 def state_names(nodes, bivariate, separate_droplets, drying=False):
-    """Names of the state entries: moment names 'M{i}{j}', 'evaporated_liquid' (with drying:
-    the liquid evaporated so far, scaled as a mass moment), then 'droplet_number_density'."""
+    """Names of the state entries: moment names 'M{i}{j}', 'droplet_liquid' (with drying and
+    separate droplets: the free droplets' liquid, scaled as a mass moment), 'evaporated_liquid'
+    (with drying: the liquid evaporated so far, scaled as a mass moment), then
+    'droplet_number_density'."""
     names = [f"M{k}0" for k in range(2 * nodes)]
     if bivariate:
         names += [f"M{k}1" for k in range(nodes)]
+    if drying and separate_droplets:
+        names.append("droplet_liquid")
     if drying:
         names.append("evaporated_liquid")
     if separate_droplets:
@@ -189,14 +196,15 @@ def _droplet_sources(state, out, cell, params, config, nodes, weights, binder, p
     number_scale = params[P.NUMBER_SCALE]
     mass_scale = params[P.MASS_SCALE]
     inj = cell[P.INJECTION] / number_scale
-    pd = params[P.DROPLET_MASS]
+    pd, bd = droplet_point(state, params, config)   # one droplet now (p_d, b_d: fresh)
     xd = pd / mass_scale
-    xl = droplet_liquid(params) / mass_scale      # the droplet's liquid (xl = xd: pure)
+    xl = bd / mass_scale                          # the droplet's liquid (xl = xd: pure)
     if config[P.SEPARATE_DROPLETS] == 1:
         nd = state[n_state - 1]
-        if nd > 0.0 and factor != 0.0 and n > 0:
-            particle_properties(pd, droplet_liquid(params), params, config, props, n_max)
-            captured = 0.0
+        captured = 0.0
+        if (nd > 0.0 and factor != 0.0 and n > 0
+                and (pd > 0.0 or droplet_liquid_entry(config) < 0)):
+            particle_properties(pd, bd, params, config, props, n_max)
             droplet_factor = number_scale * params[P.DROPLET_FACTOR]
             for a in range(n):
                 rate = droplet_factor * pair_rate(props, a, n_max, factor, u0, params, config)
@@ -224,6 +232,7 @@ def _droplet_sources(state, out, cell, params, config, nodes, weights, binder, p
                         total *= s
             out[n_state - 1] -= captured
         out[n_state - 1] += inj
+        add_droplet_class_terms(state, out, inj, captured, xl, params, config)
     elif inj != 0.0:
         value = inj
         for k in range(n_size):
@@ -303,7 +312,7 @@ def qmom_conserved(config, params, pivots, coefs):
             coefs[r, k] = 0.0
         pivots[r] = 1 if r == 0 else 2 * n_max
         coefs[r, pivots[r]] = 1.0
-        if separate:
+        if separate and not set_droplet_invariants(coefs, r, params, config):
             coefs[r, n_state - 1] = xd if r == 0 else xl
         if config[P.DRYING] == 1:        # what evaporates leaves M10 and M01 for this entry
             coefs[r, n_state - 1 - config[P.SEPARATE_DROPLETS]] = 1.0
@@ -351,8 +360,10 @@ def qmom_realizable(state, aux, params, config, work):
         return False
     if config[P.DRYING] == 1 and state[n_state - 1 - config[P.SEPARATE_DROPLETS]] < 0.0:
         return False
+    if droplet_liquid_entry(config) >= 0 and state[droplet_liquid_entry(config)] < 0.0:
+        return False
     if state[0] == 0.0:
-        for k in range(n_state - config[P.SEPARATE_DROPLETS] - config[P.DRYING]):
+        for k in range(n_state - tail_entries(config)):
             if state[k] != 0.0:
                 return False
         return True

@@ -16,6 +16,7 @@ import numba as nb
 
 from ...physics import parameters as P
 from ...physics.drying import drying_rate
+from ...physics.injection import droplet_liquid, droplet_liquid_entry
 
 
 @nb.njit(cache=True, inline="always")
@@ -57,3 +58,72 @@ def add_qmom_drying(out, nodes, weights, binder, n, params, config):
             out[k] += drift_moment_rate(k, 0, x, b, rate)
         for k in range(n_max):
             out[n_size + k] += drift_moment_rate(k, 1, x, b, rate)
+
+
+# ---- free droplets of their own (docs/physics.md section 15, "Free droplets' evaporation") --
+# With drying the droplet class carries its liquid L_d (state entry ``droplet_liquid_entry``,
+# scaled as a mass moment) beside its number n_d (the last entry): the one-mass closure gives
+# every droplet the class's mean liquid l = L_d / n_d and its solids s p_d, so a droplet is the
+# point (s p_d + l, l); it evaporates at e(s p_d + l, l) (the liquid sphere's d^2 law, then the
+# skeleton's periods for a solution), E_d = n_d e(L_d / n_d), and a capture hands the granule
+# that point. Without the entry (config[DROPLET_LIQUID] = 0) a droplet is (p_d, b_d).
+
+
+@nb.njit(cache=True)
+def droplet_point(state, params, config):
+    """(mass [kg], liquid [kg]) of one free droplet of the cell's state: (p_d, b_d) without a
+    droplet-liquid entry; with it (s p_d + l, l), l = L_d / n_d >= 0 the class's mean liquid
+    (a fresh droplet's b_d while the class is empty)."""
+    pd = params[P.DROPLET_MASS]
+    bd = droplet_liquid(params)
+    entry = droplet_liquid_entry(config)
+    if entry < 0:
+        return pd, bd
+    nd = state[config[P.N_STATE] - 1]
+    if not nd > 0.0:
+        return pd, bd
+    liquid = max(state[entry] / nd, 0.0) * params[P.MASS_SCALE]
+    return (pd - bd) + liquid, liquid
+
+
+@nb.njit(cache=True)
+def add_droplet_class_terms(state, out, injection, captured, liquid, params, config):
+    """With a droplet-liquid entry: its injection (``injection`` scaled droplets per s, each
+    with b_d), its capture (``captured`` scaled droplets per s, each with ``liquid``, scaled)
+    and its evaporation n_d e(droplet point) into ``out``, the evaporated liquid (entry
+    N_STATE - 2) gaining what evaporates. Without the entry nothing."""
+    entry = droplet_liquid_entry(config)
+    if entry < 0:
+        return
+    scale = params[P.MASS_SCALE]
+    out[entry] += injection * (droplet_liquid(params) / scale) - captured * liquid
+    nd = state[config[P.N_STATE] - 1]
+    if not nd > 0.0:
+        return
+    p, b = droplet_point(state, params, config)
+    rate = nd * drying_rate(p, b, params[P.DRY_SLIP], params) / scale
+    out[entry] -= rate
+    out[config[P.N_STATE] - 2] += rate
+
+
+@nb.njit(cache=True, inline="always")
+def tail_entries(config):
+    """Number of state entries after the moments: the droplets' liquid, the evaporated liquid
+    and the droplet number, those present."""
+    return (config[P.SEPARATE_DROPLETS] + config[P.DRYING]
+            + (1 if droplet_liquid_entry(config) >= 0 else 0))
+
+
+@nb.njit(cache=True)
+def set_droplet_invariants(coefs, r, params, config):
+    """Row r of the linear invariants (r = 0: mass, 1: liquid binder) for the droplet entries
+    with a droplet-liquid entry: the mass row counts the droplets' solids s p_d n_d and their
+    liquid L_d, the liquid row L_d. Returns False (nothing set) without the entry."""
+    entry = droplet_liquid_entry(config)
+    if entry < 0:
+        return False
+    pd = params[P.DROPLET_MASS]
+    coefs[r, config[P.N_STATE] - 1] = ((pd - droplet_liquid(params)) / params[P.MASS_SCALE]
+                                       if r == 0 else 0.0)
+    coefs[r, entry] = 1.0
+    return True

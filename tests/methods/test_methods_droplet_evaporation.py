@@ -1,0 +1,196 @@
+"""Free droplets of their own evaporate with [drying] (docs/physics.md section 15, "Free
+droplets' evaporation") in every method that carries them: QMOM, CQMOM and EQMOM.
+
+Closed forms: an initial charge of N_d free droplets, no capture (droplet_factor = 0), dry
+granules (nothing else dries), slip 0 (Sh = 2). All droplets have the same age, so the
+class's mean liquid L_d / N_d is every droplet's liquid b(t) and the one-mass closure is exact:
+
+- pure liquid: the liquid sphere's d^2 law, e = 2 pi d D_v rho_g dY with b = rho_l pi d^3 / 6,
+  so d(d^2)/dt = -8 D_v rho_g dY / rho_l and b(t) = b0 (1 - t / tau)^(3/2),
+  tau = rho_l d0^2 / (8 D_v rho_g dY); the droplets end at zero mass at tau and stay there;
+- a solution (s = 0.1): the liquid sphere (diameter from the liquid alone) shrinks by the
+  same law until it reaches the skeleton's diameter d_s = (6 s p_d / (pi rho_s))^(1/3), then
+  the skeleton's constant rate 2 pi d_s D_v rho_g dY down to X_cr s p_d, then the falling
+  rate, exponential with the time X_cr s p_d / e_c.
+
+The liquid held by the droplets is L_d = N_d b(t) (the M01 column, the granules being dry),
+the evaporated liquid N_d (b0 - b). Tolerance 1e-8 of N_d b0 (rtol 1e-11 on the scaled state,
+as tests/physics/test_drying.py).
+"""
+import math
+
+import numpy as np
+import pytest
+
+from conftest import make_scene
+from pbe_cfd.physics import drying
+from pbe_cfd.runs.simulate import run_well_mixed
+
+RHO_S = 1021.0       # kg/m3, granules and the solution's skeleton
+RHO_L = 1000.0       # kg/m3
+D0 = 60e-6           # m, droplet diameter
+ND = 1.0e9           # 1/m3 free droplets
+AIR = {"air_temperature": 333.15, "air_humidity": 0.005, "slip_velocity": 0.0}
+TOL = 1.0e-8
+METHODS = {
+    "qmom": {"name": "qmom", "nodes": 2},
+    "cqmom": {"name": "cqmom", "nodes": 2, "binder_nodes": 2},
+    "eqmom": {"name": "eqmom", "nodes": 2},
+}
+
+
+def _k():
+    """D_v rho_g (Y_s(T_wb) - Y) [kg/(m s)] of the scene's air."""
+    rho, _, diff, _, driving = drying.gas_state(AIR["air_temperature"], AIR["air_humidity"],
+                                                101325.0)
+    return diff * rho * driving
+
+
+def _scene(solids, end, x_cr, method, tolerances=True):
+    return make_scene(scene={"end_time": end, "output_interval": end / 30},
+                      material={"density": RHO_S, "binder_density": RHO_L},
+                      initial={"mean_mass": 1e-9, "number_density": 1e10,
+                               "binder_fraction": 0.0, "droplet_number_density": ND},
+                      aggregation={"kernel": "constant", "rate": 1e-30,
+                                   "droplet_factor": 0.0},
+                      binder_injection={"rate": 0.0, "droplet_diameter": D0,
+                                        "solids_fraction": solids},
+                      drying={**AIR, "critical_moisture": x_cr},
+                      method={"_replace": True, **method,
+                              **({"rtol": 1e-11, "atol": 1e-16} if tolerances else {})})
+
+
+def _pure_liquid(t):
+    """b(t) [kg] of a pure-liquid droplet (module docstring)."""
+    b0 = RHO_L * math.pi / 6.0 * D0 ** 3
+    tau = RHO_L * D0 ** 2 / (8.0 * _k())
+    return b0 * max(1.0 - t / tau, 0.0) ** 1.5, tau
+
+
+def _solution(t, s, x_cr):
+    """b(t) [kg] of a droplet of solution (module docstring) and the times the liquid sphere
+    and the constant-rate period end [s]."""
+    k = _k()
+    pd = RHO_L * math.pi / 6.0 * D0 ** 3
+    ms = s * pd
+    d_l0 = (6.0 * (1.0 - s) * pd / (math.pi * RHO_L)) ** (1.0 / 3.0)
+    d_s = (6.0 * ms / (math.pi * RHO_S)) ** (1.0 / 3.0)
+    t1 = RHO_L * (d_l0 ** 2 - d_s ** 2) / (8.0 * k)
+    if t <= t1:
+        return RHO_L * math.pi / 6.0 * (d_l0 ** 2 - 8.0 * k * t / RHO_L) ** 1.5, t1, None
+    b1 = RHO_L * math.pi / 6.0 * d_s ** 3
+    ec = 2.0 * math.pi * d_s * k
+    t2 = t1 + (b1 - x_cr * ms) / ec
+    if t <= t2:
+        return b1 - ec * (t - t1), t1, t2
+    return x_cr * ms * math.exp(-(t - t2) * ec / (x_cr * ms)), t1, t2
+
+
+def _check(c, b, b0):
+    scale = ND * b0
+    assert np.allclose(c["liquid_droplets"], ND * b, rtol=0.0, atol=TOL * scale)
+    assert np.allclose(c["M01"], ND * b, rtol=0.0, atol=TOL * scale)
+    assert np.allclose(c["liquid_evaporated"], ND * (b0 - b), rtol=0.0, atol=TOL * scale)
+    assert np.allclose(c["droplet_number_density"], ND, rtol=1e-14, atol=0.0)
+    assert np.all(c["liquid_droplets"] >= 0.0)
+
+
+@pytest.mark.parametrize("method", sorted(METHODS))
+def test_pure_liquid_droplets_evaporate_by_the_d2_law_to_zero_mass(method):
+    _, tau = _pure_liquid(0.0)
+    res = run_well_mixed(_scene(0.0, 1.5 * tau, 0.05, METHODS[method]))
+    c = res.columns
+    t = c["time_s"]
+    b = np.array([_pure_liquid(x)[0] for x in t])
+    b0 = b[0]
+    _check(c, b, b0)
+    after = t > tau
+    assert after.sum() >= 5 and (t < 0.9 * tau).sum() >= 15
+    # at zero mass the droplets stay: no liquid left, none negative, all of it evaporated
+    assert np.all(c["liquid_droplets"][after] == 0.0)
+    assert np.allclose(c["liquid_evaporated"][after], ND * b0, rtol=1e-12, atol=0.0)
+
+
+@pytest.mark.parametrize("method", ["qmom", "cqmom"])
+def test_solution_droplets_shrink_then_dry_on_their_skeleton(method):
+    s, x_cr = 0.1, 0.5
+    _, t1, t2 = _solution(1e9, s, x_cr)
+    ms = s * RHO_L * math.pi / 6.0 * D0 ** 3
+    d_s = (6.0 * ms / (math.pi * RHO_S)) ** (1.0 / 3.0)
+    tail = x_cr * ms / (2.0 * math.pi * d_s * _k())          # the falling-rate time
+    res = run_well_mixed(_scene(s, t2 + 3.0 * tail, x_cr, METHODS[method]))
+    c = res.columns
+    t = c["time_s"]
+    b = np.array([_solution(x, s, x_cr)[0] for x in t])
+    _check(c, b, b[0])
+    # every period is sampled
+    assert (t < t1).sum() >= 5 and ((t > t1) & (t < t2)).sum() >= 2 and (t > t2).sum() >= 5
+
+
+@pytest.mark.parametrize("method", [{"name": "laguerre", "order": 3},
+                                    {"name": "cnmc", "particles": 64, "replicas": 2}])
+def test_methods_whose_droplets_do_not_evaporate_refuse_drying_with_free_droplets(method):
+    from pbe_cfd.scene.scene import SceneError
+    with pytest.raises(SceneError) as err:
+        _scene(0.0, 1.0, 0.05, method, tolerances=False)
+    assert err.value.key == "aggregation.droplet_factor"
+    assert "do not evaporate" in str(err.value)
+
+
+def _steady_share(eps):
+    """Share of the sprayed liquid the droplet class evaporates at a constant spray in the
+    one-mass closure (docs/physics.md section 15), slip 0: the steady state of
+    dL_d/dt = R b0 - kappa L_d - n_d e(l), n_d = R / kappa, e(l) = e(b0) (l / b0)^(1/3) and
+    e(b0) = 3 b0 / (2 tau), so x = l / b0 solves x = 1 - (3 eps / 2) x^(1/3), eps = 1 /
+    (kappa tau), and the share is (3 eps / 2) x^(1/3). Bisection."""
+    lo, hi = 0.0, 1.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if mid - 1.0 + 1.5 * eps * mid ** (1.0 / 3.0) > 0.0:
+            hi = mid
+        else:
+            lo = mid
+    return 1.5 * eps * (0.5 * (lo + hi)) ** (1.0 / 3.0)
+
+
+def _age_share(eps, n=200000):
+    """The share of an age-resolved droplet population (n(a) = R exp(-kappa a)): 1 - kappa
+    int_0^tau exp(-kappa a) (1 - a / tau)^(3/2) da, by the midpoint rule in a / tau."""
+    s = (np.arange(n) + 0.5) / n
+    return 1.0 - np.sum(np.exp(-s / eps) * (1.0 - s) ** 1.5) / (n * eps)
+
+
+def test_sprayed_droplets_evaporate_the_closure_share_before_capture():
+    """A constant spray of pure-liquid droplets captured at a constant rate kappa (constant
+    kernel, no efficiency, granules that hardly aggregate among themselves and hardly dry:
+    X_cr = 1e9 puts them deep in the falling-rate period): at steady state the droplets
+    evaporate the share of ``_steady_share`` of the sprayed liquid, kappa = R / n_d from the
+    run's own droplet number. The inventory balances (sprayed = held by granules + held by
+    droplets + evaporated, 1e-8). The closure's share differs from the age-resolved one by
+    (3/8) eps^3 (both series: 3/2 eps - 3/4 eps^2, then 0 against -3/8 eps^3)."""
+    rate, factor, k0, n0 = 1.0e8, 1.0e12, 1.0e-20, 1.0e10      # kappa = f k0 N0 = 100 /s
+    _, tau = _pure_liquid(0.0)
+    scene = make_scene(scene={"end_time": 0.6, "output_interval": 0.05},
+                       material={"density": RHO_S, "binder_density": RHO_L},
+                       initial={"mean_mass": 1e-9, "number_density": n0,
+                                "binder_fraction": 0.0},
+                       aggregation={"kernel": "constant", "rate": k0, "droplet_factor": factor},
+                       binder_injection={"rate": rate, "droplet_diameter": D0},
+                       drying={**AIR, "critical_moisture": 1.0e9},
+                       method={"_replace": True, "name": "qmom", "nodes": 2, "rtol": 1e-11,
+                               "atol": 1e-16})
+    c = run_well_mixed(scene).columns
+    t = c["time_s"]
+    late = t >= 0.4
+    kappa = rate / c["droplet_number_density"][late]
+    assert np.allclose(kappa, factor * k0 * n0, rtol=1e-6, atol=0.0)
+    eps = 1.0 / (kappa[-1] * tau)
+    b0 = RHO_L * math.pi / 6.0 * D0 ** 3
+    slope = np.diff(c["liquid_evaporated"][late]) / np.diff(t[late])
+    assert np.allclose(slope / (rate * b0), _steady_share(eps), rtol=1e-6, atol=0.0)
+    gap = _steady_share(eps) - _age_share(eps)
+    assert abs(gap - 0.375 * eps ** 3) < 0.1 * 0.375 * eps ** 3
+    held = c["liquid_granules"] + c["liquid_droplets"]
+    assert np.allclose(held + c["liquid_evaporated"], c["liquid_sprayed"], rtol=1e-8,
+                       atol=1e-8 * c["liquid_sprayed"][-1])
+    assert c["liquid_droplets"][-1] > 0.0 and c["liquid_evaporated"][-1] > 0.0
