@@ -12,6 +12,8 @@ State of one cell (scaled by N_ref [1/m3] and p_ref [kg]):
 ``[W_ij (i, j < m, i-major), D_k (k < m), n_d (if droplets are separate)]``: the wet
 granules' mixed moments, the dry granules' moments in p, free droplets.
 """
+import math
+
 import numpy as np
 
 from ...physics import parameters as P
@@ -22,7 +24,7 @@ from .build import (FOLLOWING_SHAPES, FOLLOWING_SPAN, build_aux,  # noqa: F401
                     default_cache_dir,
                     spacing_code, theta_to_u0, unit_params)
 from .layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_COND_DRY,  # noqa: F401
-                     AUX_FOLLOWING,
+                     AUX_FOLLOWING, AUX_MASS_SCALE, AUX_NWC, AUX_OFF_LOGW,
                      AUX_COND_G, AUX_N_B, AUX_N_NODES, AUX_N_P, AUX_NSLICE,
                      AUX_OFF_SUPPORT, AUX_ORDER, AUX_P_MAX, AUX_SPACING,
                      AUX_U0_FIXED, TABLE_III, dry_support_functionals, state_names,
@@ -135,12 +137,30 @@ def _gamma_tail(mean, var, limit, extra):
     return float(gammaincc(k + extra, limit / (var / mean)))
 
 
+#: the name under which the escape report files mass beyond 8 c_m of a population whose c_m
+#: lies inside the following grid (no [method] key widens that support)
+FOLLOWING_SPAN_KEY = "following span"
+
+
+def beyond_following_range(state, aux):
+    """True if the wet class's mass-weighted mean mass c_m = W20 / W10 [kg] of a scaled state
+    lies at or above the top of the following support's grid (``following_growth`` x the
+    initial mean mass), where the weight clamps to its last slice."""
+    m = int(aux[AUX_ORDER])
+    s = np.asarray(state, float)
+    if not (s[m] > 0.0 and s[2 * m] > 0.0):
+        return False
+    top = float(aux[int(aux[AUX_OFF_LOGW]) + int(aux[AUX_NWC]) - 1])
+    return math.log(s[2 * m] / s[m] * aux[AUX_MASS_SCALE]) >= top
+
+
 def escaped_mass_parts(state, aux, params, config):
     """Estimated shares [-] of the granule mass beyond each bound of the support, as
     ``escaped_mass_share`` fits them, keyed by the [method] key that sets the bound: the wet
-    class beyond p_max ("support_mass", or "following_growth" with the following support),
-    beyond b_max ("support_binder"; "following_growth" with the following support, whose only
-    bound in b is b <= p <= p_max), the dry class beyond its p_max ("support_mass"). Each
+    class beyond p_max ("support_mass"), beyond b_max ("support_binder"); with the following
+    support, whose only bound in b is b <= p <= p_max, both under "following_growth" where the
+    class's c_m has reached the top of the grid and under ``FOLLOWING_SPAN_KEY`` inside it;
+    the dry class beyond its p_max ("support_mass"). Each
     share is of the granule mass of both classes, each class's share capped at 1."""
     return _escape(state, aux, params, config)[1]
 
@@ -167,8 +187,13 @@ def _escape(state, aux, params, config):
     s = np.asarray(state, float)
     pref = params[P.MASS_SCALE]
     following = aux[AUX_FOLLOWING] == 1.0
-    wet_p_key = "following_growth" if following else "support_mass"
-    wet_b_key = "following_growth" if following else "support_binder"
+    wet_p_key, wet_b_key = "support_mass", "support_binder"
+    if following:
+        # the grid's range is what held the population back only where the wet class's c_m
+        # has reached its top slice (clamped there); inside the range the mass beyond a
+        # slice's p <= 8 c_m is a population broader than the following weight's support
+        wet_p_key = wet_b_key = ("following_growth" if beyond_following_range(s, aux)
+                                 else FOLLOWING_SPAN_KEY)
     parts = {}
 
     def add(key, value):
@@ -251,6 +276,14 @@ def support_advice(aux, parts=None):
               f"{aux[AUX_B_MAX]:.3g} kg", "following_growth": "the following range"}
     named = [k for k, v in sorted((parts or {}).items(), key=lambda kv: -kv[1])
              if v > ESCAPE_WARN_SHARE]
+    if FOLLOWING_SPAN_KEY in named:
+        broad = (f"{parts[FOLLOWING_SPAN_KEY]:.1%} of the granule mass lies beyond p <= "
+                 f"{FOLLOWING_SPAN:g} c_m of the wet class (its c_m inside the range of "
+                 "[method] following_growth, which is not what held it back): the population "
+                 "is broader than the following weight's support")
+        others = [k for k in named if k != FOLLOWING_SPAN_KEY]
+        rest = f"; also {support_advice(aux, {k: parts[k] for k in others})}" if others else ""
+        return f"{broad}; use qmom{rest}"
     if named:
         too_small = "; ".join(f"[method] {k} ({values[k]}) is too small: {parts[k]:.1%} of the "
                               "granule mass lies beyond it" for k in named)

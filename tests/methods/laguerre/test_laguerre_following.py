@@ -150,6 +150,64 @@ def test_a_too_small_support_key_is_named_by_key():
         assert "widen" not in message, message
 
 
+def gamma_state(sc, arrays, c_m, shape, number=N0):
+    """Scaled state of a wet gamma population in p (shape k, mass-weighted mean c_m [kg]),
+    b = Y0 p: M_ij = N theta^(i+j) Gamma(k + i + j) / Gamma(k) Y0^j, theta = c_m / (k + 1)."""
+    theta = c_m / (shape + 1.0)
+
+    def mom(i, j):
+        n = i + j
+        return number * theta ** n * math.exp(math.lgamma(shape + n) - math.lgamma(shape)) * Y0 ** j
+    return LT.scene_initial_state(sc, arrays, mom)   # binder in every granule: no dry class
+
+
+def test_mass_beyond_the_span_inside_the_range_is_not_blamed_on_following_growth():
+    """A broad wet population (gamma shape 0.02) whose c_m lies inside the following grid,
+    95% of the way from one grid point to the next: the smallest blended slice's support is
+    8 c_m / 10^(0.95/3), and the gamma fit puts ~2% of the mass beyond it. That mass is the
+    population's breadth, not the grid's range: the report must not tell the user to raise
+    following_growth. The same population with c_m 10x above the grid's top (clamped to its
+    last slice) is the range's fault: there following_growth is named too small."""
+    from scipy.special import gammaincc
+    sc = scene(True)
+    arrays = model.pack(sc)
+    aux = LT.aux_for_scene(sc, arrays)
+    o, nwc = int(aux[LT.AUX_OFF_LOGW]), int(aux[LT.AUX_NWC])
+    grid = aux[o:o + nwc]
+    k = 0.02
+    c_in = math.exp(grid[2] + 0.95 * (grid[3] - grid[2]))
+    state = gamma_state(sc, arrays, c_in, k)
+    assert not LT.beyond_following_range(state, aux)
+    parts = LT.escaped_mass_parts(state, aux, arrays.params, arrays.config)
+    limit = min(LT.wet_support(aux, w)[0] for w, _ in weight_corners(state, aux))
+    assert limit == pytest.approx(8.0 * c_in / math.exp(0.95 * (grid[3] - grid[2])),
+                                  rel=1e-9, abs=0)
+    # the gamma's mass beyond the limit in p, Q(k + 1, limit / theta) with theta = c_m / (k + 1),
+    # and in b = Y0 p (the only bound in b is b <= limit), Q(k + 1, limit / (Y0 theta))
+    theta = c_in / (k + 1.0)
+    expected = gammaincc(k + 1.0, limit / theta) + gammaincc(k + 1.0, limit / (Y0 * theta))
+    assert parts[LT.FOLLOWING_SPAN_KEY] == pytest.approx(expected, rel=1e-6, abs=0)
+    assert parts[LT.FOLLOWING_SPAN_KEY] > LT.ESCAPE_WARN_SHARE
+    assert "following_growth" not in parts
+    hint = LT.failure_hint(state, aux, arrays)
+    _, text = LT.escaped_share_report(state, aux, arrays)
+    for message in (hint, text):
+        assert "broader than the following weight's support" in message, message
+        assert "is too small" not in message, message
+    c_out = 10.0 * math.exp(grid[-1])
+    state = gamma_state(sc, arrays, c_out, k)
+    assert LT.beyond_following_range(state, aux)
+    parts = LT.escaped_mass_parts(state, aux, arrays.params, arrays.config)
+    limit = min(LT.wet_support(aux, w)[0] for w, _ in weight_corners(state, aux))
+    assert limit == pytest.approx(8.0 * math.exp(grid[-1]), rel=1e-9, abs=0)
+    theta = c_out / (k + 1.0)
+    expected = gammaincc(k + 1.0, limit / theta) + gammaincc(k + 1.0, limit / (Y0 * theta))
+    assert parts["following_growth"] == pytest.approx(expected, rel=1e-6, abs=0)
+    assert LT.FOLLOWING_SPAN_KEY not in parts
+    assert "following_growth (the following range) is too small" in \
+        LT.failure_hint(state, aux, arrays)
+
+
 @pytest.fixture(scope="module")
 def following_run():
     return run_well_mixed(scene(True)).columns
