@@ -128,10 +128,13 @@ def transport_rows(repeats, quiet, quick=False, baseline=None) -> list:
     Both scenes are loaded and run once first (kernels compiled or loaded from the cache),
     then ``repeats`` times alternately in this process, so that load changes hit both alike;
     the solve phase is ``phases['solve_s']`` of the run (first step to last, no compile, no
-    output). The whole process (``python -m pbe_cfd.cli couple``, outputs and renders
-    written) alternates the same way."""
+    output); the first run's counters give the RHS calls and steps per cell and split step of
+    the spray cells and the others (``transport_cost.per_cell_split_step``). The whole
+    process (``python -m pbe_cfd.cli couple``, outputs and renders written) alternates the
+    same way."""
     from ..runs.couple import run_coupled
     from ..runs.domain import load_domain
+    from .transport_cost import CountingExecutor, per_cell_split_step
     with_transport = load_scene("fluid-bed-transport")
     text = Path(with_transport.source).read_text()
     rows = []
@@ -140,14 +143,18 @@ def transport_rows(repeats, quiet, quick=False, baseline=None) -> list:
         plain_path.write_text(_scene_text_without_transport(text))
         paths = {"with [transport]": Path(with_transport.source),
                  "without [transport]": plain_path}
-        scenes, domains = {}, {}
+        scenes, domains, per_cell = {}, {}, {}
         for label, path in paths.items():
             scene = load_scene(str(path))
             if quick:
                 scene = dataclasses.replace(scene, end_time=2.0, output_interval=1.0)
             scenes[label] = scene
             domains[label] = load_domain(scene, need_flux=scene.transport is not None)
-            run_coupled(scene, domains[label])               # compile or load the kernels
+            counting = CountingExecutor()                    # compile or load the kernels
+            run_coupled(scene, domains[label], executor=counting)
+            split = scenes[next(iter(paths))].transport.split_step
+            per_cell[label] = {"split_step_s": split, **per_cell_split_step(
+                counting.counts, counting.spray, scene.end_time, split)}
         solve = {k: [] for k in paths}
         cpu = {k: [] for k in paths}
         source = {k: [] for k in paths}
@@ -185,7 +192,8 @@ def transport_rows(repeats, quiet, quick=False, baseline=None) -> list:
                          "rejected_error": st["rejected_error"],
                          "rhs_calls": st["rhs_calls"],
                          "implicit_steps": st["implicit_steps"],
-                         "exponential_steps": st.get("exponential_steps", 0)})
+                         "exponential_steps": st.get("exponential_steps", 0),
+                         "per_cell": per_cell[label]})
             _say(quiet, f"  {label}: solve {rows[-1]['solver_s']:.3g} s, process "
                  f"{rows[-1]['process_s']:.3g} s")
     if baseline is not None:
@@ -230,6 +238,8 @@ def integrator_markdown(result) -> str:
                       f"{a['solver_cpu_s'] / b['solver_cpu_s']:.2f}, whole process wall "
                       f"{a['process_s'] / b['process_s']:.2f} (CPU "
                       f"{a['process_cpu_s'] / b['process_cpu_s']:.2f})."]
+    from .transport_cost import per_cell_markdown
+    lines += per_cell_markdown(rows)
     if before_after:
         from .transport_cost import before_after_markdown
         lines += before_after_markdown(before_after, result.get("baseline", "baseline"))

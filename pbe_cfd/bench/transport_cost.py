@@ -22,6 +22,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 from .common import _say
 
 SCENES = ("with [transport]", "without [transport]")
@@ -108,4 +110,65 @@ def before_after_markdown(rows, baseline_label) -> list:
                      f"{a['solve_s'] / b['solve_s']:.2f}, process wall "
                      f"{a['wall_s'] / b['wall_s']:.2f}, process CPU "
                      f"{a['cpu_s'] / b['cpu_s']:.2f}")
+    return lines
+
+
+# ---------------------------------------------------------------------------- where it goes
+class CountingExecutor:
+    """The serial executor, keeping each cell's integration counters and its spray flag when
+    the run ends (``run_coupled(..., executor=CountingExecutor())``)."""
+
+    def __init__(self):
+        from ..runs.executor import SerialExecutor
+        self._inner = SerialExecutor()
+        self.counts = None            # (n_cells, N_STATS) counters of the run
+        self.spray = None             # (n_cells,) bool: the cell is in the spray zone
+
+    def run(self, batch, times, transport=None, progress=None) -> list:
+        """``SerialExecutor.run``, then the batch's counters and spray flags kept."""
+        from ..physics import parameters as P
+        history = self._inner.run(batch, times, transport, progress)
+        self.counts = batch.stats_counts.copy()
+        self.spray = batch.rows[:, P.INJECTION] > 0.0
+        return history
+
+    def __getattr__(self, name):
+        return getattr(self._inner, name)
+
+
+def per_cell_split_step(counts, spray, end_time: float, split_step: float) -> dict:
+    """RHS calls and accepted steps per cell and per split step [-] of the spray cells and of
+    the other cells: counters ``counts`` (n_cells, N_STATS) of a run to ``end_time`` [s],
+    ``spray`` (n_cells,) bool, ``split_step`` [s] (for a run without transport the same
+    length of scene time, so the two runs compare per unit time)."""
+    from .. import integrate
+    parts = end_time / split_step
+    out = {"split_steps": parts}
+    for label, mask in (("spray", spray), ("other", ~spray)):
+        n = int(np.count_nonzero(mask))
+        out[f"{label}_cells"] = n
+        for key, slot in (("rhs", integrate.RHS_CALLS), ("steps", integrate.ACCEPTED)):
+            total = float(counts[mask, slot].sum())
+            out[f"{label}_{key}_per_cell_split_step"] = total / (n * parts) if n else 0.0
+    return out
+
+
+def per_cell_markdown(rows) -> list:
+    """The per-cell table of the rows carrying ``per_cell`` (Markdown lines)."""
+    have = [r for r in rows if r.get("per_cell")]
+    if not have:
+        return []
+    lines = ["", "Where the source integration goes (the first run of each scene): per cell and "
+             "per split step (without transport: per the same length of scene time), the "
+             "spray-zone cells and the other active cells:", "",
+             "| scene | split step [s] | spray cells | RHS / cell / split step (spray) | steps "
+             "(spray) | other cells | RHS / cell / split step (other) | steps (other) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in have:
+        p = r["per_cell"]
+        lines.append(f"| {r['scene']} | {p['split_step_s']:g} | {p['spray_cells']} | "
+                     f"{p['spray_rhs_per_cell_split_step']:.3g} | "
+                     f"{p['spray_steps_per_cell_split_step']:.3g} | {p['other_cells']} | "
+                     f"{p['other_rhs_per_cell_split_step']:.3g} | "
+                     f"{p['other_steps_per_cell_split_step']:.3g} |")
     return lines
