@@ -77,8 +77,24 @@ def test_every_method_finishes_the_hard_cell(width):
             qmom_ref = ref
 
 
+# Measured to stop (docs/results/hard-cases.md, "The variants"): the Laguerre ROM's support
+# (p_max = 1e-8 kg) cannot hold the granules of Theta >= 2 m2/s2 (17% of the mass beyond it
+# at 0.145 s); without the friction cap 1e-5 below packing (g0 = 1.9e5) QMOM N = 3 at Theta 2
+# runs out of its step budget at 8 ms with either switch (Rosenbrock stages unrealizable:
+# 239142 realizability rejections against 192858 accepted steps over the first 4 ms).
+STOPS = {("Laguerre m = 3", th, H.PACKING_GAPS[0], H.FRICTION_CAP, w): "support"
+         for th in (2.0, 10.0) for w in H.WIDTHS}
+STOPS.update({("QMOM N = 3", 2.0, H.PACKING_GAPS[0], None, w): "step budget at 8 ms"
+              for w in H.WIDTHS})
+
+
+def grid():
+    return [pytest.param(*v, marks=pytest.mark.xfail(strict=True, reason=STOPS[v]))
+            if v in STOPS else pytest.param(*v) for v in H.variants()]
+
+
 @pytest.mark.study
-@pytest.mark.parametrize("label,theta,gap,cap,width", H.variants())
+@pytest.mark.parametrize("label,theta,gap,cap,width", grid())
 def test_the_whole_grid(label, theta, gap, cap, width):
     """Every method x Theta 1e-6 .. 10 m2/s2 x (1e-5 under the cap, 1e-5 and 1e-3 without) x
     sharp and smooth, to END_TIME (the cNMC against QMOM N = 3 of the same variant)."""
