@@ -48,11 +48,8 @@ def bench_command(args):
             return 2 if isinstance(exc, bench.PeerUnavailable) else 1
         print((out / "peer.md").read_text())
     else:
-        study_of = {bench.CNMC_STUDY: bench.cnmc_study, bench.LAGUERRE_STUDY: bench.laguerre_study,
-                    "couple": bench.couple_study, "integrators": bench.integrator_study,
-                    "cluster": bench.cluster_study, "batch": bench.batch_study}
         kw = {"baseline": Path(args.scene)} if study == "integrators" and args.scene else {}
-        study_of[study](out, quick=quick, **kw)
+        bench.SIMPLE_STUDY_RUNS[study](out, quick=quick, **kw)
         print((out / f"{study}.md").read_text())
     files = ", ".join(bench.STUDY_FILES[study])
     print(f"bench {study}: {time.perf_counter() - start:.1f} s; wrote {out}/{{{files}}}")

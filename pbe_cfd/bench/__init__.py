@@ -1,5 +1,5 @@
 """What accuracy costs in time: ``pbe-cfd bench accuracy | throughput | cnmc | laguerre | couple |
-integrators | peer``.
+integrators | peer | hard-cases``.
 
 accuracy (``accuracy_study``)
     Each method over its accuracy knob -- QMOM nodes 1-4; Laguerre ROM order 2-4 on a coarse
@@ -34,6 +34,12 @@ peer (``peer_study``)
     cNMC on the same problems; the definition differences in ``peer``'s doc. Writes peer.csv,
     peer.md, peer.png, peer.json.
 
+hard-cases (``hard_cases_study``)
+    The hard cell next to packing (docs/results/hard-cases.md) for every method over Theta, the
+    gap to packing with and without the friction cap, and the sharp and the smooth Stokes
+    switch: whether it finishes, and its difference from the same variant at rtol 1e-10.
+    Writes hard-cases.csv, hard-cases.md, hard-cases.json.
+
 cnmc, laguerre, couple
     Seed-scenario cNMC speed per replica (trials and accepted events per second); Laguerre
     tensor build time per order and grid and its RHS rate; cell-steps per second of
@@ -58,6 +64,7 @@ from .cnmc import cnmc_study, seed_scenario_benchmark, seed_scenario_setup
 from .batch import batch_study
 from .common import CNMC_STUDY, LAGUERRE_STUDY, STUDY_FILES, failure_status, machine_info
 from .couple import couple_study, replicated_domain
+from .hard_cases import hard_cases_study
 from .integrators import integrator_markdown, integrator_study, stiff_scene
 from . import transport_cost  # noqa: F401 - bench.transport_cost: the baseline check of bench integrators
 from .laguerre import laguerre_study
@@ -70,3 +77,9 @@ from .throughput import (DEFAULT_THROUGHPUT_SCENE, ThroughputCase, cell_states,
                          measure_baseline, measure_ceiling, measure_rhs_rate, measure_steps,
                          synthetic_cells, throughput_case, throughput_markdown,
                          throughput_scene, throughput_study, trajectory_states)
+
+#: the studies that write <name>.csv, .md and .json: the function that runs each
+SIMPLE_STUDY_RUNS = {CNMC_STUDY: cnmc_study, LAGUERRE_STUDY: laguerre_study,
+                     "couple": couple_study, "integrators": integrator_study,
+                     "cluster": cluster_study, "batch": batch_study,
+                     "hard-cases": hard_cases_study}

@@ -97,7 +97,8 @@ def failure_status(exc) -> str:
 #: the studies of one method, named like it (``pbe-cfd bench cnmc``, ``... laguerre``)
 CNMC_STUDY, LAGUERRE_STUDY = _cnmc_entry.name, _laguerre_entry.name
 #: the studies that write <name>.csv, .md and .json
-SIMPLE_STUDIES = (CNMC_STUDY, LAGUERRE_STUDY, "couple", "integrators", "cluster", "batch")
+SIMPLE_STUDIES = (CNMC_STUDY, LAGUERRE_STUDY, "couple", "integrators", "cluster", "batch",
+                  "hard-cases")
 
 #: The files each study writes into --out (several studies may share one directory).
 STUDY_FILES = {

@@ -1,0 +1,104 @@
+"""The hard-case variants (pbe_cfd.bench.hard_cases, docs/results/hard-cases.md): the hard cell
+for every method, over Theta, the gap to packing (with and without the friction cap) and the
+Stokes switch, at the default rtol against the same variant at rtol 1e-10.
+
+What every finished variant must show: finite moments, realizable output sets, M10 growing at
+exactly the injected droplet mass rate (1e-10 relative: the invariants are kept exactly by the
+integrators, so only accumulated round-off remains). Where the rates are smooth (the smooth
+switch, or a sharp switch that no pair crosses) the run lies within the global error bound of
+tests/error_bounds.py of its rtol-1e-10 reference. Across sharp switches the held-switch error
+is of first order in the step while a pair slides (tests/physics/test_stokes_jump.py checks its
+convergence), so there the difference is reported, not bounded. The cNMC lies within a few
+half-widths of its replicas' band of the QMOM N = 3 reference (its own finite-N bias and the
+quadrature's error being far smaller than the band; pbe_cfd/methods/cnmc/ensemble.py).
+
+The CI subset runs every method at Theta = 2 m2/s2 under the friction cap, both switches, to
+0.02 s; the whole grid is ``-m study`` (tens of minutes).
+"""
+import numpy as np
+import pytest
+
+from error_bounds import error_bound
+from pbe_cfd.bench import hard_cases as H
+
+QUICK_END = H.QUICK_END_TIME
+MASS_EXACT = 1e-10
+#: the cNMC's distance from the quadrature reference in half-widths of its 95% band: 3 half-
+#: widths is t = 3 t_0.975 / 1.96 ~ 3.5 standard errors for 8 replicas (p < 1e-2 each)
+CNMC_HALF_WIDTHS = 3.0
+
+
+def assert_variant(label, theta, gap, cap, width, end, qmom_reference=None):
+    row, cols, ref = H.run_variant(label, theta, gap, cap, width, end,
+                                   qmom_reference=qmom_reference)
+    assert row["finished"], row["stop"]
+    assert cols["time_s"][-1] == pytest.approx(end, rel=1e-12, abs=0)
+    assert row["finite"] and row["realizable"], row
+    assert row["M10_rel_err"] < MASS_EXACT, row
+    if label == "cNMC":
+        if qmom_reference is not None:
+            assert row["diff_qmom3_ref"] <= CNMC_HALF_WIDTHS * row["band"], row
+        return row, cols, ref
+    assert row["ref_finished"], row["ref_stop"]
+    smooth = width > 0.0 or row["switch_steps"] == 0
+    if smooth:
+        bound = error_bound(H.DEFAULT_RTOL, *(ref[k] for k in H.QUANTITIES))
+        assert row["diff_ref"] <= bound, (row["diff_ref"], bound)
+    return row, cols, ref
+
+
+def test_the_gap_under_the_friction_cap_is_one_cell():
+    """Under the friction cap g0 is evaluated at min(alpha, alpha_min_friction): 1e-5 and 1e-3
+    below packing give the same moments (the study runs the cap at one gap). Without the cap
+    they do not: 1e-3 below packing g0 = 1/(1 - (alpha/alpha_max)^(1/3)) = 1.9e3 against 14
+    at the cap, so the granules aggregate faster and M00 ends lower."""
+    small, large = H.PACKING_GAPS
+
+    def m(gap, cap):
+        scene = H.variant_scene("QMOM N = 2", 2.0, gap, 0.0, end=QUICK_END, cap=cap)
+        return H.run(scene)[0].columns
+
+    capped_small, capped_large = m(small, H.FRICTION_CAP), m(large, H.FRICTION_CAP)
+    for k in H.QUANTITIES:
+        assert np.allclose(capped_small[k], capped_large[k], rtol=1e-14, atol=0), k
+    assert m(large, None)["M00"][-1] < 0.9 * capped_large["M00"][-1]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("width", H.WIDTHS)
+def test_every_method_finishes_the_hard_cell(width):
+    """CI subset: every method at Theta = 2 m2/s2 under the friction cap, 1e-5 below packing,
+    to 0.02 s, sharp (the default) and smooth."""
+    qmom_ref = None
+    for label in H.METHOD_LABELS:
+        _, _, ref = assert_variant(label, 2.0, H.PACKING_GAPS[0], H.FRICTION_CAP, width,
+                                   QUICK_END, qmom_reference=qmom_ref)
+        if label == "QMOM N = 3":
+            qmom_ref = ref
+
+
+# Measured to stop (docs/results/hard-cases.md, "The variants"): the Laguerre ROM's support
+# (p_max = 1e-8 kg) cannot hold the granules of Theta >= 2 m2/s2 (17% of the mass beyond it
+# at 0.145 s); without the friction cap 1e-5 below packing (g0 = 1.9e5) QMOM N = 3 at Theta 2
+# runs out of its step budget at 8 ms with either switch (Rosenbrock stages unrealizable:
+# 239142 realizability rejections against 192858 accepted steps over the first 4 ms).
+STOPS = {("Laguerre m = 3", th, H.PACKING_GAPS[0], H.FRICTION_CAP, w): "support"
+         for th in (2.0, 10.0) for w in H.WIDTHS}
+STOPS.update({("QMOM N = 3", 2.0, H.PACKING_GAPS[0], None, w): "step budget at 8 ms"
+              for w in H.WIDTHS})
+
+
+def grid():
+    return [pytest.param(*v, marks=pytest.mark.xfail(strict=True, reason=STOPS[v]))
+            if v in STOPS else pytest.param(*v) for v in H.variants()]
+
+
+@pytest.mark.study
+@pytest.mark.parametrize("label,theta,gap,cap,width", grid())
+def test_the_whole_grid(label, theta, gap, cap, width):
+    """Every method x Theta 1e-6 .. 10 m2/s2 x (1e-5 under the cap, 1e-5 and 1e-3 without) x
+    sharp and smooth, to END_TIME (the cNMC against QMOM N = 3 of the same variant)."""
+    qmom_ref = None
+    if label == "cNMC":
+        qmom_ref = H.run_variant("QMOM N = 3", theta, gap, cap, width, H.END_TIME)[2]
+    assert_variant(label, theta, gap, cap, width, H.END_TIME, qmom_reference=qmom_ref)
