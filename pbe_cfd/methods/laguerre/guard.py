@@ -8,7 +8,7 @@ without this guard a cell whose moments left the realizable set would be written
 stops there with ``realizability_text`` (exit 1, nothing written).
 
 Conditions, per class (wet W_ij, dry D_k; a class counts as present if its number or mass
-exceeds the state's round-off floor tol = 1e-12 max|state|): the number and mass M00 > 0 and
+exceeds 1e-12 of both classes' number or mass): the number and mass M00 > 0 and
 M10 > 0; binder mass M01 >= 0 (the wet class only); for m >= 3 the Hankel (Cauchy-Schwarz)
 conditions M20 M00 >= M10^2 and M02 M00 >= M01^2 (a non-negative variance in p and in b),
 with relative slack HANKEL_SLACK; and for the whole granule population the reconstruction's
@@ -46,25 +46,25 @@ def reconstructed_m43(state, aux):
     return total + float(np.dot(aux[od:od + m], s[K:K + m]))
 
 
-def _class_failure(M, m, tol, wet):
-    """(moment condition, value text) a class's moments M(i, j) break, or None."""
-    if not (abs(M(0, 0)) > tol or abs(M(1, 0)) > tol):
+def _class_failure(M, m, floor0, floor1, wet):
+    """(moment condition, value text) a class's moments M(i, j) break, or None; floor0,
+    floor1: the round-off floors of its number and mass (those of both classes together)."""
+    if not (abs(M(0, 0)) > floor0 or abs(M(1, 0)) > floor1):
         return None                                   # the class is empty
     if not M(0, 0) > 0.0:
         return "M00 > 0", f"M00 = {M(0, 0):.4g}"
     if not M(1, 0) > 0.0:
         return "M10 > 0", f"M10 = {M(1, 0):.4g}"
-    if wet and M(0, 1) < -tol:
+    if wet and M(0, 1) < -floor1:
         return "M01 >= 0", f"M01 = {M(0, 1):.4g}"
     if m < 3:
         return None
     checks = [("M20 M00 >= M10^2", M(2, 0) * M(0, 0), M(1, 0) ** 2, "M20 M00 / M10^2")]
-    if wet:
+    if wet and M(0, 1) != 0.0:
         checks.append(("M02 M00 >= M01^2", M(0, 2) * M(0, 0), M(0, 1) ** 2, "M02 M00 / M01^2"))
     for name, big, small, ratio in checks:
-        if big < small * (1.0 - HANKEL_SLACK) - tol * tol:
-            value = big / small if small > 0 else -math.inf
-            return name, f"{ratio} = {value:.6g}"
+        if not big >= small * (1.0 - HANKEL_SLACK):
+            return name, f"{ratio} = {big / small:.6g}"
     return None
 
 
@@ -77,13 +77,16 @@ def state_failure(state, aux, number_scale=1.0, mass_scale=1.0):
     s = np.asarray(state, float)
     if not np.all(np.isfinite(s)):
         return "finite moments", "a carried moment is not finite"
-    tol = ROUND_OFF * float(np.max(np.abs(s))) if s.size else 0.0
+    # round-off floors per moment (the entries span many decades: W22 can exceed W00 by
+    # 1e16, so a floor relative to the largest entry would accept any sign of M00, M10)
+    floor0 = ROUND_OFF * abs(s[0] + s[K])
+    floor1 = ROUND_OFF * abs(s[m] + s[K + 1])
     for label, M, wet in (("wet class", lambda i, j: s[i * m + j], True),
                           ("dry class", lambda i, j: s[K + i] if j == 0 else 0.0, False)):
-        found = _class_failure(M, m, tol, wet)
+        found = _class_failure(M, m, floor0, floor1, wet)
         if found is not None:
             return f"{found[0]} ({label})", found[1]
-    if s[m] + s[K + 1] > tol:
+    if s[m] + s[K + 1] > 0.0:
         m43 = reconstructed_m43(s, aux)
         if not m43 > 0.0:
             si = m43 * number_scale * mass_scale ** (4.0 / 3.0)
