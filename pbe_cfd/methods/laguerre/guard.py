@@ -21,11 +21,14 @@ import numpy as np
 from .layout import (AUX_OFF_F43, AUX_OFF_F43D, AUX_ORDER, carried_shape, weight_corners,
                      wet_support)
 
-#: relative slack of the Hankel conditions [-], ours: a state on the equality (a monodisperse
-#: start; every granule with the same binder fraction, b = y p) leaves it by the integration
-#: error, measured 1e-6 of M10^2 after 1e-3 s of aggregation + breakage at rtol 1e-8; a
-#: variance below -1e-4 mean^2 (an imaginary spread of 1% of the mean) is no such error
-HANKEL_SLACK = 1e-4
+#: relative slack of the Hankel conditions [-], ours: a class that starts on the equality (a
+#: monodisperse start; every granule with the same binder fraction, b = y p) is pushed out
+#: of it by the closure and the integration error -- measured M20 M00 / M10^2 = 0.999815 for
+#: the dry class of the m = 4 seed scenario from a dry start at 60 s (its moments within the
+#: seed's accuracy of the cNMC), and 1 - 1e-6 after 1e-3 s of aggregation + breakage at
+#: rtol 1e-8 -- so only a variance below -1e-2 mean^2 (an imaginary spread of 10% of the
+#: mean, 50x the largest measured) stops the run
+HANKEL_SLACK = 1e-2
 #: round-off floor of a state, relative to its largest entry [-]
 ROUND_OFF = 1e-12
 
