@@ -140,4 +140,12 @@ def output_check(states, aux, arrays):
             "positive population")
     return r, (f"the Laguerre ROM broke {condition}: {value} (wet class: "
                f"{weight_text(state, aux, arrays.mass_scale)}); {what}, so nothing is "
-               "written; use qmom")
+               f"written{_support_hint(state, aux, arrays)}")
+
+
+def _support_hint(state, aux, arrays):
+    """The escape report's text where mass has left the support (its share and the [method]
+    key to change), else the advice to use qmom."""
+    from .tensor import ESCAPE_WARN_SHARE, escaped_share_report, failure_hint
+    share, _ = escaped_share_report(np.atleast_2d(state), aux, arrays)
+    return failure_hint(state, aux, arrays) if share > ESCAPE_WARN_SHARE else "; use qmom"
