@@ -117,7 +117,9 @@ def weight_text(state, aux, mass_scale):
     parts = []
     if m >= 3 and s[m] != 0.0:
         parts.append(f"c_m = W20/W10 = {s[2 * m] / s[m] * mass_scale:.4g} kg")
-        parts.append(f"carried shape {carried_shape(s[0], s[m], s[2 * m]):.4g}")
+        var = s[0] * s[2 * m] - s[m] * s[m]
+        parts.append(f"carried shape {carried_shape(s[0], s[m], s[2 * m]):.4g}" if var > 0.0
+                     else "no positive variance in p")
     if s[m] != 0.0:
         parts.append(f"binder fraction {s[1] / s[m]:.4g}")
     corners = weight_corners(s, aux)
