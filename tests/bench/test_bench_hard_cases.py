@@ -64,17 +64,32 @@ def test_the_gap_under_the_friction_cap_is_one_cell():
     assert m(large, None)["M00"][-1] < 0.9 * capped_large["M00"][-1]
 
 
+#: CQMOM 3 x 3 under the sharp switch slides along St = St* on most of its steps (first order
+#: in the step) and its rtol-1e-10 reference chatters for minutes before it is smoothed: the
+#: CI subset leaves that one pair out and the study tier runs it
+STUDY_ONLY = (("CQMOM 3 x 3", 0.0),)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("width", H.WIDTHS)
 def test_every_method_finishes_the_hard_cell(width):
     """CI subset: every method at Theta = 2 m2/s2 under the friction cap, 1e-5 below packing,
-    to 0.02 s, sharp (the default) and smooth."""
+    to 0.02 s, sharp (the default) and smooth; CQMOM 3 x 3 sharp in the study tier."""
     qmom_ref = None
     for label in H.METHOD_LABELS:
+        if (label, width) in STUDY_ONLY:
+            continue
         _, _, ref = assert_variant(label, 2.0, H.PACKING_GAPS[0], H.FRICTION_CAP, width,
                                    QUICK_END, qmom_reference=qmom_ref)
         if label == "QMOM N = 3":
             qmom_ref = ref
+
+
+@pytest.mark.study
+@pytest.mark.parametrize("label,width", STUDY_ONLY)
+def test_the_sliding_hard_cell_finishes(label, width):
+    """The CI subset's cell for the pairs it leaves out (minutes: the reference chatters)."""
+    assert_variant(label, 2.0, H.PACKING_GAPS[0], H.FRICTION_CAP, width, QUICK_END)
 
 
 # Measured to stop (docs/results/hard-cases.md, "The variants"): the Laguerre ROM's support
