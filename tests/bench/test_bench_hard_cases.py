@@ -13,7 +13,8 @@ half-widths of its replicas' band of the QMOM N = 3 reference (its own finite-N 
 quadrature's error being far smaller than the band; pbe_cfd/methods/cnmc/ensemble.py).
 
 The CI subset runs every method at Theta = 2 m2/s2 under the friction cap, both switches, to
-0.02 s; the whole grid is ``-m study`` (tens of minutes).
+0.02 s, but CQMOM 3 x 3 under the sharp switch (``STUDY_ONLY``); that pair and the whole grid
+are ``-m study`` (tens of minutes).
 """
 import dataclasses
 
