@@ -36,6 +36,7 @@ BED_PANELS = (
     ("second moments", ("M20", "M11", "M02"), "kg2/m3"),
     ("free droplets", ("droplet_number_density",), "1/m3"),
     ("mean diameters", ("d32_m", "d43_m"), "m"),
+    ("mass-based percentiles of the size distribution", ("d10_m", "d50_m", "d90_m"), "m"),
     ("binder fraction", ("binder_fraction",), "-"),
     ("granule and binder mass in the whole bed", ("bed_mass_kg", "bed_binder_mass_kg"), "kg"),
     ("liquid in the whole bed", ("liquid_sprayed_kg", "liquid_granules_kg",

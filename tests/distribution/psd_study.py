@@ -81,6 +81,7 @@ def figure(ref, rows, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FuncFormatter
     grid = np.asarray(ref["grid_m"])
     fig, axes = plt.subplots(1, len(psd_cases.CASES), figsize=(15, 4.4))
     for ax, case in zip(axes, psd_cases.CASES):
@@ -103,6 +104,9 @@ def figure(ref, rows, path):
             ax.plot(np.array(row["d_m"]) * 1e6, row["q3_per_ln_d"], style, lw=2,
                     label=f"{row['method']}, L1(Q3) = {row['l1_q3']:.3f}")
         ax.set_xscale("log")
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.xaxis.set_minor_formatter(FuncFormatter(      # minor labels at 2 and 5 only
+            lambda v, _: f"{v:g}" if f"{v:.1g}"[0] in "25" else ""))
         ax.set_xlabel("d [um]")
         ax.set_ylabel("q3 = dQ3/d ln d [-]")
         ax.set_title(f"{case}, t = {psd_cases.END[case]:g} s")

@@ -26,12 +26,14 @@ AIMS = np.array([0.05, 0.03, 0.05])
 #: (case, method) -> the measured miss (docs/results/psd.md)
 KNOWN_MISSES = {
     ("sum-a1-uniform", "QMOM N=3"): "d50 -13.1%, d90 +4.29% (+0.75% band): QMOM's M20 is "
-                                    "14% off here (the closure), the fit splits the mass "
-                                    "in two humps",
+                                    "14.8% off here (the closure); the same fit of EQMOM's "
+                                    "moments meets the aims (psd_misses.py)",
     ("sum-a1-uniform", "Laguerre m=3"): "d10 +15%, d50 +19%, d90 +16%: the ROM's carried "
-                                        "M00 16% low and M20 19% high (scene defaults)",
-    ("eke-a1/3-equal", "Laguerre m=3"): "d50 +5.5%: the ROM's carried moments (scene "
-                                        "defaults)",
+                                        "M20 61% high (scene defaults); one gamma of the "
+                                        "particle list's own M00..M20 still misses d50 +3.1%",
+    ("eke-a1/3-equal", "Laguerre m=3"): "d50 +5.5%: the ROM's carried M00 13% and M20 9% high "
+                                        "(scene defaults); one gamma of the particle list's "
+                                        "own M00..M20 misses d50 by +3.6%",
 }
 #: the methods measured in docs/results/psd.md's percentile table
 MEASURED = ("QMOM N=3", "EQMOM N=3", "Laguerre m=3")

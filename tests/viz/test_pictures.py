@@ -149,3 +149,12 @@ def test_render_draws_the_times_not_drawn_yet_and_names_the_rest(coupled, capsys
     refused(["render", "c", "--fields", "d43_m", "--times", "0", "2"], capsys, "--overwrite")
     assert main(["render", "c", "--fields", "d43_m", "--times", "0", "2", "--overwrite"]) == 0
     assert tree(png)["d43_m_t0s.png"][1] != before["d43_m_t0s.png"][1]     # mtime: redrawn
+
+
+def test_the_bed_percentiles_share_one_panel_in_um():
+    """d10, d50 and d90 of the bed are drawn together (one axis in um, so a percentile that
+    stays at the primary size reads as a value, not as an offset of 1e-5 um)."""
+    from pbe_cfd.viz.bed_moments import _bed_panels
+    panels = _bed_panels(["time_s", "M00", "d32_m", "d43_m", "d10_m", "d50_m", "d90_m", "span"])
+    holding = [(cols, unit) for _, cols, unit in panels if "d50_m" in cols]
+    assert holding == [(["d10_m", "d50_m", "d90_m"], "m")]

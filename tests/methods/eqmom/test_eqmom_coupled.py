@@ -4,7 +4,10 @@ kernel, geometric + physical efficiency, droplets sprayed in the bed-surface zon
 inversion's re-projection touches only M(2N)0, so the bed's solids mass grows by exactly the
 injected binder (R p_d V_spray t, to 1e-10 like QMOM's run in tests/runs/test_couple.py);
 the run reaches its end, and the bed's and the cells' d10/d50/d90 are present, ordered and
-finite, with the columns.json labels naming EQMOM's own density."""
+finite, with the columns.json labels naming the reconstruction: the bed starts monodisperse
+and has no breakage, so the default ``size_distribution = "support"`` refits N gamma kernels
+to EQMOM's carried M00 .. M(2N)0 of p - p_min on [p_min, inf) (docs/physics.md section 11.1)
+instead of drawing EQMOM's own kernels on [0, inf)."""
 import dataclasses
 import json
 
@@ -41,4 +44,6 @@ def test_eqmom_coupled_bed_finishes_conserves_mass_and_writes_d50(tmp_path):
     (tmp_path / "out").mkdir()
     write_coupled(tmp_path / "out", domain, res, render=False)
     labels = json.loads((tmp_path / "out" / "columns.json").read_text())
-    assert "EQMOM" in labels["bed_moments.csv"]["d50_m"]
+    for label in (labels["bed_moments.csv"]["d50_m"], labels["vtk cell fields"]["d50_m"]):
+        assert "2 gamma kernels of one width refitted to the carried M00 .. M40" in label, label
+        assert "on [p_min, inf)" in label and 'size_distribution = "support"' in label, label
