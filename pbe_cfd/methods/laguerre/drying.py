@@ -22,8 +22,18 @@ adaptive grid, blended at RHS time as the breakage and aggregation tensors are.
 
 The dry class (b = 0 exactly) does not dry, and the falling rate makes e vanish with b, so no
 granule crosses from the wet class into the dry one: the drift leaves the dry moments alone.
-Free droplets of their own do not dry (as in every method). The aux block at
-aux[AUX_OFF_DRYING] holds, per weight slice w, L[w, k, a] (K x K) then V[w, k] (K).
+Free droplets of their own do not dry (as in every method).
+
+The reconstruction is not a positive measure, so V.M~ need not vanish with the wet liquid
+M01. For any positive density on the nodes, E = sum_s w_s e_s <= r_max sum_s w_s b_s =
+r_max M01 with r_max = max_s e_s / b_s, the fastest relative rate of the slice's nodes. The
+drift is therefore scaled by one factor g = min(1, r_max M01 / (V.M~)) (g = 0 where M01 <= 0
+or V.M~ <= 0: no liquid, no evaporation, no condensation) on L and V alike, which keeps
+M10 + E, M01 + E and the binder solids M10 - M01 exact and gives dM01/dt >= -r_max M01 from
+the drying: the wet liquid decays at most exponentially and never crosses zero through it.
+Where the reconstruction is a positive measure g = 1 and the operator is the linear one.
+The aux block at aux[AUX_OFF_DRYING] holds, per weight slice w, L[w, k, a] (K x K), V[w, k]
+(K) then r_max[w] [1/s].
 """
 import numba as nb
 import numpy as np
@@ -34,6 +44,9 @@ from .basis import moment_index
 from .breakage import add_laguerre_breakage, add_linear_term
 from .layout import (AUX_NWC, AUX_NWD, AUX_OFF_DRYING, AUX_ORDER, N_CORNERS,
                      weight_corner)
+
+#: state entry of the wet liquid M~01: (i, j) = (0, 1) in ``moment_index`` order (order >= 2)
+WET_LIQUID = moment_index(2).index((0, 1))
 
 
 def drying_on(config) -> bool:
@@ -69,15 +82,23 @@ def drift_block(basis, rates, m, p_ref):
     return L, V
 
 
+def fastest_relative_rate(rates, b):
+    """r_max = max_s e_s / b_s [1/s] over the nodes with liquid (b_s > 0 [kg], e_s [kg/s]);
+    0 without any."""
+    wet = np.asarray(b) > 0.0
+    return float(np.max(np.asarray(rates)[wet] / np.asarray(b)[wet])) if wet.any() else 0.0
+
+
 def drying_blocks(params, config, m, bases, p_ref):
-    """The flat aux block of the drying term: (L[w], V[w]) for each wet basis of ``bases``;
-    an empty array without drying."""
+    """The flat aux block of the drying term: (L[w], V[w], r_max[w]) for each wet basis of
+    ``bases``; an empty array without drying."""
     if not drying_on(config):
         return np.zeros(0)
     blocks = []
     for basis in bases:
-        L, V = drift_block(basis, node_rates(basis["p"], basis["b"], params), m, p_ref)
-        blocks += [L.ravel(), V]
+        rates = node_rates(basis["p"], basis["b"], params)
+        L, V = drift_block(basis, rates, m, p_ref)
+        blocks += [L.ravel(), V, np.array([fastest_relative_rate(rates, basis["b"])])]
     return np.concatenate(blocks)
 
 
@@ -85,7 +106,8 @@ def drying_blocks(params, config, m, bases, p_ref):
 def add_laguerre_drying(state, out, aux, config, wpos):
     """Add the drying drift [scaled state units per s] of one cell to ``out``: the wet moments
     (entries 0 .. K-1) by L, the evaporated liquid (the last entry) by V, both blended over
-    the weight corners wpos (``weight_corner``) of the RHS. Nothing without a drying block."""
+    the weight corners wpos (``weight_corner``) of the RHS and scaled by the one factor g of
+    the module docstring (evaporation at most r_max M01). Nothing without a drying block."""
     o = int(aux[AUX_OFF_DRYING])
     if o <= 0:
         return
@@ -94,14 +116,28 @@ def add_laguerre_drying(state, out, aux, config, wpos):
     nwc = int(aux[AUX_NWC])
     nwd = int(aux[AUX_NWD])
     evaporated = config[P.N_STATE] - 1
+    stride = K * K + K + 1
+    rate = 0.0                                    # V.M~, blended
+    r_max = 0.0                                   # r_max, blended
     for q in range(N_CORNERS):
         w, f = weight_corner(q, wpos, nwc, nwd)
         if f == 0.0:
             continue
-        pos = o + w * (K * K + K)
-        add_linear_term(state, out, aux, pos, K, 0, 0, f)
+        pos = o + w * stride
         for k in range(K):
-            out[evaporated] += f * aux[pos + K * K + k] * state[k]
+            rate += f * aux[pos + K * K + k] * state[k]
+        r_max += f * aux[pos + K * K + K]
+    liquid = state[WET_LIQUID]
+    if liquid <= 0.0 or rate <= 0.0:
+        return
+    g = min(1.0, r_max * liquid / rate)
+    for q in range(N_CORNERS):
+        w, f = weight_corner(q, wpos, nwc, nwd)
+        if f == 0.0:
+            continue
+        pos = o + w * stride
+        add_linear_term(state, out, aux, pos, K, 0, 0, f * g)
+    out[evaporated] += g * rate
 
 
 @nb.njit(cache=True)

@@ -1,0 +1,83 @@
+"""The Laguerre ROM's drying drift (docs/physics.md section 15, "The evaporation bound") on one
+sprayed, drying cell of ``fluid-bed-batch`` (scripts/laguerre-drying-cell.toml: a 10% solution
+sprayed onto dry granules, droplets as ordinary particles, inlet air).
+
+The linear operator alone evaporated 1201 1/s of the wet liquid where the scene's fastest
+particle dries at 174.6 1/s, and the run stopped at 0.74 s on the step floor. The bounded
+drift vanishes with the liquid, keeps M01 >= 0 and keeps M10 + E, M01 + E and the binder
+solids M10 - M01 exact; the sprayed liquid is the schedule's closed form R t p_d (1 - s).
+"""
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pbe_cfd.scene.scene import load_scene
+
+CELL = Path(__file__).resolve().parents[3] / "scripts" / "laguerre-drying-cell.toml"
+END = 1.0          # s: past the linear operator's stop at 0.74 s (the bounded one stops at 1.13 s)
+
+
+def _scene(end):
+    return dataclasses.replace(load_scene(str(CELL)), end_time=end, output_interval=0.05)
+
+
+def _drying_rhs(state, problem, batch):
+    """The drying part of the ROM's RHS at a state [scaled units per s]: DRYING on minus off."""
+    from pbe_cfd.methods.entry import WORK_SIZE
+    from pbe_cfd.methods.laguerre.rhs import laguerre_rhs
+    from pbe_cfd.physics import parameters as P
+    aux, config = problem.aux, problem.arrays.config
+    cell = np.ascontiguousarray(problem.rows[0], dtype=float)
+    params = np.ascontiguousarray(batch.params, dtype=float)
+    off = config.copy()
+    off[P.DRYING] = 0
+    out_on, out_off = np.zeros(len(state)), np.zeros(len(state))
+    laguerre_rhs(state, out_on, cell, aux, params, config, np.empty(WORK_SIZE))
+    laguerre_rhs(state, out_off, cell, aux, params, off, np.empty(WORK_SIZE))
+    return out_on - out_off
+
+
+@pytest.mark.slow
+def test_drift_vanishes_with_the_liquid_and_keeps_the_invariants():
+    """At the state of 0.5 s (wet by the spray): the drift's dM10 = dM01 = -dE (round-off of
+    K terms, 1e-12 of dE); with the wet liquid M01 set to 0 it is zero in every entry."""
+    from pbe_cfd.runs.batch import CellBatch
+    from pbe_cfd.runs.problem import problem_of
+    problem = problem_of(_scene(0.5))
+    batch = CellBatch.for_problem(problem)
+    batch.step(0.0, 0.5)
+    state = batch.states[0].copy()
+    names = list(problem.arrays.state_names)
+    m10, m01, e = (names.index(n) for n in ("wet_M10", "wet_M01", "evaporated_liquid"))
+    d = _drying_rhs(state, problem, batch)
+    assert d[e] > 0.0
+    assert d[m10] == pytest.approx(-d[e], rel=1e-12, abs=0.0)
+    assert d[m01] == pytest.approx(-d[e], rel=1e-12, abs=0.0)
+    dry = state.copy()
+    dry[m01] = 0.0
+    assert np.all(_drying_rhs(dry, problem, batch) == 0.0)
+
+
+@pytest.mark.slow
+def test_sprayed_drying_cell_runs_past_the_linear_operators_stop():
+    """To 1 s: M01 >= 0 at every output; M01 + E = R t p_d (1 - s) (the integrator keeps it
+    to the step control's round-off, 1e-8 relative); M10 - M01 = R t p_d s to 1e-10."""
+    from pbe_cfd.runs.simulate import run_well_mixed
+    scene = _scene(END)
+    c = run_well_mixed(scene).columns
+    t = np.asarray(c["time_s"])
+    assert t[-1] == pytest.approx(END, abs=1e-12)
+    inj = scene.binder_injection
+    rate = inj.schedule[0][1]                                   # 1/(m3 s), until 1200 s
+    p_d = scene.material.binder_density * math.pi / 6.0 * inj.droplet_diameter ** 3
+    s = inj.solids_fraction
+    liquid = rate * t * p_d * (1.0 - s)
+    assert np.all(np.asarray(c["M01"]) >= 0.0)
+    assert np.allclose(c["M01"] + c["liquid_evaporated"], liquid, rtol=1e-8,
+                       atol=1e-8 * liquid[-1])
+    m10_0 = c["M10"][0]
+    assert np.allclose(c["M10"] - c["M01"] - m10_0, rate * t * p_d * s, rtol=1e-10,
+                       atol=1e-10 * m10_0)
