@@ -144,6 +144,7 @@ def transport_rows(repeats, quiet, quick=False, baseline=None) -> list:
         paths = {"with [transport]": Path(with_transport.source),
                  "without [transport]": plain_path}
         scenes, domains, per_cell = {}, {}, {}
+        split = with_transport.transport.split_step   # both runs counted per this length
         for label, path in paths.items():
             scene = load_scene(str(path))
             if quick:
@@ -152,7 +153,6 @@ def transport_rows(repeats, quiet, quick=False, baseline=None) -> list:
             domains[label] = load_domain(scene, need_flux=scene.transport is not None)
             counting = CountingExecutor()                    # compile or load the kernels
             run_coupled(scene, domains[label], executor=counting)
-            split = scenes[next(iter(paths))].transport.split_step
             per_cell[label] = {"split_step_s": split, **per_cell_split_step(
                 counting.counts, counting.spray, scene.end_time, split)}
         solve = {k: [] for k in paths}

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..runs.executor import SerialExecutor
 from .common import _say
 
 SCENES = ("with [transport]", "without [transport]")
@@ -114,26 +115,21 @@ def before_after_markdown(rows, baseline_label) -> list:
 
 
 # ---------------------------------------------------------------------------- where it goes
-class CountingExecutor:
+class CountingExecutor(SerialExecutor):
     """The serial executor, keeping each cell's integration counters and its spray flag when
     the run ends (``run_coupled(..., executor=CountingExecutor())``)."""
 
     def __init__(self):
-        from ..runs.executor import SerialExecutor
-        self._inner = SerialExecutor()
         self.counts = None            # (n_cells, N_STATS) counters of the run
-        self.spray = None             # (n_cells,) bool: the cell is in the spray zone
+        self.spray = None             # (n_cells,) bool: the cell is sprayed (injection > 0)
 
     def run(self, batch, times, transport=None, progress=None) -> list:
         """``SerialExecutor.run``, then the batch's counters and spray flags kept."""
         from ..physics import parameters as P
-        history = self._inner.run(batch, times, transport, progress)
+        history = super().run(batch, times, transport, progress)
         self.counts = batch.stats_counts.copy()
         self.spray = batch.rows[:, P.INJECTION] > 0.0
         return history
-
-    def __getattr__(self, name):
-        return getattr(self._inner, name)
 
 
 def per_cell_split_step(counts, spray, end_time: float, split_step: float) -> dict:

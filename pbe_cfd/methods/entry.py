@@ -42,6 +42,9 @@ class MethodEntry(NamedTuple):
                     count of particles; None: ``population`` row by row
     failure_hint    f(scene, arrays, state, aux) -> text appended to a stopped cell's message
     diagnostics     f(states, aux, arrays) -> (stats dict, warnings list) after a run
+    output_check    f(states, aux, arrays) -> None or (row, text): the first row of scaled
+                    states (one per cell, at an output time) that is no answer, and why;
+                    the run stops there (None: no check)
     plan_line       f(scene) -> the method's line of ``pbe-cfd plan``
     repairs_mixture f(scene) -> True if a mixture of realizable states (transport) may need
                     the method's projection before the next source step
@@ -149,6 +152,7 @@ class MethodEntry(NamedTuple):
     dries: bool = False
     solute_droplets: bool = True
     evaporates_droplets: bool = False
+    output_check: Callable | None = None
 
     def order(self, method) -> int:
         """config[P.ORDER] of the scene's ``Method`` (its options' nodes, order; 0)."""

@@ -327,6 +327,26 @@ class CellBatch:
                                                           self.aux)
         raise SimulationError(message)
 
+    def check_output(self, t: float, states: np.ndarray | None = None):
+        """Raise SimulationError naming the first cell whose state at the output time ``t``
+        [s] is no answer (the method's ``output_check``: e.g. the Laguerre ROM's carried
+        moments outside the realizable set), its local fields and why."""
+        check = method_of(self.scene).output_check if self.scene is not None else None
+        if check is None:
+            return
+        states = self.states if states is None else states
+        found = check(states, self.aux, self.arrays)
+        if found is None:
+            return
+        c, text = found
+        source = self.scene.source
+        if self.cell_ids is None:
+            where = f"{source}: at t = {t:.6g} s"
+        else:
+            where = (f"{source}: cell {int(self.cell_ids[c])} (alpha {self.rows[c, P.ALPHA]:.4g}, "
+                     f"Theta {self.rows[c, P.THETA]:.3g} m2/s2) at t = {t:.6g} s")
+        raise SimulationError(f"{where}: {text}")
+
     # -- accounting ----------------------------------------------------------------------
     def stats(self) -> dict:
         """Counters summed over the cells (``integrate.stats_summary``): accepted steps, steps

@@ -8,6 +8,7 @@ with bitwise the same results. Both have the same methods, so the caller never a
 it holds:
 
 run(batch, times, transport, progress)   the history; updates the batch in place
+checks_outputs                           True if run() applies ``CellBatch.check_output``
 report()                                 what it did (dict), or None
 mirror_to_processors(written)            copy written OpenFOAM fields per processor
 finish()                                 the output is written: drop what was kept for a resume
@@ -18,6 +19,9 @@ from __future__ import annotations
 
 class SerialExecutor:
     """Integrate every cell in this process."""
+
+    #: run() checks every output time's states (``CellBatch.check_output``) as it goes
+    checks_outputs = True
 
     def run(self, batch, times, transport=None, progress=None) -> list:
         """Advance ``batch`` over the output ``times`` [s]: per interval the sources only, or
@@ -32,6 +36,7 @@ class SerialExecutor:
                 batch.step(times[k - 1], times[k])
             else:
                 transport.advance(batch.states, times[k - 1], times[k], batch.source_step)
+            batch.check_output(times[k])
             history.append(batch.states)
             if progress is not None:
                 progress(times[k] / times[-1], f"t = {times[k]:.4g} s")

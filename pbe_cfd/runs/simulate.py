@@ -53,6 +53,7 @@ def run_well_mixed(scene, progress=None) -> RunResult:
     start += compile_s                      # the run time excludes the compile
     for k in range(1, len(times)):
         batch.step(times[k - 1], times[k])
+        batch.check_output(times[k])
         states[k] = batch.states[0]
         if progress is not None:
             progress(times[k] / scene.end_time, f"t = {times[k]:.4g} s")

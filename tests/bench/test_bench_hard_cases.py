@@ -13,8 +13,11 @@ half-widths of its replicas' band of the QMOM N = 3 reference (its own finite-N 
 quadrature's error being far smaller than the band; pbe_cfd/methods/cnmc/ensemble.py).
 
 The CI subset runs every method at Theta = 2 m2/s2 under the friction cap, both switches, to
-0.02 s; the whole grid is ``-m study`` (tens of minutes).
+0.02 s, but CQMOM 3 x 3 under the sharp switch (``STUDY_ONLY``); that pair and the whole grid
+are ``-m study`` (tens of minutes).
 """
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -64,17 +67,32 @@ def test_the_gap_under_the_friction_cap_is_one_cell():
     assert m(large, None)["M00"][-1] < 0.9 * capped_large["M00"][-1]
 
 
+#: CQMOM 3 x 3 under the sharp switch slides along St = St* on most of its steps (first order
+#: in the step) and its rtol-1e-10 reference chatters for minutes before it is smoothed: the
+#: CI subset leaves that one pair out and the study tier runs it
+STUDY_ONLY = (("CQMOM 3 x 3", 0.0),)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("width", H.WIDTHS)
 def test_every_method_finishes_the_hard_cell(width):
     """CI subset: every method at Theta = 2 m2/s2 under the friction cap, 1e-5 below packing,
-    to 0.02 s, sharp (the default) and smooth."""
+    to 0.02 s, sharp (the default) and smooth; CQMOM 3 x 3 sharp in the study tier."""
     qmom_ref = None
     for label in H.METHOD_LABELS:
+        if (label, width) in STUDY_ONLY:
+            continue
         _, _, ref = assert_variant(label, 2.0, H.PACKING_GAPS[0], H.FRICTION_CAP, width,
                                    QUICK_END, qmom_reference=qmom_ref)
         if label == "QMOM N = 3":
             qmom_ref = ref
+
+
+@pytest.mark.study
+@pytest.mark.parametrize("label,width", STUDY_ONLY)
+def test_the_sliding_hard_cell_finishes(label, width):
+    """The CI subset's cell for the pairs it leaves out (minutes: the reference chatters)."""
+    assert_variant(label, 2.0, H.PACKING_GAPS[0], H.FRICTION_CAP, width, QUICK_END)
 
 
 # Measured to stop (docs/results/hard-cases.md, "The variants"): the Laguerre ROM's support
@@ -102,3 +120,38 @@ def test_the_whole_grid(label, theta, gap, cap, width):
     if label == "cNMC":
         qmom_ref = H.run_variant("QMOM N = 3", theta, gap, cap, width, H.END_TIME)[2]
     assert_variant(label, theta, gap, cap, width, H.END_TIME, qmom_reference=qmom_ref)
+
+
+#: the hard cell's horizon at which the closures part: 2 s, ten outputs
+CLOSURE_END = 2.0
+CQMOM_BINDER_QUADRATURE = (
+    "CQMOM 2 x 2's conditional binder quadrature of a success probability that is a near-step "
+    "in the binder fraction (geometric factor eta(y), slope 35.1 at y = 0.129) is 7x high "
+    "(no injection) and 10x low (injection) on M00 at 2 s; CQMOM 2 x 1 reproduces QMOM N = 2 "
+    "exactly (docs/results/hard-cases.md, 'CQMOM 2 x 2 on the hard cell')")
+
+
+@pytest.mark.parametrize("injection", [
+    pytest.param(0.0, marks=[pytest.mark.slow,
+                             pytest.mark.xfail(strict=True, reason=CQMOM_BINDER_QUADRATURE)]),
+    pytest.param(1.0, marks=[pytest.mark.study,
+                             pytest.mark.xfail(strict=True, reason=CQMOM_BINDER_QUADRATURE)])])
+def test_cqmom_2x2_number_lies_in_the_cnmc_band_of_the_hard_cell(injection):
+    """The hard cell (smooth switch, under the cap) to 2 s, with the injection of the hard case
+    (1) or none (0: binder only from the initial droplets): CQMOM 2 x 2's number density at
+    every output after t = 0 within CNMC_HALF_WIDTHS of the cNMC's 95% band around its mean
+    (the cNMC resolves every granule's binder; its finite-N bias is far below its band)."""
+    def columns(label):
+        scene = H.variant_scene(label, 2.0, H.PACKING_GAPS[0], H.SMOOTH_WIDTH,
+                                end=CLOSURE_END)
+        inj = scene.binder_injection
+        scene = dataclasses.replace(
+            scene, binder_injection=dataclasses.replace(inj, rate=injection * inj.rate))
+        res, stop, _ = H.run(scene)
+        assert res is not None, stop
+        return res.columns
+
+    cnmc, cqmom = columns("cNMC"), columns("CQMOM 2 x 2")
+    half = 0.5 * (cnmc["M00_hi"] - cnmc["M00_lo"])[1:]
+    assert np.all(np.abs(cqmom["M00"] - cnmc["M00"])[1:] <= CNMC_HALF_WIDTHS * half), (
+        cqmom["M00"], cnmc["M00"], half)

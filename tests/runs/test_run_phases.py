@@ -7,7 +7,6 @@ import time
 import numpy as np
 import pytest
 
-from pbe_cfd.physics.injection import droplet_liquid
 from pbe_cfd.runs import model
 from pbe_cfd.runs.couple import run_coupled, write_coupled
 from pbe_cfd.runs.domain import load_domain
@@ -80,7 +79,7 @@ def test_array_outputs_equal_the_row_by_row_outputs_bitwise(coupled, method):
     nd = states[:, -1] * arrays.number_scale
     cols = [c for c in fast if c.startswith("M")]
     model._outputs_by_row(slow, populations, states, list(names), cols, nd,
-                          arrays.droplet_mass, droplet_liquid(arrays.params),
+                          *model.droplet_points(arrays, states, nd),
                           arrays.number_scale, arrays.mass_scale,
                           scene.material.density)
     for c in cols + ["d32_m", "d43_m"]:
