@@ -40,15 +40,32 @@ class KernelMixture:
 
     def __init__(self, kernels, rho, bivariate, status_text, reported=(), failed=None,
                  labels=str, floor=None):
-        self.rho = float(rho)
-        self.rows = len(kernels)
+        rows = len(kernels)
         n = max((len(k[1]) for k in kernels), default=0)
-        self.sigma = np.array([float(k[0]) for k in kernels])
-        self.x = np.zeros((self.rows, n))
-        self.w = np.zeros((self.rows, n))
-        self.y = np.zeros((self.rows, n))
-        for r, (_, x, w, y, _) in enumerate(kernels):
-            self.x[r, :len(x)], self.w[r, :len(x)], self.y[r, :len(x)] = x, w, y
+        x, w, y = (np.zeros((rows, n)) for _ in range(3))
+        for r, (_, xr, wr, yr, _) in enumerate(kernels):
+            x[r, :len(xr)], w[r, :len(xr)], y[r, :len(xr)] = xr, wr, yr
+        self._set(np.array([float(k[0]) for k in kernels]), x, w, y,
+                  np.array([int(k[4]) for k in kernels], dtype=int), rho, bivariate,
+                  status_text, reported, failed, labels, floor)
+
+    @classmethod
+    def of_arrays(cls, sigma, x, w, y, status, rho, bivariate, status_text, reported=(),
+                  failed=None, labels=str, floor=None):
+        """The mixture of per-row arrays: sigma [kg] (rows,), centres x [kg], weights w
+        [1/m3], binder fractions y [-] (rows, n; w = 0: no kernel), status codes (rows,);
+        the other arguments as for the constructor."""
+        mix = cls.__new__(cls)
+        mix._set(np.asarray(sigma, float), np.asarray(x, float), np.asarray(w, float),
+                 np.asarray(y, float), np.asarray(status, int), rho, bivariate, status_text,
+                 reported, failed, labels, floor)
+        return mix
+
+    def _set(self, sigma, x, w, y, status, rho, bivariate, status_text, reported, failed,
+             labels, floor):
+        self.rho = float(rho)
+        self.rows = sigma.size
+        self.sigma, self.x, self.w, self.y = sigma, x, w, y
         self.bivariate = bivariate
         self.floor = np.broadcast_to(np.asarray(0.0 if floor is None else floor, float),
                                      (self.rows,)).copy()
@@ -56,7 +73,6 @@ class KernelMixture:
         self.mass = self.kernel_mass.sum(axis=1)
         self.empty = ~(self.mass > 0)
         self.notes = []
-        status = np.array([int(k[4]) for k in kernels])
         for code in reported:
             rows = np.flatnonzero(status == code)
             if rows.size:
@@ -267,56 +283,122 @@ def of_nodes(populations, rho, bivariate, labels=str, floor=0.0, kernels=None,
     row the n kernels cannot invert takes one kernel on M00, M10, M20; a row not realizable
     even so a delta at its mean; both are named in ``notes``, as are a closest-sigma fit and
     a row with a node not finite (drawn empty). The binder fraction per size class is
-    interpolated in ln p between the nodes' binder fractions (``reconstruct.node_binder``)."""
+    interpolated in ln p between the nodes' binder values (``reconstruct.node_binder``).
+    Rows of at most two distinct nodes are fitted all at once (``_closed_form_rows``), the
+    others row by row (``_fit_rows``)."""
     from ..methods.quadrature import gamma_inversion as I
     from .reconstruct import node_binder, padded_rows
     w_all, p_all = (padded_rows(populations, k) for k in range(2))
-    out, one, delta, bad, below = [], [], [], [], []
-    floors = np.full(w_all.shape[0], float(floor))
-    two = (_two_node_fits(w_all, p_all - floor) if kernels is None and not signed else None)
-    if two is not None and floor > 0:       # a row of no spread is a delta (general path)
-        for r in np.flatnonzero(_no_spread(w_all, p_all)):
-            two[r] = None
-    for r in range(w_all.shape[0]):
-        if two is not None and two[r] is not None:
-            out.append(two[r][:5])
-            if two[r][5]:
-                delta.append(r)
-            continue
+    rows = w_all.shape[0]
+    floors = np.full(rows, float(floor))
+    sigma, x, w = np.zeros(rows), np.zeros((rows, 1)), np.zeros((rows, 1))
+    status, count = np.full(rows, I.DISCRETE), np.zeros(rows, dtype=int)
+    flags = {"one": np.zeros(rows, bool), "delta": np.zeros(rows, bool),
+             "bad": np.zeros(rows, bool), "below": np.zeros(rows, bool)}
+    done = np.zeros(rows, bool)
+    if kernels is None and not signed:
+        done = _closed_form_rows(w_all, p_all, float(floor), sigma, x[:, 0], w[:, 0], status,
+                                 count, flags)
+    slow = _fit_rows(np.flatnonzero(~done), w_all, p_all, floors, kernels, signed, flags)
+    width = max([1 if np.any(count[done] > 0) else 0] + [c.size for _, c, _, _ in slow.values()])
+    cx, cw = np.zeros((rows, width)), np.zeros((rows, width))
+    cx[:, :1], cw[:, :1] = x[:, :width], w[:, :width]
+    for r, (sr, c, wr, st) in slow.items():
+        sigma[r], status[r] = sr, st
+        cx[r], cw[r] = 0.0, 0.0
+        cx[r, :c.size], cw[r, :c.size] = c, wr
+    mix = NodeMixture.of_arrays(sigma, cx, cw, np.zeros((rows, width)), status, rho, bivariate,
+                                I.STATUS_TEXT, reported=(I.CLOSEST,), labels=labels,
+                                floor=floors)
+    for key, text in (("one", ONE_KERNEL_FALLBACK), ("delta", DELTA_FALLBACK),
+                      ("bad", NOT_FINITE), ("below", BELOW_FLOOR)):
+        if np.any(flags[key]):
+            mix.notes.append(f"size distribution: {text} at "
+                             f"{_rows_text(np.flatnonzero(flags[key]), labels)}")
+    mix.node_binder = node_binder(populations) if bivariate else None
+    return mix
+
+
+def _closed_form_rows(w, p, floor, sigma, x, wk, status, count, flags):
+    """Fills, for the rows (nodes w [1/m3], p [kg], (rows, n)) whose fit needs no inversion,
+    sigma [kg], the one kernel's centre x [kg] above ``floor`` and weight wk [1/m3], status
+    and kernel count, and the rows' ``flags``; returns which rows it filled. Those rows: two
+    distinct valid nodes (``_two_node_fits``), a node not finite (no kernel), at most one
+    valid node (a delta there, or none), and with a floor a row of no spread (a delta at the
+    mean mass); every other row is left to ``_fit_rows``."""
+    from ..methods.quadrature import gamma_inversion as I
+    done = np.zeros(w.shape[0], bool)
+    two = _two_node_fits(w, p - floor)
+    if two is not None:
+        ok, s2, mean2, m02, st2, delta2 = two
+        if floor > 0:                   # a row of no spread is a delta (below)
+            ok &= ~_no_spread(w, p)
+        sigma[ok], x[ok], wk[ok], status[ok], count[ok] = s2[ok], mean2[ok], m02[ok], st2[ok], 1
+        flags["delta"] |= ok & delta2
+        done |= ok
+    finite = np.all(np.isfinite(w), axis=1) & np.all(np.isfinite(p), axis=1)
+    bad = ~done & ~finite
+    status[bad], count[bad] = I.FAILED, 0
+    flags["bad"] |= bad
+    done |= bad
+    valid = (w > 0) & (p > 0) & finite[:, None]
+    ps = np.sort(np.where(valid, p, np.inf), axis=1)
+    distinct = ~np.any((ps[:, 1:] == ps[:, :-1]) & np.isfinite(ps[:, 1:]), axis=1)
+    nv = valid.sum(axis=1)
+    wv = np.where(valid, w, 0.0)
+    m0 = wv.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(valid, wv * p, 0.0).sum(axis=1) / np.where(m0 > 0, m0, 1.0)
+        var = np.where(valid, wv * (p - mean[:, None]) ** 2, 0.0).sum(axis=1) / np.where(
+            m0 > 0, m0, 1.0)
+    open_ = ~done & finite & distinct
+    single = open_ & (nv <= 1)
+    node = np.where(valid, p, 0.0).sum(axis=1)      # the one valid node's mass
+    sigma[single], x[single], wk[single] = 0.0, node[single] - floor, m0[single]
+    status[single], count[single] = I.DISCRETE, nv[single]
+    done |= single
+    if floor > 0:
+        flat = open_ & (nv > 1) & (m0 > 0) & (var <= DELTA_REL_VAR * mean * mean)
+        sigma[flat], x[flat], wk[flat] = 0.0, mean[flat] - floor, m0[flat]
+        status[flat], count[flat] = I.DISCRETE, 1
+        done |= flat
+    x[count == 0], wk[count == 0] = 0.0, 0.0         # no kernel: nothing in its slot
+    return done
+
+
+def _fit_rows(rows, w_all, p_all, floors, kernels, signed, flags):
+    """The fit of each of ``rows`` (of the padded nodes w_all [1/m3], p_all [kg]) that
+    ``_closed_form_rows`` did not take: {row: (sigma [kg], centres [kg] above the row's floor,
+    weights [1/m3], status)}; sets the row's ``flags`` and, below the floor, floors[row] = 0."""
+    from ..methods.quadrature import gamma_inversion as I
+    out = {}
+    for r in rows.tolist():
         if not (np.all(np.isfinite(w_all[r])) and np.all(np.isfinite(p_all[r]))):
-            out.append((0.0, np.zeros(0), np.zeros(0), np.zeros(0), I.FAILED))
-            bad.append(r)
+            out[r] = (0.0, np.zeros(0), np.zeros(0), I.FAILED)
+            flags["bad"][r] = True
             continue
         x, w = _size_nodes(w_all[r], p_all[r], signed)
         m0 = w.sum()
         mean = (w * x).sum() / m0 if m0 > 0 else 0.0
-        if floor > 0 and x.size > 1 and m0 > 0:
+        if floors[r] > 0 and x.size > 1 and m0 > 0:
             if (w * (x - mean) ** 2).sum() / m0 <= DELTA_REL_VAR * mean * mean:
                 x, w = np.array([mean]), np.array([m0])
-            elif not mean > floor:
+            elif not mean > floors[r]:
                 floors[r] = 0.0
-                below.append(r)
+                flags["below"][r] = True
         if x.size <= 1 or not m0 > 0:
-            out.append((0.0, x - floors[r], w, np.zeros(x.size), I.DISCRETE))
+            out[r] = (0.0, x - floors[r], w, I.DISCRETE)
             continue
         n = x.size - 1 if kernels is None else int(kernels)
         sigma, c, cw, status = _fit_row(x - floors[r], w, n)
         if status == I.FAILED and n > 1:
             sigma, c, cw, status = _fit_row(x - floors[r], w, 1)
-            one.append(r)
+            flags["one"][r] = True
         if status == I.FAILED:
             sigma, c, cw, status = 0.0, np.array([mean - floors[r]]), np.array([m0]), I.DISCRETE
-            delta.append(r)
-        out.append((sigma, c, cw, np.zeros(c.size), status))
-    mix = NodeMixture(out, rho, bivariate, I.STATUS_TEXT, reported=(I.CLOSEST,),
-                      labels=labels, floor=floors)
-    for rows, text in ((one, ONE_KERNEL_FALLBACK), (delta, DELTA_FALLBACK), (bad, NOT_FINITE),
-                       (below, BELOW_FLOOR)):
-        if rows:
-            mix.notes.append(f"size distribution: {text} at "
-                             f"{_rows_text(np.array(rows), labels)}")
-    mix.node_binder = node_binder(populations) if bivariate else None
-    return mix
+            flags["delta"][r] = True
+        out[r] = (sigma, c, cw, status)
+    return out
 
 
 def _no_spread(w, p):
@@ -334,9 +416,9 @@ def _two_node_fits(w, p):
     EQMOM ``_fit_row`` gives, in closed form: u_2 = M20 M00 / M10^2, sigma = (u_2 - 1) mean
     (the root of J, where the kernel's second moment 1 + sigma meets u_2); discrete
     (sigma = 0) where |J(0)| = (u_2 - 1) / u_2 <= the inversion's ROOT_TOLERANCE; a delta at
-    the mean (flagged) where u_2 < 1. Entries (sigma, centres, weights, binder, status,
-    delta) or None for a row that takes the general fit; None for populations of other
-    than two nodes."""
+    the mean (flagged) where u_2 < 1. Arrays per row (ok, sigma [kg], mean [kg], m0 [1/m3],
+    status, delta), ok False for a row that takes the general fit; None for populations of
+    other than two nodes."""
     from ..methods.quadrature import gamma_inversion as I
     if w.shape[1] != 2:
         return None
@@ -344,21 +426,15 @@ def _two_node_fits(w, p):
           & (p[:, 0] != p[:, 1]))
     m0 = np.where(ok, w[:, 0] + w[:, 1], 1.0)
     mean = np.where(ok, (w[:, 0] * p[:, 0] + w[:, 1] * p[:, 1]) / m0, 1.0)
-    with np.errstate(over="ignore", invalid="ignore"):
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         u2 = (w[:, 0] * (p[:, 0] / mean) ** 2 + w[:, 1] * (p[:, 1] / mean) ** 2) / m0
-    ok &= np.isfinite(u2) & np.isfinite(mean)
-    out = [None] * w.shape[0]
-    for r in np.flatnonzero(ok):
-        f0 = (u2[r] - 1.0) / u2[r]
-        if f0 < 0.0:
-            entry = (0.0, mean[r:r + 1], m0[r:r + 1], np.zeros(1), I.DISCRETE, True)
-        elif abs(f0) <= I.ROOT_TOLERANCE:
-            entry = (0.0, mean[r:r + 1], m0[r:r + 1], np.zeros(1), I.DISCRETE, False)
-        else:
-            entry = ((u2[r] - 1.0) * mean[r], mean[r:r + 1], m0[r:r + 1], np.zeros(1),
-                     I.FIT, False)
-        out[r] = entry
-    return out
+        ok &= np.isfinite(u2) & np.isfinite(mean)
+        f0 = (u2 - 1.0) / u2
+    delta = ok & (f0 < 0.0)
+    discrete = ok & ~delta & (np.abs(f0) <= I.ROOT_TOLERANCE)
+    sigma = np.where(ok & ~delta & ~discrete, (u2 - 1.0) * mean, 0.0)
+    status = np.where(delta | discrete, I.DISCRETE, I.FIT)
+    return ok, sigma, mean, m0, status, delta
 
 
 class NodeMixture(KernelMixture):

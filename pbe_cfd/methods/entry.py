@@ -37,6 +37,9 @@ class MethodEntry(NamedTuple):
     tabulates_theta True if a coupled run hands ``aux`` a grid of the cells' Theta
     population      f(state, aux, arrays) -> (w [1/m3], p [kg], b [kg]): the granules of one
                     scaled state as weighted particles (for SI columns and mean diameters)
+    populations     f(states, aux, arrays) -> (w [1/m3], p [kg], b [kg], counts): every
+                    row's ``population`` in one pass, each (rows, n) zero beyond the row's
+                    count of particles; None: ``population`` row by row
     failure_hint    f(scene, arrays, state, aux) -> text appended to a stopped cell's message
     diagnostics     f(states, aux, arrays) -> (stats dict, warnings list) after a run
     output_check    f(states, aux, arrays) -> None or (row, text): the first row of scaled
@@ -119,6 +122,7 @@ class MethodEntry(NamedTuple):
     plan_line: Callable
 
     options: type | None = None
+    populations: Callable | None = None
     repairs_mixture: Callable = lambda scene: False
     ensemble: Callable | None = None
     config_slots: Callable = lambda scene: {}

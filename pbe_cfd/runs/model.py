@@ -220,6 +220,28 @@ def product_gel_time(scene) -> float | None:
     return 1.0 / (agg.rate * m20)
 
 
+def _population_rows(method, states, aux, arrays):
+    """Every row's weighted particles (w [1/m3], p [kg], b [kg]) as a list of tuples, and as
+    (w, p, b) arrays (rows, particles) where all rows have one count of particles (else
+    None); from the method's ``populations`` in one pass where it has one."""
+    n_rows = states.shape[0]
+    if n_rows == 0:
+        return [], None
+    if method.populations is None:
+        rows = [method.population(states[r], aux, arrays) for r in range(n_rows)]
+        if len({len(w) for w, _, _ in rows}) > 1:
+            return rows, None
+        return rows, tuple(np.array([r[k] for r in rows], dtype=float) for k in range(3))
+    w, p, b, counts = method.populations(states, aux, arrays)
+    rows = [(w[r, :c], p[r, :c], b[r, :c]) for r, c in enumerate(counts.tolist())]
+    if np.all(counts == w.shape[1]):
+        return rows, (w, p, b)
+    if np.all(counts == counts[0]):
+        c = int(counts[0])
+        return rows, (w[:, :c].copy(), p[:, :c].copy(), b[:, :c].copy())
+    return rows, None
+
+
 def _outputs_by_row(out, rows, states, names, cols, nd, pd, bd, n_ref, p_ref, rho):
     """``moment_outputs``'s moments, d32 and d43 row by row (populations of different
     sizes): see there; pd, bd [kg] one droplet's mass and liquid, per row."""
@@ -284,18 +306,17 @@ def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
     pd = arrays.droplet_mass
     n_ref, p_ref = arrays.number_scale, arrays.mass_scale
     rho = scene.material.density
-    population = method_of(scene).population
-    rows = [population(states[r], aux, arrays) for r in range(n_rows)]
+    rows, padded = _population_rows(method_of(scene), states, aux, arrays)
     if populations is not None:
         populations.extend(rows)
     if n_rows == 0:
         return out
     nd = states[:, -1] * n_ref if separate else np.zeros(n_rows)
     pd_rows, bd_rows = droplet_points(arrays, states, nd)
-    if len({len(w) for w, _, _ in rows}) > 1:       # populations of different sizes
+    if padded is None:                               # populations of different sizes
         _outputs_by_row(out, rows, states, names, cols, nd, pd_rows, bd_rows, n_ref, p_ref, rho)
     else:                                            # one (rows, particles) array each
-        w_all, p_all, b_all = (np.array([r[k] for r in rows], dtype=float) for k in range(3))
+        w_all, p_all, b_all = padded
         estimated = columns_from_particle_rows(w_all, p_all, b_all,
                                                [c for c in cols if c not in names])
         for c in cols:

@@ -4,7 +4,8 @@ from ...physics import parameters as P
 from ..entry import MethodEntry, no_aux, no_diagnostics, no_hint
 from .options import QmomOptions
 from .qmom import (qmom_conserved, qmom_project, qmom_realizable, qmom_rhs,
-                   quadrature_of as qmom_quadrature_of, state_names as qmom_state_names,
+                   quadrature_of as qmom_quadrature_of,
+                   quadrature_rows_of as qmom_quadrature_rows_of, state_names as qmom_state_names,
                    work_size as qmom_work_size)
 
 #: config[P.METHOD] of the QMOM
@@ -25,6 +26,11 @@ def _population(state, aux, arrays):
     return w * arrays.number_scale, x * arrays.mass_scale, beta * arrays.mass_scale
 
 
+def _populations(states, aux, arrays):
+    x, w, beta, counts = qmom_quadrature_rows_of(states, arrays.config)
+    return w * arrays.number_scale, x * arrays.mass_scale, beta * arrays.mass_scale, counts
+
+
 def _plan(scene):
     m = scene.method
     return (f"QMOM with {m.options.nodes} nodes; state {', '.join(_state_names(scene))}"
@@ -34,7 +40,7 @@ def _plan(scene):
 ENTRY = MethodEntry(
     name="qmom", code=CODE, scene_keys=_keys, options=QmomOptions, order_key="nodes", order_label="QMOM N",
     state_names=_state_names, aux=no_aux, tabulates_theta=False, population=_population,
-    failure_hint=no_hint, diagnostics=no_diagnostics, plan_line=_plan,
+    populations=_populations, failure_hint=no_hint, diagnostics=no_diagnostics, plan_line=_plan,
     repairs_mixture=lambda scene: scene.bivariate,
     rhs=qmom_rhs, realizable=qmom_realizable, project=qmom_project,
     conserved=qmom_conserved, work_size=lambda config: qmom_work_size(config[P.ORDER]),

@@ -423,6 +423,32 @@ def qmom_project(state, aux, params, config, work):
             state[2 * n_max + k] = target[2 * n_max + k]
 
 
+@nb.njit(cache=True, error_model="numpy")
+def quadrature_rows(states, config, nodes, weights, binder, counts):
+    """``invert`` of every row of ``states`` (rows, n_state; scaled units) into the rows of
+    nodes, weights, binder (rows, n_max; unclipped binder) and the node counts (rows,); each
+    row with a fresh zeroed work array, as ``quadrature_of``."""
+    n_max = config[P.ORDER]
+    work = np.zeros(work_size(n_max))
+    for r in range(states.shape[0]):
+        work[:] = 0.0
+        counts[r] = invert(states[r], config, nodes[r], weights[r], binder[r], work)
+
+
+def quadrature_rows_of(states, config):
+    """Nodes, weights, binder per node (scaled units, each (rows, n_max), zero beyond a row's
+    node count, binder within [0, node]) and the node counts of every row of ``states``;
+    equal entry by entry to ``quadrature_of`` of each row."""
+    n_max = int(config[P.ORDER])
+    states = np.ascontiguousarray(np.atleast_2d(states), dtype=np.float64)
+    rows = states.shape[0]
+    nodes, weights, binder = (np.zeros((rows, n_max)) for _ in range(3))
+    counts = np.zeros(rows, dtype=np.int64)
+    if rows:
+        quadrature_rows(states, config, nodes, weights, binder, counts)
+    return nodes, weights, np.clip(binder, 0.0, nodes), counts
+
+
 def quadrature_of(state, config):
     """Nodes, weights and binder per node (scaled units) of one cell's state; Python helper."""
     n_max = int(config[P.ORDER])
