@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..methods.eqmom import ENTRY as EQMOM
 from ..physics.injection import droplet_mass
 from ..runs.batch import STOKES_FALLBACK_WIDTH, SimulationError
 from ..runs.simulate import run_well_mixed
@@ -55,7 +56,7 @@ METHODS = (("QMOM N = 2", "study-ktgf", {"nodes": 2}),
            ("QMOM N = 3", "study-ktgf", {}),
            ("CQMOM 2 x 2", "seed-wurster-cqmom", {}),
            ("CQMOM 3 x 3", "seed-wurster-cqmom", {"nodes": 3, "binder_nodes": 3}),
-           ("EQMOM N = 3", "study-ktgf", {"name": "eqmom"}),
+           ("EQMOM N = 3", "study-ktgf", {"name": EQMOM.name}),
            ("Laguerre m = 3", "seed-wurster-laguerre", {}),
            ("cNMC", "seed-wurster-cnmc", {"particles": CNMC_PARTICLES,
                                           "replicas": CNMC_REPLICAS}))

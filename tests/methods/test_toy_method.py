@@ -129,12 +129,13 @@ def test_the_scene_routes_method_keys_to_the_toy_and_refuses_the_others(toy):
     from pbe_cfd.scene.scene import SceneError
     with pytest.raises(SceneError, match=r"\[method.nodes\] a key of the qmom, cqmom, eqmom "
                        r"methods, not of toy; toy takes: name, rtol, atol, integrator, "
-                       r"rate_factor"):
+                       r"size_distribution, rate_factor"):
         _toy_scene(nodes=3)
     data = dict(load_scene("constant-kernel").raw)
     data["method"] = {"name": "qmom", "rate_factor": 2.0}
     with pytest.raises(SceneError, match=r"\[method.rate_factor\] a key of the toy method, not "
-                       r"of qmom; qmom takes: name, rtol, atol, integrator, nodes"):
+                       r"of qmom; qmom takes: name, rtol, atol, integrator, size_distribution, "
+                       r"nodes"):
         scene_from_dict(data)
     with pytest.raises(SceneError, match=r"\[method.rate_factr\] unknown key for the toy "
                        r"method; toy takes: .*rate_factor"):
