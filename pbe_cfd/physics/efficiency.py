@@ -24,10 +24,10 @@ from .properties import (ACCESSIBLE_BINDER, BINDER, BINDER_LAYER, DIAMETER,
                          DIAMETERS, LAYER_CBRT, MASS, N_PROPS, WETTING, fill_properties)
 from .registry import switched_product, switched_union
 
-# ---- efficiency codes (switch slot: P.EFFICIENCY_SWITCHES + code) ------------------------------
-GEOMETRIC = 0
-PHYSICAL = 1
-SATURATION = 2
+# ---- efficiency codes, in the order of P.EFFICIENCY_FACTORS (switch: EFFICIENCY_SWITCHES + code)
+GEOMETRIC = P.USE_GEOMETRIC - P.EFFICIENCY_SWITCHES
+PHYSICAL = P.USE_PHYSICAL - P.EFFICIENCY_SWITCHES
+SATURATION = P.USE_SATURATION - P.EFFICIENCY_SWITCHES
 
 
 @nb.njit(cache=True, inline="always")

@@ -105,9 +105,16 @@ N_SWITCHES_START = numbered(CONFIG, globals())
 # (physics.efficiency.EFFICIENCY_REGISTRY); room for MAX_EFFICIENCIES factors
 EFFICIENCY_SWITCHES = N_SWITCHES_START
 MAX_EFFICIENCIES = 8
-USE_GEOMETRIC = EFFICIENCY_SWITCHES + 0    # the geometric (accessible binder) factor
-USE_PHYSICAL = EFFICIENCY_SWITCHES + 1     # the viscous Stokes factor
-USE_SATURATION = EFFICIENCY_SWITCHES + 2   # the liquid-saturation factor
+#: the switch of each efficiency factor, in the order of the factors' codes (the switch of
+#: code k is EFFICIENCY_SWITCHES + k); a new factor is one more name here
+EFFICIENCY_FACTORS = (
+    ("USE_GEOMETRIC", "the geometric (accessible binder) factor"),
+    ("USE_PHYSICAL", "the viscous Stokes factor"),
+    ("USE_SATURATION", "the liquid-saturation factor"),
+)
+if len(EFFICIENCY_FACTORS) > MAX_EFFICIENCIES:
+    raise ValueError(f"{len(EFFICIENCY_FACTORS)} efficiency factors, room for {MAX_EFFICIENCIES}")
+numbered(EFFICIENCY_FACTORS, globals(), EFFICIENCY_SWITCHES)
 N_CONFIG = EFFICIENCY_SWITCHES + MAX_EFFICIENCIES
 
 # ---- cell (float64, per cell) ----------------------------------------------------------

@@ -163,7 +163,7 @@ def _domain_warnings(plan, spray, notes, cells, active) -> list:
     out = []
     if plan.sprays and not np.any(spray):
         out.append(f"the spray zone of [binder_injection] holds no cell: "
-                   f"{spray_zone_cut(plan.scene, cells, active)}; "
+                   f"{spray_zone_cut(plan.spray_zone, plan.alpha_min, cells, active)}; "
                    "no binder is injected (change [binder_injection] zone)")
     if notes["cells_capped_below_alpha_max"]:
         out.append(f"{notes['cells_capped_below_alpha_max']} cells had alpha at or above "

@@ -173,10 +173,10 @@ def spray_zone(scene, cells) -> np.ndarray:
     return inside & window
 
 
-def spray_zone_cut(scene, cells, active) -> str:
-    """Which criterion of ``[binder_injection] zone`` removed the cells of its box: counts of
-    the box's cells with alpha below alpha_low, above alpha_high, below alpha_min."""
-    zone = scene.binder_injection.zone
+def spray_zone_cut(zone, alpha_min: float, cells, active) -> str:
+    """Which criterion of the spray zone ``zone`` (``[binder_injection] zone``: box_min,
+    box_max [m], alpha_low, alpha_high [-]; None: no zone) removed the cells of its box: counts
+    of the box's cells with alpha below alpha_low, above alpha_high, below alpha_min [-]."""
     if zone is None:
         return "no cell has alpha >= alpha_min"
     centre = cells.cell_centre
@@ -188,7 +188,7 @@ def spray_zone_cut(scene, cells, active) -> str:
     parts = [f"{int(np.count_nonzero(c))} with alpha {w}" for c, w in (
         (a < zone.alpha_low, f"< alpha_low = {zone.alpha_low:g}"),
         (a > zone.alpha_high, f"> alpha_high = {zone.alpha_high:g}"),
-        (~np.asarray(active)[box], f"< alpha_min = {scene.domain.alpha_min:g}")) if c.any()]
+        (~np.asarray(active)[box], f"< alpha_min = {alpha_min:g}")) if c.any()]
     return (f"its box holds {int(box.sum())} cells (alpha {a.min():.3g}..{a.max():.3g}), "
             f"removed by the alpha window: {', '.join(parts)}")
 

@@ -41,6 +41,8 @@ class OutputPlan:
     separate_droplets  True if free droplets are a population of their own (bed d32/d43)
     alpha_min       solids fraction below which a cell holds no granules [-] (renders)
     sprays          True if the scene has ``[binder_injection]`` (the empty-zone warning)
+    spray_zone      its ``zone`` (box_min, box_max [m], alpha_low, alpha_high [-]; None: no
+                    zone or no spray), which the empty-zone warning explains
     alpha_max       the packing limit [-] (the capped-cells warning)
     echo            the scene as plain data (summary.json, ``scene.describe``)
     scene           the validated scene, for the methods' output hooks that take it
@@ -54,6 +56,7 @@ class OutputPlan:
     alpha_min: float
     alpha_max: float
     sprays: bool
+    spray_zone: object
     echo: dict
     scene: object
 
@@ -66,7 +69,10 @@ def output_plan(scene) -> OutputPlan:
                       separate_droplets=bool(scene.separate_droplets),
                       alpha_min=float(scene.domain.alpha_min),
                       alpha_max=float(scene.domain.alpha_max),
-                      sprays=scene.binder_injection is not None, echo=describe(scene),
+                      sprays=scene.binder_injection is not None,
+                      spray_zone=(scene.binder_injection.zone
+                                  if scene.binder_injection is not None else None),
+                      echo=describe(scene),
                       scene=scene)
 
 

@@ -161,6 +161,7 @@ def _allowed(argv, sandbox: Path) -> list[Path]:
     return out
 
 
+@pytest.mark.slow
 @settings(max_examples=80, deadline=timedelta(seconds=90), derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture,
                                  HealthCheck.too_slow])

@@ -227,6 +227,7 @@ def _carried(method):
     return [n for n in names if len(n) == 3 and n[0] == "M" and int(n[1]) < 6 and int(n[2]) < 4]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("schedule", ["start-stop", "segments"])
 def test_eqmom_switched_injection_of_a_solution_matches_the_closed_form(schedule):
     """EQMOM's droplets as ordinary particles carry the solution's liquid (1 - s) p_d, not

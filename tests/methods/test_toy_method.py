@@ -134,7 +134,8 @@ def test_the_scene_routes_method_keys_to_the_toy_and_refuses_the_others(toy):
     data = dict(load_scene("constant-kernel").raw)
     data["method"] = {"name": "qmom", "rate_factor": 2.0}
     with pytest.raises(SceneError, match=r"\[method.rate_factor\] a key of the toy method, not "
-                       r"of qmom; qmom takes: name, rtol, atol, integrator, size_distribution, nodes"):
+                       r"of qmom; qmom takes: name, rtol, atol, integrator, size_distribution, "
+                       r"nodes"):
         scene_from_dict(data)
     with pytest.raises(SceneError, match=r"\[method.rate_factr\] unknown key for the toy "
                        r"method; toy takes: .*rate_factor"):

@@ -174,6 +174,7 @@ def _short_scene_file(tmp_path, case=None, end=10.0, interval=5.0) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_cli_workers_failure_and_resume(serial_short, tmp_path, monkeypatch):
     _, _, ref = serial_short
     scene_file = _short_scene_file(tmp_path)

@@ -94,6 +94,7 @@ def test_reference_case_broadens_tenfold(reference):
 
 
 # ---------------------------------------------------------------------------- the ROM
+@pytest.mark.slow
 def test_support_messages_name_the_keys():
     """A stop or warning for mass beyond the support names the [method] keys that set it: the
     fixed support's support_mass / support_binder (and the following support as the way out),
