@@ -9,62 +9,24 @@ dot product of 6e4 doubles measured 31 ms with the default threads and 0.13 ms w
 entries, one pass each) gain little from threads even on an idle machine, so
 ``couple.run_coupled`` keeps one BLAS thread for the whole run.
 
-``blas_threads(n)`` sets the thread count of every OpenBLAS library loaded in this process
-(through its own ``*set_num_threads*`` entry point, found with ctypes; the loaded libraries
-are read from /proc/self/maps) and restores the previous count on exit. Where no OpenBLAS is
-found (another BLAS, another OS) it does nothing. The numba kernels do not call BLAS for
-their small per-cell systems; results change only in the summation order of the BLAS calls
+``blas_threads(n)`` limits every BLAS library loaded in this process to ``n`` threads and
+restores the previous counts on exit (threadpoolctl, which finds the loaded OpenBLAS, MKL or
+BLIS and calls its own thread-count entry point). The numba kernels do not call BLAS for their
+small per-cell systems; results change only in the summation order of the BLAS calls
 (round-off).
 """
 from __future__ import annotations
 
-import contextlib
-import ctypes
-from pathlib import Path
-
-#: Entry points of OpenBLAS builds: (set, get) names, the plain and the scipy/numpy wheels'.
-_ENTRY_POINTS = (("openblas_set_num_threads", "openblas_get_num_threads"),
-                 ("scipy_openblas_set_num_threads64_", "scipy_openblas_get_num_threads64_"),
-                 ("openblas_set_num_threads64_", "openblas_get_num_threads64_"))
-
-
-def _loaded_openblas() -> list:
-    """(set, get) ctypes functions of each OpenBLAS library mapped into this process."""
-    maps = Path("/proc/self/maps")
-    if not maps.exists():
-        return []
-    paths = sorted({line.split()[-1] for line in maps.read_text().splitlines()
-                    if "openblas" in line.lower() and ".so" in line})
-    out = []
-    for path in paths:
-        try:
-            lib = ctypes.CDLL(path)
-        except OSError:
-            continue
-        for set_name, get_name in _ENTRY_POINTS:
-            if hasattr(lib, set_name) and hasattr(lib, get_name):
-                setter, getter = getattr(lib, set_name), getattr(lib, get_name)
-                setter.argtypes, setter.restype = [ctypes.c_int], None
-                getter.argtypes, getter.restype = [], ctypes.c_int
-                out.append((setter, getter))
-                break
-    return out
+from threadpoolctl import threadpool_info, threadpool_limits
 
 
 def blas_thread_counts() -> list:
     """Current thread count of each loaded OpenBLAS [-] ([] if none is found)."""
-    return [int(get()) for _, get in _loaded_openblas()]
+    return [int(lib["num_threads"]) for lib in threadpool_info()
+            if lib.get("internal_api") == "openblas"]
 
 
-@contextlib.contextmanager
 def blas_threads(n: int = 1):
-    """Run the block with ``n`` OpenBLAS threads in every loaded OpenBLAS; restore after."""
-    libs = _loaded_openblas()
-    before = [int(get()) for _, get in libs]
-    for setter, _ in libs:
-        setter(max(1, int(n)))
-    try:
-        yield
-    finally:
-        for (setter, _), count in zip(libs, before):
-            setter(count)
+    """Context manager: the block runs with ``n`` threads in every loaded BLAS; restored
+    after (also on an error)."""
+    return threadpool_limits(limits=max(1, int(n)), user_api="blas")
