@@ -125,13 +125,16 @@ def set_window(case: Path, start_name: str | None, end_time: float, avg_start: f
 def _run_tool(case: Path, tool: str, args: list, env: dict, say, target: float | None):
     """Run one OpenFOAM tool in ``case`` with its output in ``log.<tool>``; progress lines of
     the solver's time; on failure an OpenFOAMError naming the tool, its FOAM FATAL lines and
-    the tail of its log. Stops the tool on Ctrl-C or SIGTERM."""
+    the tail of its log. Stops the tool on Ctrl-C or SIGTERM, also one raised by ``say``
+    (which is first called once the tool has started, when ``target`` is given)."""
     log_path = case / f"log.{tool}"
     with open(log_path, "w") as log:
         proc = subprocess.Popen(of.bound_to_parent([tool, *args]), cwd=case, env=env,
                                 stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         last = None
         try:
+            if target is not None:
+                say(f"{tool}: running to t = {target:g} s")
             while True:
                 try:
                     proc.wait(timeout=2.0)
