@@ -27,7 +27,7 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.efficiency import uses_collision_velocity
-from .basis import SPACINGS
+from .basis import GRADED, SPACINGS
 from .breakage import breakage_blocks
 from .drying import drying_blocks
 from .dry import cross_tensors, dry_class, dry_kernels, dry_tensors
@@ -62,9 +62,13 @@ FOLLOWING_RATIO_POINTS = 5
 #: the gamma shapes lambda in p of the following weight, one per octave: the weight's shape
 #: follows the carried W10^2 / (W00 W20 - W10^2), so that with m = 3 the mass marginal's
 #: expansion is the gamma of the carried M0, M1, M2 itself (docs/physics.md section 9.2).
-#: Below 1/4 the number sits in the first node cell; above 8 the population spans fewer
-#: than three of the 20 cells on [0, 8 c_m]
-FOLLOWING_SHAPES = (0.25, 8.0)
+#: 1/32: the batch on the bundled bed reaches a carried shape of 0.06-0.08 at 30 min (and the
+#: sum kernel's suite case 0.05), an octave below that is the lowest the graded quadrature
+#: (``laguerre_basis.graded_mass_nodes``) is shown to hold: u^(4/3) g to 9e-5 and u^k g,
+#: k < 2m, to round-off at 1/32 (tests/methods/laguerre/test_laguerre_graded.py); 8: a
+#: narrower weight spans under two of the six uniform cells on [0, 8 c_m] (u^6..u^8 g to
+#: 6e-4 there)
+FOLLOWING_SHAPES = (1.0 / 32.0, 8.0)
 
 
 def unit_params(params):
@@ -301,16 +305,18 @@ def _slice_grids(grid, pairs, spec):
     """The quadrature grid of each weight slice: the one support, or with the following
     support p_max = b_max = span c_m (c_m the weight's mass-weighted mean; b <= p bounds the
     binder), the nodes uniform in the binder
-    fraction and the basis in it (``laguerre_basis.fraction_basis_values``). Slices of the
-    same c_m share their nodes (and kernel matrices): the nodes depend on p_max alone."""
+    fraction and the basis in it (``laguerre_basis.fraction_basis_values``), graded Gauss
+    nodes in p for the slice's gamma weight (``laguerre_basis.graded_mass_nodes``). Slices of
+    the same c_m and shape share their nodes (and kernel matrices): the nodes depend on p_max
+    and the shape alone."""
     if spec is None or not spec.get("following"):
         return [grid] * len(pairs)
     out, seen = [], {}
     for c, _, lam in pairs:
         top = float(spec["span"] * (1.0 + 1.0 / lam) * c)       # span c_m
-        key = float("%.12e" % top)
+        key = (float("%.12e" % top), float("%.12e" % lam))
         if key not in seen:
-            seen[key] = dict(grid, p_max=top, b_max=top, spacing=1, fraction_basis=True)
+            seen[key] = dict(grid, p_max=top, b_max=top, spacing=GRADED, fraction_basis=True)
         out.append(seen[key])
     return out
 

@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from ...physics import parameters as P
-from .basis import (SPACINGS, basis_values, gamma_weight, mass_nodes,  # noqa: F401
+from .basis import (GRADED, SPACINGS, basis_values, gamma_weight, mass_nodes,  # noqa: F401
                     fraction_basis_values, moment_index, projection_matrix,
                     quadrature, univariate_values)
 from .build import (FOLLOWING_SHAPES, FOLLOWING_SPAN, build_aux,  # noqa: F401
@@ -81,7 +81,7 @@ def wet_particles(state, aux):
         following = aux[AUX_FOLLOWING] == 1.0
         u, v, W = quadrature(B["c"], B["d"], B["lam"], B["gam"], p_max, b_max,
                              int(aux[AUX_N_P]), int(aux[AUX_N_B]),
-                             1 if following else int(aux[AUX_SPACING]))
+                             GRADED if following else int(aux[AUX_SPACING]), points=B["m"])
         phi = (fraction_basis_values if following else basis_values)(
             u, v, B["Cp"], B["Cb"], B["lam"], B["gam"])
         coef = B["Ginv"] @ (np.asarray(state[:K], float) * B["r"])

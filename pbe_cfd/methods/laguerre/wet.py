@@ -102,7 +102,7 @@ def wet_basis(m, weights, grid, consistent, p_ref):
     Cp = projection_matrix(m, lam)
     Cb = projection_matrix(m, gam)
     u, v, W = quadrature(c, d, lam, gam, grid["p_max"], grid["b_max"], grid["n_p"],
-                         grid["n_b"], grid["spacing"])
+                         grid["n_b"], grid["spacing"], points=m)
     values = fraction_basis_values if grid.get("fraction_basis") else basis_values
     Phi = values(u, v, Cp, Cb, lam, gam)                            # raw basis (N, K)
     mon = np.stack([u ** i * v ** j for (i, j) in idx], axis=1)     # (N, K)
