@@ -1,52 +1,53 @@
-"""Drying in the Laguerre ROM: a linear operator on the wet moments (docs/physics.md section 15).
+"""Drying in the Laguerre ROM: the drift of the wet class evaluated on the state's own
+quadrature (docs/physics.md section 15, "Laguerre ROM").
 
 A wet granule (p, b) loses liquid at e(p, b) (``physics.drying.drying_rate``), dp/dt = db/dt =
--e. In the wet class's internal coordinates u = p / c, v = b / d (``laguerre_wet``) the moment
-M_int_a = int u^i v^j n du dv drifts at
+-e, so a wet moment W_ij = int p^i b^j n gains
 
-    dM_int_a/dt = - int e (i u^(i-1) v^j / c + j u^i v^(j-1) / d) n du dv,
+    dW_ij/dt = - int e (i p^(i-1) b^j + j p^i b^(j-1)) n dp db,
 
-and with the reconstruction n = sum_k M_int_k phi~_k (linear in the state) this is
+and the evaporated liquid E gains int e n. The integral is taken over a positive point measure
+built from the carried wet moments (``wet_points``), never over the signed Laguerre
+reconstruction:
 
-    dM~_a/dt = sum_k L[k, a] M~_k,
-    L[k, a] = - (r_k / r_a) sum_s W_s e_s (i u_s^(i-1) v_s^j / c + j u_s^i v_s^(j-1) / d)
-              phi~_k(s),
+- the masses: the two-node Gauss quadrature of the gamma density with the class's W00, W10,
+  W20 (shape k = mu^2 / var, scale theta = var / mu), nodes theta (k + 1 -+ sqrt(k + 1)) > 0,
+  weights W00 (sqrt(k + 1) +- 1) / (2 sqrt(k + 1)) > 0: W00, W10, W20 exactly (one node at the
+  mean where the variance is not positive);
+- the liquid at each mass node: its conditional mean and second moment from W01, W11 and
+  W02, W12 (the 2 x 2 Vandermonde system of the nodes, as CQMOM's conditional moments), two
+  points mean -+ sigma of half the node's weight; each clipped into 0 <= b <= p keeping W01
+  (then the balances stay exact).
 
-over the wet quadrature (nodes s, weights W_s, ``wet_basis``), r_a = p_ref^(i+j) / (c^i d^j)
-the state scaling. The evaporated liquid E~ = E / (N_ref p_ref) gains
-dE~/dt = sum_k V[k] M~_k, V[k] = (r_k / p_ref) sum_s W_s e_s phi~_k(s): the same sums as the
-rows (1, 0) and (0, 1) of L with the opposite sign, so M10 + E and M01 + E are invariants of
-the operator to round-off. Everything is a function of the weight (c, d, lambda, gamma) and its
-quadrature through the ``bases`` the tables are built from: one block per weight slice of the
-adaptive grid, blended at RHS time as the breakage and aggregation tensors are.
-
-The dry class (b = 0 exactly) does not dry, and the falling rate makes e vanish with b, so no
-granule crosses from the wet class into the dry one: the drift leaves the dry moments alone.
-Free droplets of their own do not dry (as in every method).
-
-The reconstruction is not a positive measure, so V.M~ need not vanish with the wet liquid
-M01. For any positive density on the nodes, E = sum_s w_s e_s <= r_max sum_s w_s b_s =
-r_max M01 with r_max = max_s e_s / b_s, the fastest relative rate of the slice's nodes. The
-drift is therefore scaled by one factor g = min(1, r_max M01 / (V.M~)) (g = 0 where M01 <= 0
-or V.M~ <= 0: no liquid, no evaporation, no condensation) on L and V alike, which keeps
-M10 + E, M01 + E and the binder solids M10 - M01 exact and gives dM01/dt >= -r_max M01 from
-the drying: the wet liquid decays at most exponentially and never crosses zero through it.
-Where the reconstruction is a positive measure g = 1 and the operator is the linear one.
-The aux block at aux[AUX_OFF_DRYING] holds, per weight slice w, L[w, k, a] (K x K), V[w, k]
-(K) then r_max[w] [1/s].
+The drift of W10 and W01 is that measure's -sum w e, exactly minus the evaporation, so M10 + E,
+M01 + E and the binder solids M10 - M01 are invariants of the term. Every other moment W_a
+drifts at the measure's relative rate, dW_a/dt = (D_a / W_a^pts) W_a: where the points match W_a
+(every moment of order <= 2 when no clip acts, and all of them for a monodisperse class) this is
+the measure's own drift D_a; where they do not, the carried moment keeps its sign. The relative
+rates lie in [-(i + j) r, 0], r the points' largest e / b, because b <= p at every point: the
+drift is no stiffer than the fastest particle of the measure. The dry class (b = 0) does not
+dry, and the falling rate keeps b > 0, so no granule moves between the classes. Free droplets
+of their own do not dry here (methods with a droplet-liquid entry carry that).
 """
+import math
+
 import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
 from ...physics.drying import drying_rate
 from .basis import moment_index
-from .breakage import add_laguerre_breakage, add_linear_term
-from .layout import (AUX_NWC, AUX_NWD, AUX_OFF_DRYING, AUX_ORDER, N_CORNERS,
-                     weight_corner)
+from .breakage import add_laguerre_breakage
+from .layout import AUX_OFF_DRYING, AUX_ORDER
 
 #: state entry of the wet liquid M~01: (i, j) = (0, 1) in ``moment_index`` order (order >= 2)
 WET_LIQUID = moment_index(2).index((0, 1))
+#: a variance (of the mass, or of the liquid at a mass node) below this share of the squared
+#: mean is a single node, ours: a spread under 1e-4 of the mean, far above the noise an
+#: integrated monodisperse class's W00 W20 - W10^2 carries (~rtol of W10^2, rtol >= 1e-12),
+#: whose square root would otherwise split one node in two by ~1e-6 and amplify that noise
+#: through the conditional means' 1 / (x2 - x1)
+SINGLE_NODE_VARIANCE = 1e-8
 
 
 def drying_on(config) -> bool:
@@ -54,97 +55,149 @@ def drying_on(config) -> bool:
     return int(config[P.DRYING]) == 1
 
 
-def node_rates(p, b, params):
-    """e [kg/s] at the wet quadrature nodes (masses p, liquid b [kg]) at the scene's slip
-    velocity (params[DRY_SLIP] [m/s])."""
-    q = np.ascontiguousarray(params, dtype=np.float64)
-    slip = float(q[P.DRY_SLIP])
-    return np.array([drying_rate(float(pk), float(min(max(bk, 0.0), pk)), slip, q)
-                     for pk, bk in zip(p, b)])
-
-
-def drift_block(basis, rates, m, p_ref):
-    """(L[k, a], V[k]) of one weight slice [state units per s] (module docstring). basis:
-    ``laguerre_wet.wet_basis`` (nodes u, v, weights W, basis PhiC, scaling r, weight means c,
-    d [kg]); rates: e [kg/s] at its nodes; p_ref [kg]."""
-    u, v, c, d = basis["u"], basis["v"], basis["c"], basis["d"]
-    weighted = basis["PhiC"] * (basis["W"] * rates)[:, None]             # (N, K)
-    drift = np.zeros((len(u), m * m))
-    for a, (i, j) in enumerate(moment_index(m)):
-        if i > 0:
-            drift[:, a] += i * u ** (i - 1) * v ** j / c
-        if j > 0:
-            drift[:, a] += j * u ** i * v ** (j - 1) / d
-    T = -(drift.T @ weighted)                                            # T[a, k]
-    r = basis["r"]
-    L = (T * r[None, :] / r[:, None]).T
-    V = weighted.sum(axis=0) * r / p_ref
-    return L, V
-
-
-def fastest_relative_rate(rates, b):
-    """r_max = max_s e_s / b_s [1/s] over the nodes with liquid (b_s > 0 [kg], e_s [kg/s]);
-    0 without any."""
-    wet = np.asarray(b) > 0.0
-    return float(np.max(np.asarray(rates)[wet] / np.asarray(b)[wet])) if wet.any() else 0.0
-
-
 def drying_blocks(params, config, m, bases, p_ref):
-    """The flat aux block of the drying term: (L[w], V[w], r_max[w]) for each wet basis of
-    ``bases``; an empty array without drying."""
-    if not drying_on(config):
-        return np.zeros(0)
-    blocks = []
-    for basis in bases:
-        rates = node_rates(basis["p"], basis["b"], params)
-        L, V = drift_block(basis, rates, m, p_ref)
-        blocks += [L.ravel(), V, np.array([fastest_relative_rate(rates, basis["b"])])]
-    return np.concatenate(blocks)
+    """The aux block of the drying term: one marker entry (the drift needs no table: it is
+    evaluated on the state's own quadrature at RHS time); empty without drying. params,
+    bases, p_ref: unused (the signature of the ROM's tabulated terms)."""
+    return np.ones(1) if drying_on(config) else np.zeros(0)
+
+
+@nb.njit(cache=True, inline="always")
+def _conditional(x1, x2, w1, w2, first, second):
+    """(c1, c2): the per-node values with w1 c1 + w2 c2 = first, w1 x1 c1 + w2 x2 c2 = second."""
+    det = x2 - x1
+    return (x2 * first - second) / (w1 * det), (second - x1 * first) / (w2 * det)
+
+
+@nb.njit(cache=True, inline="always")
+def _clip_means(x1, x2, w1, w2, liquid, c1, c2):
+    """The conditional liquid means moved into [0, x_a], keeping w1 c1 + w2 c2 = liquid."""
+    if c1 < 0.0:
+        c1 = 0.0
+    elif c1 > x1:
+        c1 = x1
+    c2 = (liquid - w1 * c1) / w2
+    if c2 < 0.0 or c2 > x2:
+        c2 = min(max(c2, 0.0), x2)
+        c1 = min(max((liquid - w2 * c2) / w1, 0.0), x1)
+    return c1, c2
+
+
+@nb.njit(cache=True, inline="always")
+def _spread(x, c, second):
+    """Half-width of a node's two liquid points: sqrt(second - c^2), within [0, x] about c (0
+    below SINGLE_NODE_VARIANCE)."""
+    var = second - c * c
+    if not var > SINGLE_NODE_VARIANCE * c * c:
+        return 0.0
+    return min(math.sqrt(var), c, x - c)
 
 
 @nb.njit(cache=True)
-def add_laguerre_drying(state, out, aux, config, wpos):
+def wet_points(state, m):
+    """The positive point measure of the wet class (module docstring) [scaled]: (x1, x2, w1,
+    w2, c1, c2, h1, h2): mass nodes x, weights w, liquid means c and half-widths h; node a's
+    points are (x_a, c_a -+ h_a), each of weight w_a / 2. w1 = 0 where there is no wet class."""
+    w00 = state[0]
+    w10 = state[m]
+    if not (w00 > 0.0 and w10 > 0.0):
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    w01 = min(max(state[1], 0.0), w10)
+    mu = w10 / w00
+    var = state[2 * m] / w00 - mu * mu if m >= 3 else 0.0
+    if not var > SINGLE_NODE_VARIANCE * mu * mu:
+        c = w01 / w00
+        h = _spread(mu, c, state[2] / w00) if m >= 3 else 0.0
+        return mu, mu, w00, 0.0, c, c, h, 0.0
+    k = mu * mu / var
+    theta = var / mu
+    s = math.sqrt(k + 1.0)
+    x1, x2 = theta * (k + 1.0 - s), theta * (k + 1.0 + s)
+    w1, w2 = w00 * (s + 1.0) / (2.0 * s), w00 * (s - 1.0) / (2.0 * s)
+    c1, c2 = _conditional(x1, x2, w1, w2, w01, state[m + 1])
+    c1, c2 = _clip_means(x1, x2, w1, w2, w01, c1, c2)
+    q1, q2 = _conditional(x1, x2, w1, w2, state[2], state[m + 2])
+    return x1, x2, w1, w2, c1, c2, _spread(x1, c1, q1), _spread(x2, c2, q2)
+
+
+@nb.njit(cache=True, inline="always")
+def _point(q, pts):
+    """(x, b, w) of point q < 4 of ``wet_points``."""
+    x1, x2, w1, w2, c1, c2, h1, h2 = pts
+    if q < 2:
+        return x1, c1 - h1 if q == 0 else c1 + h1, 0.5 * w1
+    return x2, c2 - h2 if q == 2 else c2 + h2, 0.5 * w2
+
+
+@nb.njit(cache=True, inline="always")
+def _point_rates(pts, scale, slip, params):
+    """e [scaled mass per s] of the four points of ``wet_points``, each times its weight (0
+    for a point of no weight or no liquid)."""
+    r0 = r1 = r2 = r3 = 0.0
+    for q in range(4):
+        x, b, w = _point(q, pts)
+        if w == 0.0 or not b > 0.0:
+            continue
+        e = w * drying_rate(x * scale, b * scale, slip, params) / scale
+        if q == 0:
+            r0 = e
+        elif q == 1:
+            r1 = e
+        elif q == 2:
+            r2 = e
+        else:
+            r3 = e
+    return r0, r1, r2, r3
+
+
+@nb.njit(cache=True)
+def add_laguerre_drying(state, out, aux, params, config):
     """Add the drying drift [scaled state units per s] of one cell to ``out``: the wet moments
-    (entries 0 .. K-1) by L, the evaporated liquid (the last entry) by V, both blended over
-    the weight corners wpos (``weight_corner``) of the RHS and scaled by the one factor g of
-    the module docstring (evaporation at most r_max M01). Nothing without a drying block."""
-    o = int(aux[AUX_OFF_DRYING])
-    if o <= 0:
+    (entries 0 .. K-1) and the evaporated liquid (the last entry), evaluated on
+    ``wet_points`` at the scene's slip velocity (params[DRY_SLIP] [m/s]; masses scaled by
+    params[MASS_SCALE] [kg]). W10 and W01 take the points' drift, the other moments its
+    relative rate (module docstring). Nothing without the drying marker or wet liquid."""
+    if int(aux[AUX_OFF_DRYING]) <= 0:
         return
     m = int(aux[AUX_ORDER])
-    K = m * m
-    nwc = int(aux[AUX_NWC])
-    nwd = int(aux[AUX_NWD])
-    evaporated = config[P.N_STATE] - 1
-    stride = K * K + K + 1
-    rate = 0.0                                    # V.M~, blended
-    r_max = 0.0                                   # r_max, blended
-    for q in range(N_CORNERS):
-        w, f = weight_corner(q, wpos, nwc, nwd)
-        if f == 0.0:
-            continue
-        pos = o + w * stride
-        for k in range(K):
-            rate += f * aux[pos + K * K + k] * state[k]
-        r_max += f * aux[pos + K * K + K]
-    liquid = state[WET_LIQUID]
-    if liquid <= 0.0 or rate <= 0.0:
+    if not state[WET_LIQUID] > 0.0:
         return
-    g = min(1.0, r_max * liquid / rate)
-    for q in range(N_CORNERS):
-        w, f = weight_corner(q, wpos, nwc, nwd)
-        if f == 0.0:
-            continue
-        pos = o + w * stride
-        add_linear_term(state, out, aux, pos, K, 0, 0, f * g)
-    out[evaporated] += g * rate
+    pts = wet_points(state, m)
+    if pts[2] == 0.0:
+        return
+    rates = _point_rates(pts, params[P.MASS_SCALE], params[P.DRY_SLIP], params)
+    evaporated = rates[0] + rates[1] + rates[2] + rates[3]
+    if evaporated == 0.0:
+        return
+    for i in range(m):
+        for j in range(m):
+            if i + j == 0:
+                continue
+            drift = 0.0
+            carried = 0.0                       # the points' own W_ij
+            for q in range(4):
+                x, b, w = _point(q, pts)
+                if w == 0.0:
+                    continue
+                carried += w * x ** i * b ** j
+                d = 0.0
+                if i > 0:
+                    d += i * x ** (i - 1) * b ** j
+                if j > 0:
+                    d += j * x ** i * b ** (j - 1)
+                drift -= rates[q] * d
+            if i + j == 1:
+                out[i * m + j] += drift
+            elif carried > 0.0:
+                out[i * m + j] += drift * (state[i * m + j] / carried)
+    out[config[P.N_STATE] - 1] += evaporated
 
 
 @nb.njit(cache=True)
 def add_linear_terms(state, out, cell, aux, params, config, wpos):
-    """The linear terms of the ROM's RHS: breakage (``laguerre_breakage``, with a [breakage]
-    table) and drying (with a [drying] table), at the weight corners wpos of the RHS."""
+    """The ROM's breakage (``laguerre_breakage``, with a [breakage] table: linear, at the weight
+    corners wpos of the RHS) and drying (with a [drying] table, on the state's own points)."""
     if config[P.BREAKAGE] == 1:
         add_laguerre_breakage(state, out, cell, aux, params, config, wpos)
     if config[P.DRYING] == 1:
-        add_laguerre_drying(state, out, aux, config, wpos)
+        add_laguerre_drying(state, out, aux, params, config)
