@@ -17,17 +17,48 @@ __all__ = ["laguerre_realizable", "laguerre_project", "laguerre_conserved",
 
 #: the dry class is merged into the wet one once it holds less than this share of the granules
 DRY_MERGE_SHARE = 1e-12
+#: round-off floor of a moment relative to the largest carried moment of its total order [-]
+ROUND_OFF = 1e-12
+
 
 @nb.njit(cache=True)
-def _wet_checks(state, m, top, level, tol, rel):
-    """Sign, b <= p and Cauchy-Schwarz conditions on the wet moments (laguerre_realizable)."""
+def _order_floors(state, m, K, n):
+    """Round-off floors per total order i + j of the moments (ROUND_OFF times the largest
+    |W_ij| with i + j = order and |D_order| of the dry class), and of the entries past the
+    classes (free droplets, drying): ROUND_OFF times the largest of them and of the number
+    and mass scales. The entries span many decades (on the bed W22 ~ 6e12 against
+    W00 ~ 2e-4 in state units), so one floor relative to the largest entry would accept any
+    sign of W00, W10."""
+    floors = np.zeros(2 * m)
+    for i in range(m):
+        for j in range(m):
+            v = abs(state[i * m + j])
+            if v > floors[i + j]:
+                floors[i + j] = v
+    for k in range(m):
+        v = abs(state[K + k])
+        if v > floors[k]:
+            floors[k] = v
+    extra = max(floors[0], floors[1])
+    for k in range(K + m, n):
+        extra = max(extra, abs(state[k]))
+    floors[2 * m - 1] = extra
+    for k in range(2 * m):
+        floors[k] *= ROUND_OFF
+    return floors
+
+
+@nb.njit(cache=True)
+def _wet_checks(state, m, top, level, floors, rel):
+    """Sign, b <= p and Cauchy-Schwarz conditions on the wet moments (laguerre_realizable);
+    floors[n] the round-off floor of the moments of total order n."""
     if state[0] < 0.0:
         return False
     for i in range(m):
         for j in range(m):
-            if i + j <= top and state[i * m + j] < -tol:
+            if i + j <= top and state[i * m + j] < -floors[i + j]:
                 return False
-    if m > 1 and state[1] > state[m] * (1.0 + rel) + tol:     # W01 <= W10
+    if m > 1 and state[1] > state[m] * (1.0 + rel) + floors[1]:     # W01 <= W10
         return False
     if level < 1:
         return True
@@ -36,7 +67,7 @@ def _wet_checks(state, m, top, level, tol, rel):
         for j in range(m - 1):
             if i + j + 1 > top:
                 continue
-            if state[i * m + j + 1] > state[(i + 1) * m + j] * (1.0 + rel) + tol:
+            if state[i * m + j + 1] > state[(i + 1) * m + j] * (1.0 + rel) + floors[i + j + 1]:
                 return False
     # Cauchy-Schwarz W_(e+f)^2 <= W_(2e) W_(2f)
     h = (m - 1) // 2
@@ -53,6 +84,7 @@ def _wet_checks(state, m, top, level, tol, rel):
                     if max(2 * (e1 + e2), 2 * (f1 + f2)) > top:
                         continue
                     mid = state[s1 * m + s2]
+                    tol = floors[s1 + s2]
                     if mid * mid > (state[2 * e1 * m + 2 * e2] * state[2 * f1 * m + 2 * f2]
                                     * (1.0 + rel) + tol * tol):
                         return False
@@ -65,23 +97,19 @@ def _moment_checks(state, config, level):
     m = config[P.ORDER]
     K = m * m
     n = config[P.N_STATE]
-    big = 0.0
     for i in range(n):
-        v = state[i]
-        if not math.isfinite(v):
+        if not math.isfinite(state[i]):
             return False
-        if abs(v) > big:
-            big = abs(v)
-    tol = 1e-12 * big
+    floors = _order_floors(state, m, K, n)
     rel = 1e-10
     for k in range(K + m, n):                   # free droplets
-        if state[k] < -tol:
+        if state[k] < -floors[2 * m - 1]:
             return False
     top = 2 * (m - 1) if level >= 2 else 2      # highest total order i + j checked
-    if not _wet_checks(state, m, top, level, tol, rel):
+    if not _wet_checks(state, m, top, level, floors, rel):
         return False
     for k in range(m):                          # dry class
-        if k <= top and state[K + k] < -tol:
+        if k <= top and state[K + k] < -floors[k]:
             return False
     if level >= 1:                              # Hankel: D_(e+f)^2 <= D_2e D_2f
         for e in range((m - 1) // 2 + 1):
@@ -89,6 +117,7 @@ def _moment_checks(state, config, level):
                 if max(2 * e, 2 * f) > top:
                     continue
                 mid = state[K + e + f]
+                tol = floors[e + f]
                 if mid * mid > state[K + 2 * e] * state[K + 2 * f] * (1.0 + rel) + tol * tol:
                     return False
     return True
@@ -98,8 +127,10 @@ def _moment_checks(state, config, level):
 def laguerre_realizable(state, aux, params, config, work=None):
     """True if the scaled state is admissible for the ROM (used to accept RK stages).
 
-    Level aux[AUX_CHECK_LEVEL] (build_aux(check_level=...)), tol = 1e-12 max|state|,
-    relative slack 1e-10 (an exact monodisperse start with equalities passes):
+    Level aux[AUX_CHECK_LEVEL] (build_aux(check_level=...)), tol of a moment of total order
+    i + j = 1e-12 times the largest |W_ij|, |D_(i+j)| of that order (of the droplets and
+    drying entries: 1e-12 times the largest of them, |W00|, |W10|, |D0|, |D1|), relative slack
+    1e-10 (an exact monodisperse start with equalities passes):
     0 (default): every entry finite; W00 >= 0; W10, W01, W11, W20, W02 >= -tol (the wet
       moments of total order <= 2); W01 <= W10 (b <= p); D0, D1, D2 >= -tol; free droplets
       n_d >= -tol.
