@@ -42,6 +42,11 @@ class MethodEntry(NamedTuple):
                     count of particles; None: ``population`` row by row
     failure_hint    f(scene, arrays, state, aux) -> text appended to a stopped cell's message
     diagnostics     f(states, aux, arrays) -> (stats dict, warnings list) after a run
+    closure_check   f(blocks, arrays, row_name) -> (stats dict, warnings list) after a run:
+                    the method's own estimate of its closure's error (CQMOM:
+                    ``cqmom.validity``) over blocks of scaled states (2-D arrays, one per
+                    output time with a row per cell, or one with a row per output time),
+                    row_name(block, row) naming a row ("cell 12 at t = 300 s"); None: none
     output_check    f(states, aux, arrays) -> None or (row, text): the first row of scaled
                     states (one per cell, at an output time) that is no answer, and why;
                     the run stops there (None: no check)
@@ -148,6 +153,7 @@ class MethodEntry(NamedTuple):
     distributions: tuple = ()
     moments_text: str = ""
     accuracy_knobs: Callable | None = None
+    closure_check: Callable | None = None
     table_build: Callable | None = None
     dries: bool = False
     solute_droplets: bool = True

@@ -114,6 +114,11 @@ def _run_coupled(scene, domain: Domain, progress, threads, executor) -> CoupledR
     extra, notes_method = method.diagnostics(history[-1], aux, arrays)
     run_stats.update(extra)
     warnings.extend(notes_method)
+    if method.closure_check is not None:
+        extra, notes_method = method.closure_check(
+            history, arrays, lambda k, r: f"cell {int(idx[r])} at t = {times[k]:.6g} s")
+        run_stats.update(extra)
+        warnings.extend(notes_method)
     warnings.extend(batch.notes)
     run_stats["smooth_stokes_cells"] = int(np.count_nonzero(batch.smoothed))
     warnings.extend(_domain_warnings(plan, spray, notes, cells, active))

@@ -72,6 +72,11 @@ def run_well_mixed(scene, progress=None) -> RunResult:
     extra, notes = method.diagnostics(states, aux, arrays)
     run_stats.update(extra)
     warnings.extend(notes)
+    if method.closure_check is not None:
+        extra, notes = method.closure_check([states], arrays,
+                                             lambda k, r: f"t = {times[r]:.6g} s")
+        run_stats.update(extra)
+        warnings.extend(notes)
     warnings.extend(batch.notes)
     run_stats["smooth_stokes_cells"] = int(np.count_nonzero(batch.smoothed))
     psd, labels = _size_distribution(scene, arrays, states, aux, populations, columns, warnings)

@@ -15,7 +15,7 @@ from importlib import resources
 from pathlib import Path
 
 
-from .install import (DEFAULT_PHASE, OpenFOAMError, bound_to_parent, find_openfoam,
+from .install import (DEFAULT_PHASE, OpenFOAMError, bound_to_parent, fatal_line, find_openfoam,
                       phase_fields)
 
 
@@ -64,6 +64,38 @@ class RunResult:
     mesh: str
     latest_time: float
     wall_times: dict[str, float]
+
+
+def vtk_files(case_dir: Path) -> set:
+    """Paths (str) of every file and directory under ``case_dir/VTK`` (foamToVTK's output),
+    the directory itself included if it exists."""
+    vtk = Path(case_dir) / "VTK"
+    if not vtk.is_dir():
+        return set()
+    return {str(vtk)} | {str(p) for p in vtk.rglob("*")}
+
+
+def remove_new_vtk(case_dir: Path, before: set, since_ns: int) -> int:
+    """After a failed OpenFOAM tool: remove the partial output a failing foamToVTK wrote under
+    ``case_dir/VTK``: every file not in ``before`` (``vtk_files`` taken before the tool ran)
+    or modified since ``since_ns`` (time.time_ns() before the tool ran: an Allrun cleans VTK/
+    and foamToVTK writes the same names again), then the directories not in ``before`` that
+    this leaves empty. Any other file is never touched. Returns the number of files removed."""
+    new = sorted(vtk_files(case_dir), key=lambda p: -len(Path(p).parts))
+    removed = 0
+    for name in new:
+        p = Path(name)
+        if p.is_symlink() or not p.is_file():
+            continue
+        if name not in before or p.stat().st_mtime_ns >= since_ns:
+            p.unlink(missing_ok=True)
+            removed += 1
+    new = [name for name in new if name not in before]
+    for name in new:
+        p = Path(name)
+        if p.is_dir() and not p.is_symlink() and not any(p.iterdir()):
+            p.rmdir()
+    return removed
 
 
 def _tail(path: Path, n: int = 30) -> str:
@@ -116,6 +148,7 @@ def run_case(case_dir: str | os.PathLike, mesh: str = "small",
     if target is None:
         target = _control_value(case_dir / "system" / "controlDict", "endTime")
 
+    vtk_before, started_ns = vtk_files(case_dir), _time.time_ns()
     proc = subprocess.Popen(bound_to_parent(args), cwd=case_dir, env=install.env(), stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, start_new_session=True)
     watch = _AllrunWatch(proc, say)
@@ -125,6 +158,7 @@ def run_case(case_dir: str | os.PathLike, mesh: str = "small",
         _stop_group(proc)
         raise
     if proc.returncode != 0:
+        remove_new_vtk(case_dir, vtk_before, started_ns)
         raise watch.failure(case_dir, mesh)
     latest = written_times(case_dir)[-1]
     return RunResult(case_dir, mesh, latest, watch.wall)
@@ -172,6 +206,7 @@ class _AllrunWatch:
         self.current = None
         self.started = _time.perf_counter()
         self.lines: list[str] = []
+        self.failed = False
         self.thread = threading.Thread(target=self._read, daemon=True)
         self.thread.start()
 
@@ -188,7 +223,10 @@ class _AllrunWatch:
             elif line.startswith("Allrun: done") and self.current is not None:
                 self.wall[self.current] = now - self.started
                 self.current = None
-            self.say(line)
+            elif re.match(r"Allrun: (\S+) failed", line):
+                self.failed = True        # the error names it; Allrun's log tail follows
+            if not self.failed:
+                self.say(line)
 
     def wait(self, case_dir: Path, target, timeout):
         """Wait for Allrun to end, reporting the solver's time; kill it after ``timeout`` [s]."""
@@ -228,8 +266,9 @@ class _AllrunWatch:
         lp = case_dir / f"log.{tool}"
         tail = _tail(lp) if lp.is_file() else "\n".join(self.lines[-30:])
         return OpenFOAMError(
-            f"{tool} failed in {case_dir} (Allrun {mesh}, exit status {self.proc.returncode})",
-            tool=tool, log_path=lp if lp.is_file() else None, log_tail=tail)
+            f"{tool} failed in {case_dir} (Allrun {mesh}, exit status {self.proc.returncode}): "
+            f"{fatal_line(tail)}", tool=tool, log_path=lp if lp.is_file() else None,
+            log_tail=tail)
 
 
 def _control_value(path: Path, key: str) -> float | None:

@@ -39,18 +39,32 @@ class OpenFOAMError(RuntimeError):
     """OpenFOAM is missing, a tool failed, or a case file is not what was expected.
 
     Attributes: ``tool`` (the failing OpenFOAM tool or None), ``log_path`` (its log file or
-    None) and ``log_tail`` (the last lines of that log, or "").
+    None) and ``log_tail`` (the last lines of that log, or ""). The message is one line: a
+    log's tail is kept in ``log_tail`` and the message names the log file instead.
     """
 
     def __init__(self, message: str, tool: str | None = None,
                  log_path: Path | None = None, log_tail: str = ""):
-        full = message
-        if log_tail:
-            full += f"\n--- last lines of {log_path} ---\n{log_tail}"
+        full = " ".join(message.split())
+        if log_path is not None and str(log_path) not in full:
+            full += f" (log: {log_path})"
         super().__init__(full)
         self.tool = tool
         self.log_path = log_path
         self.log_tail = log_tail
+
+
+def fatal_line(text: str) -> str:
+    """The first line after a FOAM FATAL header of an OpenFOAM log (the error itself), or the
+    log's last non-empty line."""
+    lines = text.splitlines()
+    for i, line in enumerate(lines):
+        if "FOAM FATAL" in line:
+            for nxt in lines[i + 1:]:
+                if nxt.strip() and not nxt.strip().startswith(("From ", "in file")):
+                    return nxt.strip()
+    rest = [x.strip() for x in lines if x.strip()]
+    return rest[-1] if rest else "(empty log)"
 
 
 # --------------------------------------------------------------------------- install / run

@@ -27,7 +27,8 @@ from pathlib import Path
 from .. import openfoam as of
 from .. import output
 from . import cases
-from .case import _last_sim_time, _stop_group, _tail
+from .case import _last_sim_time, _stop_group, _tail, remove_new_vtk, vtk_files
+from .install import fatal_line  # noqa: F401 (rerun.fatal_line: API)
 
 #: the solver a segment runs, and the tool that writes its VTK internal mesh afterwards
 SOLVER = "twoPhaseEulerFoam"
@@ -128,6 +129,7 @@ def _run_tool(case: Path, tool: str, args: list, env: dict, say, target: float |
     the tail of its log. Stops the tool on Ctrl-C or SIGTERM, also one raised by ``say``
     (which is first called once the tool has started, when ``target`` is given)."""
     log_path = case / f"log.{tool}"
+    vtk_before, started_ns = vtk_files(case), _time.time_ns()
     with open(log_path, "w") as log:
         proc = subprocess.Popen(of.bound_to_parent([tool, *args]), cwd=case, env=env,
                                 stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
@@ -150,22 +152,10 @@ def _run_tool(case: Path, tool: str, args: list, env: dict, say, target: float |
             raise
     text = log_path.read_text(errors="replace")
     if proc.returncode != 0 or "FOAM FATAL" in text:
+        remove_new_vtk(case, vtk_before, started_ns)
         raise of.OpenFOAMError(f"{tool} failed in {case} (exit status {proc.returncode}): "
                                f"{fatal_line(text)}", tool=tool, log_path=log_path,
                                log_tail=_tail(log_path))
-
-
-def fatal_line(text: str) -> str:
-    """The first line after a FOAM FATAL header of an OpenFOAM log (the error itself), or the
-    log's last non-empty line."""
-    lines = text.splitlines()
-    for i, line in enumerate(lines):
-        if "FOAM FATAL" in line:
-            for nxt in lines[i + 1:]:
-                if nxt.strip() and not nxt.strip().startswith(("From ", "in file")):
-                    return nxt.strip()
-    rest = [x.strip() for x in lines if x.strip()]
-    return rest[-1] if rest else "(empty log)"
 
 
 def _owned(target: Path, before: set, body):

@@ -7,6 +7,7 @@ from .cqmom import (MAX_BINDER_NODES, MAX_SIZE_NODES, cqmom_conserved, cqmom_pro
                     state_names as cqmom_state_names, work_size as cqmom_work_size)
 from .options import CqmomOptions
 from .sources import cqmom_rhs
+from .validity import validity_report
 
 #: config[P.METHOD] of the CQMOM
 CODE = 2
@@ -34,6 +35,10 @@ def _plan(scene):
     m = scene.method.options
     return (f"CQMOM with {m.nodes} size nodes x {m.binder_nodes} binder-fraction nodes; "
             f"state {', '.join(_state_names(scene))}; rtol {scene.method.rtol:g}")
+
+
+def _closure_check(blocks, arrays, row_name):
+    return validity_report(blocks, arrays.config, arrays.params, row_name)
 
 
 def _bench_orders(text):
@@ -65,4 +70,5 @@ ENTRY = MethodEntry(
     accuracy_knobs=lambda quick: tuple(
         (f"N1={n1} N2={n2}", {"nodes": n1, "binder_nodes": n2})
         for n1, n2 in (((2, 2),) if quick else ((2, 2), (3, 2), (3, 3), (4, 2)))),
+    closure_check=_closure_check,
     dries=True, evaporates_droplets=True)
