@@ -50,8 +50,8 @@ GRADED = 2
 #: graded quadrature in p on [0, p_max = 8 c_m] (docs/physics.md section 9.2): uniform cells of
 #: 8/6 c_m, the first one halved 6 times (its innermost cell [0, c_m / 48]). Ours, from the
 #: errors of the rule (m = 3, 3 Gauss nodes a cell): u^k g_l for k < 6 to round-off at every
-#: shape; the d43 numerator u^(4/3) g_l to 9e-5 at shape 1/32, 1e-5 at 1/4, 4e-7 at 1; u^6..u^8
-#: to 6e-4 at shape 8 (the narrowest weight, spanning fewer than two of the uniform cells)
+#: shape; the d43 numerator u^(4/3) g_l to 9e-5 at shape 1/32, 1e-5 at 1/4, 3.5e-7 at 1;
+#: u^6..u^8 to 6e-4 at shape 8 (the narrowest weight, spanning under two uniform cells)
 GRADED_CELLS = 6
 GRADED_LEVELS = 6
 
