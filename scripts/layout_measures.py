@@ -15,6 +15,9 @@
    callee resolves to a package function; the sequence of files of the functions entered and
    returned to. stays = runs of one file, returns = stays in a file already left, climbs =
    moves to a file of a higher layer than the one before (the layer of tests/test_layers.py).
+   Where the package has the one pass (``runs.problem.problem_of``), the same counts are
+   given for the part of the path after the run's call of it returns (the run's own file
+   included): what still reads the scene after the pass.
 """
 import ast
 import re
@@ -174,9 +177,22 @@ def layer(module):
     return -1
 
 
+def _counts(seq):
+    """(runs, stays, files, returns, climbs) of a sequence of files entered and returned to."""
+    runs = [m for i, m in enumerate(seq) if i == 0 or seq[i - 1] != m]
+    returns = sum(1 for i, m in enumerate(runs) if m in runs[:i])
+    climbs = sum(1 for i in range(1, len(runs)) if layer(runs[i]) > layer(runs[i - 1]))
+    return runs, len(runs), len(set(runs)), returns, climbs
+
+
+PASS = ("pbe_cfd.runs.problem", "problem_of")
+
+
 def scene_path(start=("couple", "run_coupled")):
+    """The counts of the whole path (``_counts``), and of its part after the first return
+    from the one pass (``PASS``; None where the package has none)."""
     start_mod = next(m for m in ("pbe_cfd.couple", "pbe_cfd.runs.couple") if m in MODS)
-    seq, seen = [], set()
+    seq, seen, after = [], set(), []
 
     def visit(module, fname):
         seq.append(module)
@@ -191,13 +207,11 @@ def scene_path(start=("couple", "run_coupled")):
             if target and target != (module, fname):
                 visit(*target)
                 seq.append(module)
+                if target == PASS and not after:
+                    after.append(len(seq) - 1)
 
     visit(start_mod, start[1])
-    runs = [m for i, m in enumerate(seq) if i == 0 or seq[i - 1] != m]
-    files = set(runs)
-    returns = sum(1 for i, m in enumerate(runs) if m in runs[:i])
-    climbs = sum(1 for i in range(1, len(runs)) if layer(runs[i]) > layer(runs[i - 1]))
-    return runs, len(runs), len(files), returns, climbs
+    return _counts(seq), (_counts(seq[after[0]:]) if after else None)
 
 
 if __name__ == "__main__":
@@ -210,10 +224,15 @@ if __name__ == "__main__":
     nl = name_literals()
     print(f"method-name literals outside the method's modules: {sum(nl.values())} in "
           f"{len(nl)} files: {dict(sorted(nl.items()))}")
-    runs, stays, files, returns, climbs = scene_path()
+    (runs, stays, files, returns, climbs), after = scene_path()
     print(f"scene through couple.run_coupled: {stays} stays in {files} files, {returns} returns "
           f"to a file already left, {climbs} climbs to a higher layer")
     print("  " + " > ".join(m.split(".", 1)[1] for m in runs))
+    if after is not None:
+        a_runs, a_stays, a_files, a_returns, a_climbs = after
+        print(f"  after the one pass (runs.problem.problem_of returns): {a_stays} stays in "
+              f"{a_files} files, {a_returns} returns, {a_climbs} climbs: "
+              + " > ".join(m.split(".", 1)[1] for m in a_runs))
     visits = Counter(runs)
     print("  stays per file: " + ", ".join(f"{m.split('.', 1)[1]} {n}"
                                           for m, n in visits.most_common(6)))

@@ -55,8 +55,8 @@ def setup_memory(n_cells: int, directory=None, log=print) -> dict:
         prob = problem_of(scene, dom)
         batch = CellBatch.for_problem(prob)
         stage("problem and batch")
-        tr = build_transport(scene, dom, prob.active, prob.mesh_rows, arrays=prob.arrays,
-                             aux=prob.aux)
+        tr = build_transport(prob.transport, dom, prob.active, prob.mesh_rows,
+                             arrays=prob.arrays, aux=prob.aux)
         stage("transport built")
         k, _ = tr.substeps(0.5 * tr.split_step)
         start = time.perf_counter()
@@ -101,8 +101,8 @@ def halo_variants(n_cells: int, end_time: float, variants=("serial", (2, None), 
         try:
             for v in list(variants) * repeats:
                 batch = CellBatch.for_problem(prob)
-                batch.air = coupled_air(scene, prob.arrays, dom.cells, prob.cell_ids, None)
-                tr = build_transport(scene, dom, prob.active, prob.mesh_rows,
+                batch.air = coupled_air(prob.air, prob.arrays, None)
+                tr = build_transport(prob.transport, dom, prob.active, prob.mesh_rows,
                                      arrays=prob.arrays, aux=prob.aux)
                 batch.compile()
                 tr.compile(batch.states.shape[1])

@@ -10,6 +10,7 @@ adds ``q3_lo``/``q3_hi``, the replicas' 95% band of q3, on its own lattice class
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -55,45 +56,85 @@ def size_distribution(scene) -> str:
     return chosen if chosen is not None else (offered[0] if offered else "")
 
 
-def _support_kernels(scene):
+def _support_kernels(entry, order):
     """Gamma kernels of the support fit: None for the quadrature nodes (the row's distinct
     nodes less one), N for the EQMOM (its M00 .. M(2N)0), (m - 1) // 2 for the Laguerre ROM
     of order m (its carried M00 .. M(m-1)0; one kernel at least)."""
-    entry = method_of(scene)
-    order = entry.order(scene.method)
     return {"gamma": None, "kernel_mixture": order,
             "laguerre_density": max(1, (order - 1) // 2)}[entry.distribution]
 
 
-def reconstruction_of(scene, arrays, states, aux, populations, labels=str):
-    """The reconstruction of a moment method's scaled states (rows: times or cells);
-    ``populations``: the rows' weighted particles from ``model.moment_outputs``."""
+@dataclass(frozen=True)
+class DistributionPlan:
+    """What the size-distribution outputs read of the scene, computed once
+    (``distribution_plan``; SI).
+
+    method          the method's registry entry (its reconstruction, its texts)
+    method_name     the scene's ``[method] name`` (messages)
+    choice          the reconstruction (``size_distribution``: "support", "semi-infinite",
+                    "expansion"; "" none)
+    floor           the support's smallest granule mass p_min [kg] (0: on [0, inf))
+    kernels         gamma kernels of the support fit (``_support_kernels``; None: the
+                    quadrature nodes' count, or no reconstruction)
+    density         granule material density [kg/m3]
+    bivariate       True if the granules carry binder
+    text            the reconstruction in words (columns.json, ``plan``)
+    """
+    method: object
+    method_name: str
+    choice: str
+    floor: float
+    kernels: int | None
+    density: float
+    bivariate: bool
+    text: str
+
+
+def distribution_plan(scene) -> DistributionPlan:
+    """The ``DistributionPlan`` of a validated scene."""
     entry = method_of(scene)
     kind, choice = entry.distribution, size_distribution(scene)
-    rho, bivariate = scene.material.density, scene.bivariate
+    floor = support_floor(scene) if choice == SUPPORT else 0.0
+    kernels = _support_kernels(entry, entry.order(scene.method)) if kind is not None else None
+    return DistributionPlan(method=entry, method_name=scene.method.name, choice=choice,
+                            floor=floor, kernels=kernels, density=scene.material.density,
+                            bivariate=scene.bivariate,
+                            text=_text(entry, choice, floor, kernels, scene.bivariate))
+
+
+def reconstruction_of(plan: DistributionPlan, arrays, states, aux, populations, labels=str):
+    """The reconstruction of a moment method's scaled states (rows: times or cells);
+    ``plan`` the run's ``DistributionPlan``, ``populations``: the rows' weighted particles
+    from ``model.moment_outputs``."""
+    kind, choice = plan.method.distribution, plan.choice
+    rho, bivariate = plan.density, plan.bivariate
     if kind is None:
-        raise DistributionError(f"method {scene.method.name!r}: no size-distribution "
+        raise DistributionError(f"method {plan.method_name!r}: no size-distribution "
                                 "reconstruction")
     if choice == EXPANSION:
         return R.laguerre_table(states, aux, arrays, bivariate, labels)
-    floor = support_floor(scene) if choice == SUPPORT else 0.0
+    floor = plan.floor
     if kind == "kernel_mixture" and floor == 0.0:         # the EQMOM's own kernels
         return kernel_mixture.of_states(states, aux, arrays, rho, bivariate, labels)
     return kernel_mixture.of_nodes(populations, rho, bivariate, labels, floor=floor,
-                                   kernels=_support_kernels(scene),
+                                   kernels=plan.kernels,
                                    signed=kind == "laguerre_density")
 
 
 def distribution_text(scene) -> str:
     """The scene's reconstruction in words (columns.json, ``plan``)."""
-    entry = method_of(scene)
-    kind, choice = entry.distribution, size_distribution(scene)
+    return distribution_plan(scene).text
+
+
+def _text(entry, choice, floor, n, bivariate) -> str:
+    """The reconstruction in words: ``entry`` the method's registry entry, ``choice`` its
+    ``size_distribution``, ``floor`` p_min [kg], ``n`` the support fit's kernels."""
+    kind = entry.distribution
     if kind is None or choice in (EXPANSION, ""):
         return entry.distribution_text
-    floor = support_floor(scene) if choice == SUPPORT else 0.0
     if kind == "kernel_mixture" and floor == 0.0:
         return entry.distribution_text
-    n = _support_kernels(scene) or 0
+    n = n or 0
     if kind == "gamma":
         fitted = ("N - 1 gamma kernels of one width (one for N = 2) fitted to the carried "
                   "M00 .. M(2N-2)0")
@@ -110,7 +151,7 @@ def distribution_text(scene) -> str:
         where += ("; a positive density by construction (the ROM's own expansion: "
                   "size_distribution = \"expansion\")")
     binder = ("; binder fraction per size class interpolated in ln p between the nodes' "
-              "binder values" if scene.bivariate else "")
+              "binder values" if bivariate else "")
     return f"{fitted} {where} ([method] size_distribution = \"{choice}\"){binder}"
 
 
@@ -195,11 +236,12 @@ def cnmc_psd_columns(times, result, bivariate) -> tuple[dict, list]:
     return psd_columns(times, table, grid, band)
 
 
-def column_labels(scene, state_names, columns, bed: bool = False) -> dict:
+def column_labels(plan: DistributionPlan, state_names, columns, bed: bool = False) -> dict:
     """name -> what the column is: carried (a moment of the method's state), derived or
-    reconstructed (how), for the columns.json sidecar."""
-    entry = method_of(scene)
-    how = distribution_text(scene)
+    reconstructed (how), for the columns.json sidecar; ``plan`` the run's
+    ``DistributionPlan``."""
+    entry = plan.method
+    how = plan.text
     out = {}
     for name in columns:
         base = name[:-3] if name.endswith(("_lo", "_hi")) else name
@@ -228,9 +270,9 @@ def column_labels(scene, state_names, columns, bed: bool = False) -> dict:
     return out
 
 
-def psd_labels(scene, columns) -> dict:
-    """name -> meaning of the psd.csv columns."""
-    how = distribution_text(scene)
+def psd_labels(plan: DistributionPlan, columns) -> dict:
+    """name -> meaning of the psd.csv columns (``plan`` the run's ``DistributionPlan``)."""
+    how = plan.text
     texts = {"time_s": "time [s]", "d_m": "diameter [m], log-spaced",
              "Q3": "reconstructed: mass fraction of the granules below d [-]; " + how,
              "q3_per_ln_d": "reconstructed: mean of dQ3/d(ln d) over the class [d e^(-h/2), "

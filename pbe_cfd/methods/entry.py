@@ -40,7 +40,8 @@ class MethodEntry(NamedTuple):
     populations     f(states, aux, arrays) -> (w [1/m3], p [kg], b [kg], counts): every
                     row's ``population`` in one pass, each (rows, n) zero beyond the row's
                     count of particles; None: ``population`` row by row
-    failure_hint    f(scene, arrays, state, aux) -> text appended to a stopped cell's message
+    failure_hint    f(plan, arrays, state, aux) -> text appended to a stopped cell's message
+                    (plan: the run's ``MethodPlan``)
     diagnostics     f(states, aux, arrays) -> (stats dict, warnings list) after a run
     closure_check   f(blocks, arrays, row_name) -> (stats dict, warnings list) after a run:
                     the method's own estimate of its closure's error (CQMOM:
@@ -51,15 +52,17 @@ class MethodEntry(NamedTuple):
                     states (one per cell, at an output time) that is no answer, and why;
                     the run stops there (None: no check)
     plan_line       f(scene) -> the method's line of ``pbe-cfd plan``
-    repairs_mixture f(scene) -> True if a mixture of realizable states (transport) may need
-                    the method's projection before the next source step
+    repairs_mixture f(plan) -> True if a mixture of realizable states (transport) may need
+                    the method's projection before the next source step (plan: the
+                    scene's ``MethodPlan``)
     initial_state   f(scene, arrays, granule_moment) -> the scaled initial state, or None for
                     the generic one (state entries "M{i}{j}" and "droplet_number_density";
                     granule_moment(i, j) [kg^(i+j)/m3] of the initial granules)
-    columns         f(scene, arrays, states, aux, populations) -> SI output columns, or None
-                    for the generic ones (``model.moment_outputs``)
-    ensemble        a method that is not integrated per cell: f(scene, arrays, cell, times
-                    [s], progress) -> dict of result columns and statistics (cNMC:
+    columns         f(plan, arrays, states, aux, populations) -> SI output columns, or None
+                    for the generic ones (``model.moment_outputs``; plan: the run's
+                    ``MethodPlan``)
+    ensemble        a method that is not integrated per cell: f(plan, arrays, cell, times
+                    [s], progress) (plan: the run's ``MethodPlan``) -> dict of result columns and statistics (cNMC:
                     ``cnmc.simulate_ensemble``)
     config_slots    f(scene) -> {config slot: value} of further knobs (CQMOM: BINDER_NODES)
     table_bytes     f(options) -> peak memory [bytes] its tables take to build (``aux``), from
@@ -128,7 +131,7 @@ class MethodEntry(NamedTuple):
 
     options: type | None = None
     populations: Callable | None = None
-    repairs_mixture: Callable = lambda scene: False
+    repairs_mixture: Callable = lambda plan: False
     ensemble: Callable | None = None
     config_slots: Callable = lambda scene: {}
     initial_state: Callable | None = None
@@ -176,6 +179,29 @@ class MethodEntry(NamedTuple):
 
 
 @dataclass(frozen=True)
+class MethodPlan:
+    """What a method's hooks called after the one pass (``runs.problem.problem_of``) read of
+    the scene: ``columns``, ``failure_hint``, ``repairs_mixture``, ``ensemble``, and the
+    generic output columns (``runs.model.moment_outputs``). Built by
+    ``methods.registry.method_plan``.
+
+    method          the method's registry entry
+    options         its ``[method]`` options (the scene's ``method.options``)
+    bivariate       True if the granules carry binder (the binder coordinate b)
+    separate_droplets  True if free droplets are a population of their own
+    density         granule material density [kg/m3] (mean diameters)
+    initial         the scene's ``[initial]`` table (SI; a method with a run of its own
+                    starts its particles from it)
+    """
+    method: "MethodEntry"
+    options: object
+    bivariate: bool
+    separate_droplets: bool
+    density: float
+    initial: object = None
+
+
+@dataclass(frozen=True)
 class NoOptions:
     """A method without ``[method]`` keys of its own."""
 
@@ -190,7 +216,7 @@ def no_aux(scene, arrays, theta_grid=None):
     return np.zeros(1)
 
 
-def no_hint(scene, arrays, state, aux):
+def no_hint(plan, arrays, state, aux):
     """No method-specific text for a stopped cell."""
     return ""
 

@@ -42,7 +42,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Mapping, Sequence
 
-from .entry import NOT_INTEGRATED, MethodEntry  # noqa: F401
+from .entry import NOT_INTEGRATED, MethodEntry, MethodPlan  # noqa: F401
 
 #: the method packages ``methods/<name>/`` (each one's ``ENTRY`` is named ``<name>``), in the
 #: order the scene lists them
@@ -175,3 +175,11 @@ def entry_of_code(code: int) -> MethodEntry | None:
 def method_of(scene) -> MethodEntry:
     """The registry entry of the scene's method."""
     return _load(scene.method.name)
+
+
+def method_plan(scene) -> MethodPlan:
+    """What the method's hooks after the one pass read of a validated scene (``MethodPlan``;
+    density in kg/m3)."""
+    return MethodPlan(method=method_of(scene), options=scene.method.options,
+                      bivariate=scene.bivariate, separate_droplets=scene.separate_droplets,
+                      density=scene.material.density, initial=scene.initial)

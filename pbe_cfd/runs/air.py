@@ -124,8 +124,36 @@ def air_flow(scene, area=None, inlet_velocity=None) -> float:
                                     dry.pressure)
 
 
-def bed_air(scene, arrays, volumes, area=None, inlet_velocity=None) -> BedAir | None:
-    """The ``BedAir`` of a scene whose [drying] table has an air balance (None without):
+@dataclass(frozen=True)
+class AirPlan:
+    """What the bed's air balance reads of the scene, computed once in the one pass
+    (``air_plan``; SI): the ``BedAir`` fields that do not depend on the packed arrays, and
+    the scene's ``source`` (messages)."""
+    source: str
+    volumes: np.ndarray
+    flow: float
+    inlet_driving: float
+    unit_driving: float
+    mixing: str
+    interval: float
+    inlet_temperature: float
+    inlet_humidity: float
+    wet_bulb: float
+
+    def bed_air(self, arrays) -> BedAir:
+        """A fresh ``BedAir`` of a run packed into ``arrays`` (its evaporated-liquid entry
+        and scale)."""
+        return BedAir(volumes=self.volumes, flow=self.flow, inlet_driving=self.inlet_driving,
+                      unit_driving=self.unit_driving, mixing=self.mixing,
+                      interval=self.interval,
+                      evaporated_index=arrays.state_names.index("evaporated_liquid"),
+                      scale=arrays.number_scale * arrays.mass_scale,
+                      inlet_temperature=self.inlet_temperature,
+                      inlet_humidity=self.inlet_humidity, wet_bulb=self.wet_bulb)
+
+
+def air_plan(scene, volumes, area=None, inlet_velocity=None) -> AirPlan | None:
+    """The ``AirPlan`` of a scene whose [drying] table has an air balance (None without):
     ``volumes`` [m3] of the batch rows; ``area`` [m2] and ``inlet_velocity`` [m/s] of the
     domain where the table gives neither (``air_flow``)."""
     dry = scene.drying
@@ -133,14 +161,18 @@ def bed_air(scene, arrays, volumes, area=None, inlet_velocity=None) -> BedAir | 
         return None
     rho, _, diffusivity, t_wb, driving = gas_state(dry.air_temperature, dry.air_humidity,
                                                    dry.pressure)
-    return BedAir(volumes=np.asarray(volumes, dtype=float),
-                  flow=air_flow(scene, area, inlet_velocity), inlet_driving=driving,
-                  unit_driving=diffusivity * rho, mixing=dry.air_balance,
-                  interval=dry.air_interval,
-                  evaporated_index=arrays.state_names.index("evaporated_liquid"),
-                  scale=arrays.number_scale * arrays.mass_scale,
-                  inlet_temperature=dry.air_temperature, inlet_humidity=dry.air_humidity,
-                  wet_bulb=t_wb)
+    return AirPlan(source=scene.source, volumes=np.asarray(volumes, dtype=float),
+                   flow=air_flow(scene, area, inlet_velocity), inlet_driving=driving,
+                   unit_driving=diffusivity * rho, mixing=dry.air_balance,
+                   interval=dry.air_interval, inlet_temperature=dry.air_temperature,
+                   inlet_humidity=dry.air_humidity, wet_bulb=t_wb)
+
+
+def bed_air(scene, arrays, volumes, area=None, inlet_velocity=None) -> BedAir | None:
+    """The ``BedAir`` of a scene whose [drying] table has an air balance (None without): see
+    ``air_plan``."""
+    plan = air_plan(scene, volumes, area, inlet_velocity)
+    return None if plan is None else plan.bed_air(arrays)
 
 
 def domain_section(cells) -> float:
@@ -154,21 +186,14 @@ def domain_section(cells) -> float:
     return float(np.sum(cells.cell_volume)) / height
 
 
-def coupled_air(scene, arrays, cells, idx, executor=None) -> BedAir | None:
-    """The ``BedAir`` of a coupled run over the active cells ``idx`` of ``cells`` (None
+def coupled_air_plan(scene, cells, idx) -> AirPlan | None:
+    """The ``AirPlan`` of a coupled run over the active cells ``idx`` of ``cells`` (None
     without an air balance): the cross section of the domain, the superficial velocity of the
-    case's gas inlet (the template's for the bundled snapshot) where the table gives neither.
-    The bed's humidity is one number updated between the per-cell integrations, so the
-    cells must run in this process (``executor``: None or a ``SerialExecutor``)."""
+    case's gas inlet (the template's for the bundled snapshot) where the table gives
+    neither."""
     dry = scene.drying
     if dry is None or dry.air_balance == "none":
         return None
-    from .executor import SerialExecutor
-    if executor is not None and not isinstance(executor, SerialExecutor):
-        raise SceneError(scene.source, "drying.air_balance",
-                         "the bed's air balance couples every cell between the per-cell "
-                         "integrations: expected a run in this process (no --cluster), or "
-                         "air_balance = \"none\"")
     velocity = None
     if dry.air_mass_flow is None and dry.superficial_velocity is None:
         velocity = case_inlet_velocity(scene)
@@ -176,7 +201,22 @@ def coupled_air(scene, arrays, cells, idx, executor=None) -> BedAir | None:
     if dry.air_mass_flow is None and dry.bed_area is None:
         area = domain_section(cells)
     volumes = np.asarray(cells.cell_volume, dtype=float)[idx]
-    return bed_air(scene, arrays, volumes, area=area, inlet_velocity=velocity)
+    return air_plan(scene, volumes, area=area, inlet_velocity=velocity)
+
+
+def coupled_air(plan: AirPlan | None, arrays, executor=None) -> BedAir | None:
+    """The ``BedAir`` of a coupled run of ``plan`` (``coupled_air_plan``; None: no air
+    balance). The bed's humidity is one number updated between the per-cell integrations, so
+    the cells must run in this process (``executor``: None or a ``SerialExecutor``)."""
+    if plan is None:
+        return None
+    from .executor import SerialExecutor
+    if executor is not None and not isinstance(executor, SerialExecutor):
+        raise SceneError(plan.source, "drying.air_balance",
+                         "the bed's air balance couples every cell between the per-cell "
+                         "integrations: expected a run in this process (no --cluster), or "
+                         "air_balance = \"none\"")
+    return plan.bed_air(arrays)
 
 
 def case_inlet_velocity(scene):

@@ -17,7 +17,7 @@ import numpy as np
 
 from .. import integrate
 from . import model
-from ..methods.registry import method_of
+from ..methods.registry import method_plan
 from ..physics import parameters as P
 from ..scene import spray
 from ..scene.scene import SceneError
@@ -77,8 +77,9 @@ class CellBatch:
     rtol, atol      tolerances of the step control on the scaled state [-]
     steps           (n,) step memory [s]; stats (n, N_STATS) counters; status (n,) codes;
     reached         (n,) time each cell got to [s]
-    For messages: ``scene`` (source, method hints), ``cell_ids`` the global number of each
-    row (None: a well-mixed run, one cell), ``arrays`` the scene's packed arrays.
+    For messages: ``source`` (the scene's file), ``plan`` (the method's
+    ``methods.entry.MethodPlan``: its name, hints and output check), ``cell_ids`` the global
+    number of each row (None: a well-mixed run, one cell), ``arrays`` the packed arrays.
     """
     params: np.ndarray
     config: np.ndarray
@@ -92,7 +93,8 @@ class CellBatch:
     stats_counts: np.ndarray = None
     status: np.ndarray = None
     reached: np.ndarray = None
-    scene: object = None
+    source: str = ""
+    plan: object = None
     arrays: object = None
     cell_ids: np.ndarray | None = None
     hints: bool = True
@@ -124,8 +126,8 @@ class CellBatch:
         inj = scene.binder_injection
         return cls(params=arrays.params, config=arrays.config, aux=aux, rows=rows,
                    states=states, rtol=scene.method.rtol, atol=scene.method.atol,
-                   steps=np.full(n, scene.output_interval * 1e-3), scene=scene,
-                   arrays=arrays, cell_ids=cell_ids,
+                   steps=np.full(n, scene.output_interval * 1e-3), source=scene.source,
+                   plan=method_plan(scene), arrays=arrays, cell_ids=cell_ids,
                    schedule=spray.factors(inj, scene.end_time) if inj is not None else [])
 
     @classmethod
@@ -137,7 +139,8 @@ class CellBatch:
                    aux=problem.aux, rows=problem.rows,
                    states=np.array(problem.states, dtype=np.float64, copy=True),
                    rtol=problem.rtol, atol=problem.atol, steps=np.full(n, problem.first_step),
-                   scene=problem.scene, arrays=problem.arrays, cell_ids=problem.cell_ids,
+                   source=problem.source, plan=problem.outputs.method_plan,
+                   arrays=problem.arrays, cell_ids=problem.cell_ids,
                    schedule=list(problem.schedule))
 
     @property
@@ -169,7 +172,7 @@ class CellBatch:
         """The compiled kernel this batch runs, as a run names it: method and integrator."""
         scheme = {code: name for name, code in integrate.SCHEMES.items()}.get(
             int(self.config[P.INTEGRATOR]), "?")
-        method = self.scene.method.name if self.scene is not None else \
+        method = self.plan.method.name if self.plan is not None else \
             f"method {int(self.config[P.METHOD])}"
         return f"the {method} kernel with the {scheme} integrator"
 
@@ -310,7 +313,7 @@ class CellBatch:
             return
         c = int(bad[0])
         states = self.states if states is None else states
-        source = self.scene.source if self.scene is not None else ""
+        source = self.source
         params = self.smooth_params() if self.smoothed[c] else self.params
         text = integrate.failure_reason(int(self.status[c]), self.stats_counts[c], params,
                                         self.config)
@@ -322,16 +325,16 @@ class CellBatch:
                        f"{self.rows[c, P.ALPHA]:.4g}, Theta {self.rows[c, P.THETA]:.3g} m2/s2) "
                        f"stopped at t = {self.reached[c]:.6g} s: {text}; {bad.size} cell(s) "
                        "affected")
-        if self.hints and self.scene is not None:
-            message += method_of(self.scene).failure_hint(self.scene, self.arrays, states[c],
-                                                          self.aux)
+        if self.hints and self.plan is not None:
+            message += self.plan.method.failure_hint(self.plan, self.arrays, states[c],
+                                                     self.aux)
         raise SimulationError(message)
 
     def check_output(self, t: float, states: np.ndarray | None = None):
         """Raise SimulationError naming the first cell whose state at the output time ``t``
         [s] is no answer (the method's ``output_check``: e.g. the Laguerre ROM's carried
         moments outside the realizable set), its local fields and why."""
-        check = method_of(self.scene).output_check if self.scene is not None else None
+        check = self.plan.method.output_check if self.plan is not None else None
         if check is None:
             return
         states = self.states if states is None else states
@@ -339,7 +342,7 @@ class CellBatch:
         if found is None:
             return
         c, text = found
-        source = self.scene.source
+        source = self.source
         if self.cell_ids is None:
             where = f"{source}: at t = {t:.6g} s"
         else:

@@ -18,7 +18,7 @@ import numpy as np
 
 from . import model
 from .air import coupled_air
-from .batch import CellBatch, SimulationError, check_physics  # noqa: F401 (SimulationError: API)
+from .batch import CellBatch, SimulationError  # noqa: F401 (SimulationError: API)
 from .domain import PACKING_MARGIN, Domain, spray_zone_cut
 from .executor import SerialExecutor
 from .inventory import inventory
@@ -63,24 +63,23 @@ def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None
 def _run_coupled(scene, domain: Domain, progress, threads, executor) -> CoupledResult:
     import numba
 
-    check_physics(scene)
     if threads is not None:
         numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     executor = executor if executor is not None else SerialExecutor()
     start = _time.perf_counter()
     cells = domain.cells
-    problem = problem_of(scene, domain)
+    problem = problem_of(scene, domain)        # the one pass: below, the problem only
     method, plan = problem.method, problem.outputs
     arrays, aux, times, idx = problem.arrays, problem.aux, problem.times, problem.cell_ids
     active, spray, notes = problem.active, problem.spray, problem.notes
     warnings = []
     batch = CellBatch.for_problem(problem)
-    batch.air = coupled_air(scene, arrays, cells, idx, executor)
+    batch.air = coupled_air(problem.air, arrays, executor)
     transport = None
-    if scene.transport is not None:
+    if problem.transport is not None:
         from ..transport.operator import build_transport
-        transport = build_transport(scene, domain, active, problem.mesh_rows, arrays=arrays,
-                                    aux=aux)
+        transport = build_transport(problem.transport, domain, active, problem.mesh_rows,
+                                    arrays=arrays, aux=aux)
         warnings.extend(transport.warnings)
     compile_s = batch.compile_announced(
         progress, None if transport is None else lambda: transport.compile(batch.states.shape[1]))
@@ -97,7 +96,7 @@ def _run_coupled(scene, domain: Domain, progress, threads, executor) -> CoupledR
     cell_fields, bed, mixtures = _outputs(plan, arrays, aux, cells, active, spray, idx, times,
                                           history, warnings, per_time)
     if "evaporated_liquid" in arrays.state_names:
-        bed.update(inventory(scene, arrays, times, per_time, batch.rows,
+        bed.update(inventory(problem.injection, arrays, times, per_time, batch.rows,
                              np.asarray(cells.cell_volume, dtype=float)[idx]))
     if batch.air is not None:
         bed.update(batch.air.columns(times))
@@ -138,7 +137,8 @@ def _cell_distribution(plan, arrays, aux, states, populations, idx, n, t, fields
     bed's distribution there (the cells' mixture weighted by their granule mass)."""
     from ..distribution import tables
     label = lambda r: f"cell {int(idx[r])} at t = {t:.6g} s"     # noqa: E731 (a row's name)
-    recon = tables.reconstruction_of(plan.scene, arrays, states, aux, populations, label)
+    recon = tables.reconstruction_of(plan.distribution, arrays, states, aux, populations,
+                                     label)
     size, found = tables.size_columns(recon, label)
     notes.extend(x for x in found if x not in notes)
     for name, values in size.items():
@@ -158,7 +158,7 @@ def _bed_distribution(plan, arrays, times, bed, mixtures, cell_fields, warnings)
     psd, grid_notes = tables.psd_columns(times, stack)
     warnings.extend(x for x in notes + grid_notes if x not in warnings)
     names = arrays.state_names
-    hooks = plan.scene                  # the method's and the distribution's labels take it
+    hooks = plan.distribution           # the method's and the distribution's labels
     return psd, {"bed_moments.csv": tables.column_labels(hooks, names, bed, bed=True),
                  "vtk cell fields": tables.column_labels(hooks, names, cell_fields[0]),
                  "psd.csv": tables.psd_labels(hooks, psd)}
@@ -198,7 +198,8 @@ def _outputs(plan, arrays, aux, cells, active, spray, idx, times, history, warni
     pd = arrays.droplet_mass
     for k, states in enumerate(history):
         populations = []
-        cols = model.moment_outputs(plan.scene, arrays, states, aux, populations=populations)
+        cols = model.moment_outputs(plan.method_plan, arrays, states, aux,
+                                    populations=populations)
         if per_time is not None:
             per_time.append(cols)
         fields = {"alpha": np.asarray(cells.alpha, dtype=float),

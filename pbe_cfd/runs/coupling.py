@@ -83,14 +83,15 @@ def initial_diameter(scene) -> float:
     return (6.0 * scene.initial.mean_mass / (math.pi * scene.material.density)) ** (1 / 3)
 
 
-def granule_d32(scene, arrays, aux, states, volumes) -> float:
+def granule_d32(plan, arrays, aux, states, volumes) -> float:
     """Sauter mean diameter d32 [m] of the bed's granules (free droplets excluded): every
-    cell's quadrature weighted by its volume [m3] (``states`` per m3 of bed)."""
+    cell's quadrature weighted by its volume [m3] (``states`` per m3 of bed); ``plan`` the
+    run's ``methods.entry.MethodPlan``."""
     populations = []
-    model.moment_outputs(scene, arrays, states, aux, populations=populations)
+    model.moment_outputs(plan, arrays, states, aux, populations=populations)
     ws = [np.asarray(w) * volumes[c] for c, (w, _, _) in enumerate(populations)]
     ps = [np.asarray(p) for _, p, _ in populations]
-    d32, _ = mean_diameters(np.concatenate(ws), np.concatenate(ps), scene.material.density)
+    d32, _ = mean_diameters(np.concatenate(ws), np.concatenate(ps), plan.density)
     return float(d32)
 
 
@@ -278,9 +279,9 @@ def _granulate(scene, seg, arrays, aux, states, times, progress, fluid) -> float
     t0 = _time.perf_counter()
     transport = None
     if scene.transport is not None:
-        from ..transport.operator import build_transport
-        transport = build_transport(scene, seg.domain, seg.active, seg.rows, arrays=arrays,
-                                    aux=aux)
+        from ..transport.operator import build_transport, transport_settings
+        transport = build_transport(transport_settings(scene), seg.domain, seg.active,
+                                    seg.rows, arrays=arrays, aux=aux)
     executor = SerialExecutor()
     vol = np.asarray(seg.domain.cells.cell_volume, dtype=float)[seg.idx]
     out_t, history = [seg.t_start], [batch.states.copy()]
@@ -292,7 +293,7 @@ def _granulate(scene, seg, arrays, aux, states, times, progress, fluid) -> float
         for tc in check_times(last, float(t), c.check_interval):
             executor.run(batch, np.array([last, tc]), transport)
             last = tc
-            d32 = granule_d32(scene, arrays, aux, batch.states, vol)
+            d32 = granule_d32(batch.plan, arrays, aux, batch.states, vol)
             ended = _ends_here(c, seg.t_start, tc, d32, seg.diameter, scene.end_time,
                                _nears_umf(scene, fluid, seg.diameter, d32))
             if ended or tc == t:

@@ -22,18 +22,20 @@ COLUMNS = ("liquid_sprayed_kg", "liquid_granules_kg", "liquid_droplets_kg",
            "liquid_evaporated_kg", "solids_sprayed_kg", "solids_held_kg", "moisture_content")
 
 
-def sprayed_droplets(scene, times, rows, volumes) -> np.ndarray:
+def sprayed_droplets(inj, times, rows, volumes) -> np.ndarray:
     """Droplets sprayed into the bed from 0 to each time [s] [-]: the schedule's integral per
-    m3 at the peak rate, times sum over cells of (cell rate / peak rate) x volume [m3]."""
-    inj = scene.binder_injection
+    m3 at the peak rate, times sum over cells of (cell rate / peak rate) x volume [m3];
+    ``inj`` the scene's ``[binder_injection]`` table (None: none)."""
     if inj is None or inj.rate <= 0.0:
         return np.zeros(len(times))
     share = float(np.dot(rows[:, P.INJECTION], volumes)) / inj.rate
     return np.array([spray.injected(inj, float(t)) for t in times]) * share
 
 
-def inventory(scene, arrays, times, per_time_columns, rows, volumes) -> dict:
+def inventory(injection, arrays, times, per_time_columns, rows, volumes) -> dict:
     """The inventory columns (``COLUMNS``) per output time of a run with drying:
+    ``injection`` the scene's ``[binder_injection]`` table (None: none; the problem's
+    ``injection``),
     ``per_time_columns`` the SI cell columns of each time (``model.moment_outputs``: M10, M01
     [kg/m3], liquid_granules, liquid_droplets, liquid_evaporated [kg/m3],
     droplet_number_density [1/m3]), ``rows`` the cell rows (their injection), ``volumes`` [m3]
@@ -42,7 +44,7 @@ def inventory(scene, arrays, times, per_time_columns, rows, volumes) -> dict:
     out = {k: np.zeros(n) for k in COLUMNS}
     p_d = arrays.droplet_mass
     b_d = float(droplet_liquid(arrays.params))
-    droplets = sprayed_droplets(scene, times, rows, volumes)
+    droplets = sprayed_droplets(injection, times, rows, volumes)
     out["liquid_sprayed_kg"][:] = droplets * b_d
     out["solids_sprayed_kg"][:] = droplets * (p_d - b_d)
     dry0 = None

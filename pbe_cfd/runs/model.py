@@ -284,19 +284,20 @@ def _liquid_columns(out, evaporated, in_droplets):
     out["moisture_content"] = np.where(dry > 0, out["M01"] / np.where(dry > 0, dry, 1.0), 0.0)
 
 
-def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
+def moment_outputs(plan, arrays: Arrays, states: np.ndarray, aux,
                    populations: list | None = None) -> dict:
     """SI output columns (moments, droplets, d32, d43, binder fraction) of scaled states
-    (one row per time or per cell). If a list is passed as ``populations``, each row's
+    (one row per time or per cell); ``plan`` the run's ``methods.entry.MethodPlan``
+    (``methods.registry.method_plan``). If a list is passed as ``populations``, each row's
     weighted particles (w [1/m3], p [kg], b [kg], from the method's ``population``) are
     appended to it. A method's own ``columns`` in the registry takes precedence."""
-    own = method_of(scene).columns
+    own = plan.method.columns
     if own is not None:
-        return own(scene, arrays, states, aux, populations)
+        return own(plan, arrays, states, aux, populations)
     names = arrays.state_names
-    bivariate = scene.bivariate
+    bivariate = plan.bivariate
     cols = moment_columns(names, bivariate)
-    separate = scene.separate_droplets
+    separate = plan.separate_droplets
     n_rows = states.shape[0]
     out = {c: np.zeros(n_rows) for c in cols}
     if separate:
@@ -305,8 +306,8 @@ def moment_outputs(scene, arrays: Arrays, states: np.ndarray, aux,
         out[c] = np.zeros(n_rows)
     pd = arrays.droplet_mass
     n_ref, p_ref = arrays.number_scale, arrays.mass_scale
-    rho = scene.material.density
-    rows, padded = _population_rows(method_of(scene), states, aux, arrays)
+    rho = plan.density
+    rows, padded = _population_rows(plan.method, states, aux, arrays)
     if populations is not None:
         populations.extend(rows)
     if n_rows == 0:

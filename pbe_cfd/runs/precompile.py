@@ -28,10 +28,10 @@ def _batch_of(scene):
     problem = problem_of(scene, domain)
     batch = CellBatch.for_problem(problem)
     extra = None
-    if scene.transport is not None and domain is not None:
+    if problem.transport is not None and domain is not None:
         from ..transport.operator import build_transport
-        transport = build_transport(scene, domain, problem.active, problem.mesh_rows,
-                                    arrays=problem.arrays, aux=problem.aux)
+        transport = build_transport(problem.transport, domain, problem.active,
+                                    problem.mesh_rows, arrays=problem.arrays, aux=problem.aux)
         extra = lambda: transport.compile(batch.states.shape[1])  # noqa: E731
     return batch, extra
 

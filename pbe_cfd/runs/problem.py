@@ -1,13 +1,25 @@
 """A scene becomes a run's arrays in one pass: ``problem_of(scene, domain)``.
 
 One function takes the validated scene and its domain (None: the well-mixed cell) and returns
-the packed problem -- the method's registry entry, the packed ``params``/``config`` and scales
-(``model.Arrays``), the method's ``aux``, the rows of the integrated cells, their initial
-scaled states, the output times, the tolerances and first step of the step control, and the output plan
-(``OutputPlan``: what the written outputs need of the scene). The runs (``simulate``,
-``couple``), the cell batch and the coupled run's outputs read the problem, not the scene; the
-scene rides along for the methods' output hooks (``MethodEntry.columns``, the size
-distribution), which take it, and for the messages (its ``source``).
+the packed problem (``Problem``): the method's registry entry, the packed ``params``/``config``
+and scales (``model.Arrays``), the method's ``aux``, the rows of the integrated cells, their
+initial scaled states, the output times, the tolerances and first step of the step control,
+the spray schedule and table, and the small plans of what later code needs of the scene:
+
+- ``OutputPlan`` (``output_plan``): what the written outputs read, with the method's hooks'
+  ``methods.entry.MethodPlan`` (``model.moment_outputs``, ``MethodEntry.columns``,
+  ``failure_hint``, ``ensemble``) and the size distribution's
+  ``distribution.tables.DistributionPlan`` (reconstruction, labels);
+- ``transport.operator.TransportSettings`` (the ``[transport]`` table; ``build_transport``);
+- ``runs.air.AirPlan`` (the bed's air balance; ``coupled_air``, ``AirPlan.bed_air``).
+
+What reads what: the runs (``simulate``, ``couple``), the cell batch (``CellBatch.for_problem``),
+the transport, the air balance, the inventory and the coupled run's outputs read the problem
+and its plans, never the scene; the scene's ``source`` rides along for messages. Only this
+module and what it calls to pack (``model``, ``domain``, ``batch.check_physics``, the plans'
+builders, the methods' ``aux``/``state_names``/``initial_state``) read the scene. The two-way
+coupled run (``coupling``) packs its plans once the same way and re-reads the scene only for
+its CFD segments.
 """
 from __future__ import annotations
 
@@ -16,10 +28,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import model
-from .batch import SimulationError, output_times
+from .air import AirPlan, air_plan, coupled_air_plan
+from .batch import SimulationError, check_physics, output_times
 from .domain import build_cells, coupled_scales, initial_states, theta_grid
-from ..methods.entry import MethodEntry
-from ..methods.registry import method_of
+from ..distribution.tables import DistributionPlan, distribution_plan
+from ..methods.entry import MethodEntry, MethodPlan
+from ..methods.registry import method_of, method_plan
 from ..physics import parameters as P
 from ..scene import spray
 from ..scene.scene import SceneError
@@ -45,8 +59,12 @@ class OutputPlan:
                     zone or no spray), which the empty-zone warning explains
     alpha_max       the packing limit [-] (the capped-cells warning)
     echo            the scene as plain data (summary.json, ``scene.describe``)
-    scene           the validated scene, for the methods' output hooks that take it
-                    (``MethodEntry.columns``, ``distribution.tables``)
+    source          the scene's file (messages)
+    dries           True if the scene has ``[drying]`` (the liquid columns)
+    method_plan     what the method's output hooks read (``methods.entry.MethodPlan``:
+                    ``model.moment_outputs``, ``MethodEntry.columns``)
+    distribution    the size distribution's plan (``distribution.tables.DistributionPlan``:
+                    reconstruction, labels)
     """
     title: str
     method_name: str
@@ -58,11 +76,14 @@ class OutputPlan:
     sprays: bool
     spray_zone: object
     echo: dict
-    scene: object
+    source: str
+    dries: bool
+    method_plan: MethodPlan
+    distribution: DistributionPlan
 
 
 def output_plan(scene) -> OutputPlan:
-    """The output plan of a validated scene."""
+    """The output plan of a validated scene (densities in kg/m3)."""
     from ..scene.scene import describe
     return OutputPlan(title=scene.name, method_name=scene.method.name,
                       density=float(scene.material.density), bivariate=bool(scene.bivariate),
@@ -72,8 +93,9 @@ def output_plan(scene) -> OutputPlan:
                       sprays=scene.binder_injection is not None,
                       spray_zone=(scene.binder_injection.zone
                                   if scene.binder_injection is not None else None),
-                      echo=describe(scene),
-                      scene=scene)
+                      echo=describe(scene), source=scene.source,
+                      dries=scene.drying is not None, method_plan=method_plan(scene),
+                      distribution=distribution_plan(scene))
 
 
 @dataclass(frozen=True)
@@ -94,8 +116,13 @@ class Problem:
     mesh_rows       (n_cells, N_CELL) rows of every mesh cell (coupled; None well-mixed)
     active, spray   (n_cells,) the cells holding granules and the sprayed cells (coupled)
     notes           what building the cell rows reported (``domain.build_cells``)
-    outputs         the output plan (``OutputPlan``)
-    scene           the validated scene: messages and the methods' hooks only
+    outputs         the output plan (``OutputPlan``; its ``method_plan`` the method's hooks')
+    source          the scene's file (messages)
+    end_time        the scene's end time [s] (progress fractions)
+    injection       the scene's ``[binder_injection]`` table (None: none; the inventory)
+    transport       the ``[transport]`` settings (``transport.operator.TransportSettings``;
+                    None: no transport table)
+    air             the bed's air balance (``runs.air.AirPlan``; None: no air balance)
     """
     method: MethodEntry
     arrays: model.Arrays
@@ -108,7 +135,11 @@ class Problem:
     first_step: float
     schedule: list
     outputs: OutputPlan
-    scene: object
+    source: str
+    end_time: float
+    injection: object = None
+    transport: object = None
+    air: AirPlan | None = None
     cell_ids: np.ndarray | None = None
     mesh_rows: np.ndarray | None = None
     active: np.ndarray | None = None
@@ -124,8 +155,10 @@ class Problem:
 def problem_of(scene, domain=None) -> Problem:
     """The packed problem of a validated scene on ``domain`` (a ``runs.domain.Domain``; None:
     the well-mixed cell of the scene's ``[domain]``). Raises SceneError for a method the
-    per-cell integrator does not run on a domain, SimulationError when no mesh cell holds
-    granules (alpha >= alpha_min)."""
+    per-cell integrator does not run on a domain or whose physics cannot run
+    (``batch.check_physics``), SimulationError when no mesh cell holds granules (alpha >=
+    alpha_min)."""
+    check_physics(scene)
     method = method_of(scene)
     if domain is not None and not method.integrated:
         from ..methods import registry
@@ -137,7 +170,9 @@ def problem_of(scene, domain=None) -> Problem:
                   first_step=scene.output_interval * FIRST_STEP_SHARE,
                   schedule=(spray.factors(scene.binder_injection, scene.end_time)
                             if scene.binder_injection is not None else []),
-                  outputs=output_plan(scene), scene=scene)
+                  outputs=output_plan(scene), source=scene.source,
+                  end_time=scene.end_time, injection=scene.binder_injection,
+                  transport=_transport_settings(scene))
     if domain is None:
         arrays = model.pack(scene)
         rows = model.well_mixed_cell(scene)
@@ -145,8 +180,10 @@ def problem_of(scene, domain=None) -> Problem:
             return Problem(arrays=arrays, aux=None, rows=rows, states=None, **common)
         aux = method.aux(scene, arrays, None)
         state = model.initial_moments(scene, arrays, arrays.state_names)
+        air = (air_plan(scene, [scene.drying.bed_volume or 1.0])
+               if scene.drying is not None else None)
         return Problem(arrays=arrays, aux=aux, rows=rows, states=state[None, :].copy(),
-                       **common)
+                       air=air, **common)
     cells = domain.cells
     mesh_rows, active, sprayed, notes = build_cells(scene, cells)
     idx = np.flatnonzero(active)
@@ -161,4 +198,13 @@ def problem_of(scene, domain=None) -> Problem:
     states = initial_states(scene, arrays, mesh_rows[idx, P.ALPHA])
     return Problem(arrays=arrays, aux=aux, rows=np.ascontiguousarray(mesh_rows[idx]),
                    states=states, cell_ids=idx, mesh_rows=mesh_rows, active=active,
-                   spray=sprayed, notes=notes, **common)
+                   spray=sprayed, notes=notes, air=coupled_air_plan(scene, cells, idx),
+                   **common)
+
+
+def _transport_settings(scene):
+    """The ``[transport]`` settings of the scene (None without the table)."""
+    if scene.transport is None:
+        return None
+    from ..transport.operator import transport_settings
+    return transport_settings(scene)

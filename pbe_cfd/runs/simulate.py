@@ -9,10 +9,8 @@ import numpy as np
 from . import model
 from ..physics.injection import droplet_liquid
 from ..scene import spray
-from .air import bed_air
 from .batch import CellBatch, SimulationError, check_physics, output_times
 from .problem import problem_of
-from ..methods.registry import method_of
 
 __all__ = ["RunResult", "SimulationError", "run_well_mixed", "output_times", "check_physics"]
 
@@ -36,19 +34,19 @@ def run_well_mixed(scene, progress=None) -> RunResult:
     output interval (and told when the kernels compile). ``wall_time_s`` is the run,
     ``compile_time_s`` compiling or loading the integration kernel [s]. Raises SimulationError
     on a stall or an unrealizable start."""
-    check_physics(scene)
-    method = method_of(scene)
-    if not method.integrated:
-        return _run_ensemble(scene, progress)
     start = _time.perf_counter()
-    problem = problem_of(scene)
+    problem = problem_of(scene)                 # the one pass: below, the problem only
+    method = problem.method
+    if not method.integrated:
+        return _run_ensemble(scene, problem, start, progress)
     arrays, aux, times = problem.arrays, problem.aux, problem.times
+    outputs = problem.outputs
     warnings = []
     states = np.zeros((len(times), problem.states.shape[1]))
     states[0] = problem.states[0]
     batch = CellBatch.for_problem(problem)
-    if scene.drying is not None:
-        batch.air = bed_air(scene, arrays, [scene.drying.bed_volume or 1.0])
+    if problem.air is not None:
+        batch.air = problem.air.bed_air(arrays)
     compile_s = batch.compile_announced(progress)
     start += compile_s                      # the run time excludes the compile
     for k in range(1, len(times)):
@@ -56,13 +54,14 @@ def run_well_mixed(scene, progress=None) -> RunResult:
         batch.check_output(times[k])
         states[k] = batch.states[0]
         if progress is not None:
-            progress(times[k] / scene.end_time, f"t = {times[k]:.4g} s")
+            progress(times[k] / problem.end_time, f"t = {times[k]:.4g} s")
     wall = _time.perf_counter() - start
     columns = {"time_s": times}
     populations = []
-    columns.update(model.moment_outputs(scene, arrays, states, aux, populations=populations))
-    if scene.drying is not None:
-        inj = scene.binder_injection
+    columns.update(model.moment_outputs(outputs.method_plan, arrays, states, aux,
+                                        populations=populations))
+    if outputs.dries:
+        inj = problem.injection
         columns["liquid_sprayed"] = (np.array([spray.injected(inj, t) for t in times])
                                      * float(droplet_liquid(arrays.params))
                                      if inj is not None else np.zeros(len(times)))
@@ -79,40 +78,43 @@ def run_well_mixed(scene, progress=None) -> RunResult:
         warnings.extend(notes)
     warnings.extend(batch.notes)
     run_stats["smooth_stokes_cells"] = int(np.count_nonzero(batch.smoothed))
-    psd, labels = _size_distribution(scene, arrays, states, aux, populations, columns, warnings)
+    psd, labels = _size_distribution(outputs.distribution, arrays, states, aux, populations,
+                                     columns, warnings)
     return RunResult(scene=scene, columns=columns, stats=run_stats, wall_time_s=wall,
                      warnings=warnings, compile_time_s=compile_s,
                      kernels_compiled=batch.compiled_now, psd=psd, labels=labels)
 
 
-def _size_distribution(scene, arrays, states, aux, populations, columns, warnings):
-    """Add d10/d50/d90/span to ``columns`` and return (psd.csv columns, columns.json)."""
+def _size_distribution(plan, arrays, states, aux, populations, columns, warnings):
+    """Add d10/d50/d90/span to ``columns`` and return (psd.csv columns, columns.json);
+    ``plan`` the run's ``distribution.tables.DistributionPlan``."""
     from ..distribution import tables
-    if method_of(scene).distribution is None:       # a method without a reconstruction
-        return None, {"moments.csv": tables.column_labels(scene, arrays.state_names, columns)}
+    if plan.method.distribution is None:            # a method without a reconstruction
+        return None, {"moments.csv": tables.column_labels(plan, arrays.state_names, columns)}
     times = columns["time_s"]
     label = lambda r: f"t = {times[r]:.6g} s"         # noqa: E731 (a row's name)
-    recon = tables.reconstruction_of(scene, arrays, states, aux, populations, label)
+    recon = tables.reconstruction_of(plan, arrays, states, aux, populations, label)
     size, notes = tables.size_columns(recon, label)
     columns.update(size)
     psd, grid_notes = tables.psd_columns(times, recon)
     warnings.extend(notes + grid_notes)
-    return psd, {"moments.csv": tables.column_labels(scene, arrays.state_names, columns),
-                 "psd.csv": tables.psd_labels(scene, psd)}
+    return psd, {"moments.csv": tables.column_labels(plan, arrays.state_names, columns),
+                 "psd.csv": tables.psd_labels(plan, psd)}
 
 
-def _run_ensemble(scene, progress) -> RunResult:
-    """A method with a run of its own (the cNMC ensemble of a well-mixed scene): mean and 95%
-    band columns per output time."""
-    start = _time.perf_counter()
-    problem = problem_of(scene)
+def _run_ensemble(scene, problem, start, progress) -> RunResult:
+    """A method with a run of its own (the cNMC ensemble of a well-mixed scene, packed into
+    ``problem`` from ``start``, a ``perf_counter`` time [s]): mean and 95% band columns per
+    output time; ``scene`` only rides along into the result."""
     times = problem.times
+    outputs = problem.outputs
     cb = (lambda f: progress(f, "")) if progress is not None else None
-    res = problem.method.ensemble(scene, problem.arrays, problem.rows[0], times, cb)
+    res = problem.method.ensemble(outputs.method_plan, problem.arrays, problem.rows[0], times,
+                                  cb)
     wall = _time.perf_counter() - start
     columns = {"time_s": times}
     stats = {}
-    psd, psd_notes = _cnmc_distribution(scene, times, res)
+    psd, psd_notes = _cnmc_distribution(outputs.bivariate, times, res)
     for key, value in res.items():
         if key == "time_s" or key.startswith("psd_"):
             continue
@@ -120,23 +122,24 @@ def _run_ensemble(scene, progress) -> RunResult:
             stats[key] = value.item() if hasattr(value, "item") else value
         else:
             columns[key] = np.asarray(value, dtype=float)
-    if not scene.bivariate:
+    if not outputs.bivariate:
         for key in list(columns):
             base = key.split("_")[0]
             if base in ("M01", "M11", "M02") or key.startswith("binder_fraction"):
                 columns.pop(key)
-    if not scene.separate_droplets:
+    if not outputs.separate_droplets:
         for key in list(columns):
             if key.startswith("droplet_number_density"):
                 columns.pop(key)
     from ..distribution import tables
-    labels = {"moments.csv": tables.column_labels(scene, [], columns),
-              "psd.csv": tables.psd_labels(scene, psd)}
+    labels = {"moments.csv": tables.column_labels(outputs.distribution, [], columns),
+              "psd.csv": tables.psd_labels(outputs.distribution, psd)}
     return RunResult(scene=scene, columns=columns, stats=stats, wall_time_s=wall,
                      warnings=psd_notes, psd=psd, labels=labels)
 
 
-def _cnmc_distribution(scene, times, res):
-    """(psd.csv columns, notes) of a cNMC ensemble's histograms."""
+def _cnmc_distribution(bivariate, times, res):
+    """(psd.csv columns, notes) of a cNMC ensemble's histograms (``bivariate``: True if the
+    granules carry binder)."""
     from ..distribution import tables
-    return tables.cnmc_psd_columns(times, res, scene.bivariate)
+    return tables.cnmc_psd_columns(times, res, bivariate)

@@ -302,21 +302,65 @@ class Transport:
 
 
 # ---------------------------------------------------------------------------- building
-def build_transport(scene, domain, active: np.ndarray, rows: np.ndarray,
-                    arrays=None, aux=None) -> Transport:
+@dataclass(frozen=True)
+class TransportSettings:
+    """What the transport operator reads of the scene (``transport_settings``; SI).
+
+    courant         the largest Courant number of a substep [-]
+    split_step      the scene's split step [s] (None: ``DEFAULT_SPLIT_STEP``)
+    splitting       "lie" or "strang"
+    output_interval the scene's output interval [s] (the split step never exceeds it)
+    repairs         True if the method may need its projection of mixed states
+                    (``MethodEntry.repairs_mixture``)
+    """
+    courant: float
+    split_step: float | None
+    splitting: str
+    output_interval: float
+    repairs: bool
+
+
+def transport_settings(scene) -> TransportSettings:
+    """The ``TransportSettings`` of a validated scene with a ``[transport]`` table."""
+    from ..methods.registry import method_of, method_plan
+    t = scene.transport
+    return TransportSettings(courant=t.courant, split_step=t.split_step,
+                             splitting=t.splitting, output_interval=scene.output_interval,
+                             repairs=bool(method_of(scene).repairs_mixture(method_plan(scene))))
+
+
+def transport_of_scene(scene, domain, active: np.ndarray, rows: np.ndarray) -> Transport:
+    """``build_transport`` of a scene outside a run (``pbe-cfd plan``, studies): its settings,
+    and where the method repairs mixed states its arrays packed with the coupled scales of
+    the active cells and its method data."""
+    from ..physics import parameters as P
+    settings = transport_settings(scene)
+    arrays = aux = None
+    if settings.repairs:
+        from ..methods.registry import method_of
+        from ..runs import model
+        from ..runs.domain import coupled_scales
+        idx = np.flatnonzero(np.asarray(active, dtype=bool))
+        scaled = coupled_scales(scene, np.asarray(rows[idx, P.ALPHA], dtype=float))
+        arrays = model.pack(scaled)
+        aux = method_of(scene).aux(scaled, arrays, None)
+    return build_transport(settings, domain, active, rows, arrays=arrays, aux=aux)
+
+
+def build_transport(settings: TransportSettings, domain, active: np.ndarray,
+                    rows: np.ndarray, arrays=None, aux=None) -> Transport:
     """The transport operator of a coupled run (built once).
 
-    scene: the Scene (its ``transport`` table gives courant [-], split_step [s] and
-    splitting); domain: couple.Domain whose ``flux`` is a FaceFlux [m3/s] and ``cells`` has
+    settings: the run's ``TransportSettings`` (courant [-], split_step [s], splitting);
+    domain: couple.Domain whose ``flux`` is a FaceFlux [m3/s] and ``cells`` has
     cell_volume [m3] and cell_centre [m]; active: (n_cells,) bool over all mesh cells;
     rows: (n_cells, N_CELL) cell rows (ALPHA [-] is the solids fraction used, INJECTION
     [droplets/(m3 s)] marks the spray zone for the mixing-time tracer); arrays: the run's
     packed arrays (``model.pack`` of the coupled scales) and aux its method data, for the
-    method's projection of mixed states (built here when not given).
+    method's projection of mixed states (needed where ``settings.repairs``).
     """
     from ..physics import parameters as P
 
-    tcfg = scene.transport
     if domain.flux is None:
         raise ValueError("build_transport: the domain has no face flux (load it with "
                          "need_flux=True)")
@@ -327,6 +371,9 @@ def build_transport(scene, domain, active: np.ndarray, rows: np.ndarray,
     if domain.flux.n_cells != active.size:
         raise ValueError(f"build_transport: flux mesh has {domain.flux.n_cells} cells, the "
                          f"domain {active.size}")
+    if settings.repairs and (arrays is None or aux is None):
+        raise ValueError("build_transport: the method repairs mixed states: expected the "
+                         "run's packed arrays and aux (``transport_of_scene`` packs them)")
     warnings = []
     holds = alpha > 0.0
     if not holds.all():
@@ -342,9 +389,9 @@ def build_transport(scene, domain, active: np.ndarray, rows: np.ndarray,
     safe_alpha = np.where(holds, alpha, 1.0)
     gen, out_rate = upwind_generator(af_active, safe_alpha, volume)
     rmax = float(out_rate.max()) if out_rate.size else 0.0
-    courant = float(tcfg.courant)
+    courant = float(settings.courant)
     dt_max = courant / rmax if rmax > 0 else math.inf
-    split, split_src = _split_step(scene, dt_max)
+    split, split_src = _split_step(settings, dt_max)
     st = af.stats
     if st["correction_l1_rel"] > 0.2:
         warnings.append(f"transport: the divergence correction changed the solids flux by "
@@ -362,18 +409,17 @@ def build_transport(scene, domain, active: np.ndarray, rows: np.ndarray,
     circ = circulation_time(af_active, centre, alpha * volume)
     tr = Transport(n=idx.size, alpha=safe_alpha, volume=volume, generator=gen,
                    out_rate=out_rate, courant=courant, dt_max=dt_max, split_step=split,
-                   split_step_source=split_src, splitting=tcfg.splitting, flux_stats=st,
+                   split_step_source=split_src, splitting=settings.splitting, flux_stats=st,
                    tracer_cells=tracer, circulation_time=circ, warnings=warnings)
-    tr.repair = _mixture_repair(scene, alpha, arrays, aux)
+    tr.repair = _mixture_repair(settings, arrays, aux)
     return tr
 
 
-def _split_step(scene, dt_max):
+def _split_step(settings, dt_max):
     """The split step [s] and where it came from (the scene, or the default)."""
-    t = scene.transport
-    if t.split_step is not None:
-        return min(float(t.split_step), scene.output_interval), "scene"
-    return min(DEFAULT_SPLIT_STEP, scene.output_interval), "default"
+    if settings.split_step is not None:
+        return min(float(settings.split_step), settings.output_interval), "scene"
+    return min(DEFAULT_SPLIT_STEP, settings.output_interval), "default"
 
 
 #: Split step used when the scene does not set one [s] (see the module docstring; the
@@ -381,23 +427,12 @@ def _split_step(scene, dt_max):
 DEFAULT_SPLIT_STEP = 0.25
 
 
-def _mixture_repair(scene, alpha_active, arrays=None, aux=None):
+def _mixture_repair(settings, arrays, aux):
     """A callable re-projecting the cells whose mixed state the method's realizability check
     rejects (QMOM: node-wise binder outside [0, p_a]), or None where the method's
-    ``repairs_mixture`` says mixing keeps its states realizable."""
-    from ..methods.registry import method_of
-
-    method = method_of(scene)
-    if not method.repairs_mixture(scene):
+    ``repairs_mixture`` says mixing keeps its states realizable (``settings.repairs``)."""
+    if not settings.repairs:
         return None
-    if arrays is None:
-        from ..runs import model
-        from ..runs.domain import coupled_scales
-        scaled = coupled_scales(scene, alpha_active)
-        arrays = model.pack(scaled)
-        aux = method.aux(scaled, arrays, None)
-    if aux is None:
-        aux = method.aux(scene, arrays, None)
     params, config = arrays.params, arrays.config
 
     def repair(states):
@@ -480,7 +515,7 @@ def transport_plan_lines(scene) -> list[str]:
     t = scene.transport
     domain = load_domain(scene, need_flux=True)
     rows, active, spray, _ = build_cells(scene, domain.cells)
-    tr = build_transport(scene, domain, active, rows)
+    tr = transport_of_scene(scene, domain, active, rows)
     st = tr.flux_stats
     mix = tr.mixing()
     lines = [f"  transport flux: {st['field']} at t = {domain.flux.time:g} s, "

@@ -180,3 +180,36 @@ def test_the_toys_own_key_reaches_its_kernel(toy, factor):
     n0, k0 = scene.initial.number_density, scene.aggregation.rate
     exact = n0 / (1.0 + 0.5 * factor * k0 * n0 * t)
     assert res.columns["M00"] == pytest.approx(exact, rel=1e-6, abs=0.0)
+
+
+def test_the_toys_output_hook_takes_its_plan_not_the_scene(toy):
+    """A method's own ``columns`` hook is handed the run's ``MethodPlan`` (its options, the
+    coordinates, the density), never the scene: a toy whose hook records what it is given
+    and writes its SI moments from the scaled states (M_k = state_k N_ref p_ref^k)."""
+    from pbe_cfd.methods.entry import MethodPlan
+    from pbe_cfd.runs.simulate import run_well_mixed
+    from pbe_cfd.scene.scene import Scene
+    given = []
+
+    def columns(plan, arrays, states, aux, populations=None):
+        given.append(plan)
+        n_ref, p_ref = arrays.number_scale, arrays.mass_scale
+        return {"M00": states[:, 0] * n_ref, "M10": states[:, 1] * n_ref * p_ref}
+
+    registry.unregister(TOY.name)
+    registry.register(TOY._replace(columns=columns))
+    try:
+        scene = _toy_scene(rate_factor=2.0)
+        res = run_well_mixed(scene)
+    finally:
+        registry.unregister(TOY.name)
+        registry.register(TOY)
+    assert len(given) == 1 and isinstance(given[0], MethodPlan)
+    assert not isinstance(given[0], Scene)
+    assert given[0].options == ToyOptions(rate_factor=2.0)
+    assert given[0].density == scene.material.density
+    t = res.columns["time_s"]
+    n0, k0 = scene.initial.number_density, scene.aggregation.rate
+    # the hook's columns are the run's: the same analytic M0 and error budget as above
+    exact = n0 / (1.0 + 0.5 * 2.0 * k0 * n0 * t)
+    assert res.columns["M00"] == pytest.approx(exact, rel=1e-6, abs=0.0)

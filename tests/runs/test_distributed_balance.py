@@ -11,7 +11,7 @@ from pbe_cfd.runs.distributed.balance import (REBALANCE_ABOVE, block_loads, cell
 from pbe_cfd.runs.domain import build_cells, load_domain
 from pbe_cfd.scene.scene import load_scene
 from pbe_cfd.transport.halo import cut_faces, level_partition
-from pbe_cfd.transport.operator import build_transport
+from pbe_cfd.transport.operator import transport_of_scene
 
 
 @pytest.fixture(scope="module")
@@ -19,7 +19,7 @@ def transport():
     scene = load_scene("fluid-bed-transport")
     domain = load_domain(scene, need_flux=True)
     rows, active, _, _ = build_cells(scene, domain.cells)
-    return build_transport(scene, domain, active, rows)
+    return transport_of_scene(scene, domain, active, rows)
 
 
 @pytest.fixture(scope="module")

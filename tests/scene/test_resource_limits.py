@@ -112,13 +112,13 @@ def test_laguerre_stop_inside_its_support_does_not_blame_the_support():
     """A ROM cell that stops with none of its mass beyond the support: the hint says the
     support is not the cause instead of "widen the support" (0.0% had left it)."""
     from pbe_cfd.runs import model
-    from pbe_cfd.methods.registry import method_of
+    from pbe_cfd.methods.registry import method_of, method_plan
     scene = load_scene("seed-wurster-laguerre")
     arrays = model.pack(scene)
     method = method_of(scene)
     aux = method.aux(scene, arrays, None)
     state = model.initial_moments(scene, arrays, arrays.state_names)
-    hint = method.failure_hint(scene, arrays, state, aux)
+    hint = method.failure_hint(method_plan(scene), arrays, state, aux)
     assert "widen" not in hint and "not the cause" in hint and "0.0%" in hint
 
 

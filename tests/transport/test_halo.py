@@ -11,7 +11,7 @@ from pbe_cfd.runs.domain import build_cells, load_domain
 from pbe_cfd.scene.scene import load_scene
 from pbe_cfd.transport.halo import (advance_block, block_operators, cut_faces, halo_closure,
                                     level_partition, rcb_partition)
-from pbe_cfd.transport.operator import build_transport
+from pbe_cfd.transport.operator import transport_of_scene
 
 
 @pytest.fixture(scope="module")
@@ -19,7 +19,7 @@ def small_transport():
     scene = load_scene("fluid-bed-transport")
     domain = load_domain(scene, need_flux=True)
     rows, active, _, _ = build_cells(scene, domain.cells)
-    tr = build_transport(scene, domain, active, rows)
+    tr = transport_of_scene(scene, domain, active, rows)
     centres = np.asarray(domain.cells.cell_centre)[np.flatnonzero(active)]
     return tr, centres
 

@@ -22,7 +22,7 @@ from pbe_cfd.physics.kernels import radial_distribution
 from pbe_cfd.scene.scene import SceneError, load_scene
 from pbe_cfd.runs.simulate import run_well_mixed
 from pbe_cfd.transport.solids_flux import divergence_free, pair_weighted_average
-from pbe_cfd.transport.operator import build_transport, unrealizable_cells
+from pbe_cfd.transport.operator import transport_of_scene, unrealizable_cells
 
 from conftest import AVICEL, make_scene
 
@@ -70,7 +70,7 @@ def bed_scene(transport=None, aggregation=None, injection=None, initial=None, en
 
 def setup(scene, domain):
     rows, active, spray, _ = build_cells(scene, domain.cells)
-    tr = build_transport(scene, domain, active, rows)
+    tr = transport_of_scene(scene, domain, active, rows)
     idx = np.flatnonzero(active)
     arrays = model.pack(coupled_scales(scene, rows[idx, P.ALPHA]))
     return tr, rows, active, arrays
@@ -498,7 +498,7 @@ def common_substep_courant(scene, domain) -> float:
     is cut into substeps of one common length (the end halves of the finest split step,
     divided into the fewest substeps the scene's own Courant number allows)."""
     rows, active, _, _ = build_cells(scene, domain.cells)
-    tr = build_transport(scene, domain, active, rows)
+    tr = transport_of_scene(scene, domain, active, rows)
     half = 0.5 * min(SPLIT_STUDY)
     dt = half / math.ceil(half / tr.dt_max)
     # just above: Transport.substeps takes ceil(duration / dt_max (1 - 1e-12)) substeps

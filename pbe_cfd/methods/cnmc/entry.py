@@ -20,10 +20,10 @@ def _plan(scene):
             f"seed {m.seed}")
 
 
-def _ensemble(scene, arrays, cell, times, progress=None):
+def _ensemble(plan, arrays, cell, times, progress=None):
     from .ensemble import simulate_ensemble
-    m = scene.method.options
-    initial = dataclasses.asdict(scene.initial)     # the keys simulate_ensemble reads
+    m = plan.options
+    initial = dataclasses.asdict(plan.initial)     # the keys simulate_ensemble reads
     return simulate_ensemble(arrays.params, arrays.config, cell, initial, times,
                                   m.particles, m.replicas, m.seed, progress=progress)
 

@@ -51,7 +51,7 @@ ENTRY = MethodEntry(
     name="cqmom", code=CODE, scene_keys=_keys, options=CqmomOptions, order_key="nodes", order_label="CQMOM N1",
     state_names=_state_names, aux=no_aux, tabulates_theta=False, population=_population,
     failure_hint=no_hint, diagnostics=no_diagnostics, plan_line=_plan,
-    repairs_mixture=lambda scene: scene.bivariate,
+    repairs_mixture=lambda plan: plan.bivariate,
     config_slots=lambda scene: {P.BINDER_NODES: scene.method.options.binder_nodes},
     rhs=cqmom_rhs, realizable=cqmom_realizable, project=cqmom_project,
     conserved=cqmom_conserved,

@@ -58,7 +58,7 @@ def plan_line(scene):
             f"{', '.join(state_names(scene))}; rtol {scene.method.rtol:g}")
 
 
-def failure_hint(scene, arrays, state, aux_):
+def failure_hint(plan, arrays, state, aux_):
     """What the inversion made of a stopped cell's state."""
     sigma, x, w, y, status = S.kernels_of(state, arrays.config, aux_)
     return (f" (EQMOM inversion: {I.STATUS_TEXT[status]}, {len(x)} kernels, "
@@ -87,7 +87,7 @@ ENTRY = MethodEntry(
     name="eqmom", code=CODE, scene_keys=scene_keys, options=EqmomOptions, order_key="nodes", order_label="EQMOM N",
     state_names=state_names, aux=aux, tabulates_theta=False, population=population,
     failure_hint=failure_hint, diagnostics=diagnostics, plan_line=plan_line,
-    repairs_mixture=lambda scene: True,
+    repairs_mixture=lambda plan: True,
     # its droplet sources take the droplet as pure binder liquid (b = p_d): the scene refuses
     # a solids fraction with droplets of their own for it
     solute_droplets=False, dries=True, evaporates_droplets=True,

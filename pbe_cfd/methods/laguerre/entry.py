@@ -4,7 +4,7 @@ from ..entry import MethodEntry
 from .guard import output_check
 from .options import LaguerreOptions
 from .tensor import (aux_for_scene, escaped_share_report, failure_hint, population_for_output,
-                     scene_columns, scene_initial_state, scene_keys, state_names, table_bytes)
+                     plan_columns, scene_initial_state, scene_keys, state_names, table_bytes)
 from .rhs import laguerre_conserved, laguerre_project, laguerre_realizable, laguerre_rhs
 
 #: config[P.METHOD] of the Laguerre ROM
@@ -40,7 +40,7 @@ def _aux(scene, arrays, theta_grid=None):
     return aux_for_scene(scene, arrays, theta_grid=theta_grid)
 
 
-def _hint(scene, arrays, state, aux):
+def _hint(plan, arrays, state, aux):
     return failure_hint(state, aux, arrays)
 
 
@@ -108,7 +108,7 @@ ENTRY = MethodEntry(
     order_label="Laguerre m", state_names=lambda s: _names(s),
     aux=_aux, tabulates_theta=True, population=population_for_output,
     failure_hint=_hint, diagnostics=_diagnostics, plan_line=_plan,
-    initial_state=scene_initial_state, columns=scene_columns,
+    initial_state=scene_initial_state, columns=plan_columns,
     table_bytes=table_bytes,
     table_keys=("grid_mass", "grid_binder", "dry_grid_mass"),
     rhs=laguerre_rhs, realizable=laguerre_realizable, project=laguerre_project,

@@ -418,12 +418,13 @@ def scene_keys(t, defaults):
     return kw
 
 
-def scene_columns(scene, arrays, states, aux, populations=None):
-    """SI output columns of a scene's scaled states (``output_columns``); with drying also the
+def plan_columns(plan, arrays, states, aux, populations=None):
+    """SI output columns of a run's scaled states (``output_columns``; plan: the run's
+    ``methods.entry.MethodPlan``, its bivariate flag and density [kg/m3]); with drying also the
     liquid inventory [kg/m3] (evaporated: the last state entry; held by free droplets, pure
     liquid; held by granules) and the moisture content M01 / (M10 - M01) [-], as the other
     methods' (docs/physics.md section 15)."""
-    out = output_columns(states, aux, arrays, scene.bivariate, scene.material.density,
+    out = output_columns(states, aux, arrays, plan.bivariate, plan.density,
                          populations)
     if int(arrays.config[P.DRYING]) == 1:
         states = np.atleast_2d(states)

@@ -41,7 +41,7 @@ ENTRY = MethodEntry(
     name="qmom", code=CODE, scene_keys=_keys, options=QmomOptions, order_key="nodes", order_label="QMOM N",
     state_names=_state_names, aux=no_aux, tabulates_theta=False, population=_population,
     populations=_populations, failure_hint=no_hint, diagnostics=no_diagnostics, plan_line=_plan,
-    repairs_mixture=lambda scene: scene.bivariate,
+    repairs_mixture=lambda plan: plan.bivariate,
     rhs=qmom_rhs, realizable=qmom_realizable, project=qmom_project,
     conserved=qmom_conserved, work_size=lambda config: qmom_work_size(config[P.ORDER]),
     bench_orders=int, bench_scene=lambda scene, order: scene.with_method(nodes=order),

@@ -99,7 +99,7 @@ class ClusterExecutor:
         shared = batch.shared()
         threads = numba_thread_table(self.client)
         layout = np.concatenate([np.r_[len(c), c] for c in part.chunks])
-        extra = json.dumps({"method": batch.scene.method.name, "rtol": shared["rtol"],
+        extra = json.dumps({"method": batch.plan.method.name, "rtol": shared["rtol"],
                             "atol": shared["atol"], "max_steps": shared["max_steps"],
                             "transport": transport is not None})
         arrs = [states, rows, shared["aux"], shared["params"], shared["config"], times, idx,

@@ -220,7 +220,7 @@ class HaloRun:
             elif f.status == "error":
                 exc = f.exception()
                 if isinstance(exc, BlockFailed) and exc.stopped:
-                    raise SimulationError(f"{getattr(self.batch.scene, 'source', '')}: "
+                    raise SimulationError(f"{self.batch.source}: "
                                           f"{exc.reason} (block {exc.block})")
                 blk = exc.block if isinstance(exc, BlockFailed) else b
                 failed[blk] = str(exc) if isinstance(exc, BlockFailed) else \

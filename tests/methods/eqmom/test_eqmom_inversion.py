@@ -20,6 +20,7 @@ from pbe_cfd.runs import model
 from pbe_cfd.distribution import tables
 from pbe_cfd.distribution.kernel_mixture import of_states
 from pbe_cfd.methods.eqmom import entry, state as S
+from pbe_cfd.methods.registry import method_plan
 from pbe_cfd.methods.quadrature import gamma_inversion as I
 from pbe_cfd.methods.eqmom.sources import eqmom_project, eqmom_realizable
 
@@ -160,7 +161,7 @@ def test_distribution_is_the_gamma_mixture_and_names_a_failed_cell():
     assert any("cell 8" in n and "not invertible" in n for n in notes), notes
     assert np.all(np.isfinite(cols["d50_m"])) and cols["d50_m"][1] == 0.0
     assert cols["d50_m"][0] > 0.0
-    hint = entry.failure_hint(scene, arrays, broken, aux)
+    hint = entry.failure_hint(method_plan(scene), arrays, broken, aux)
     assert "not invertible" in hint
 
 

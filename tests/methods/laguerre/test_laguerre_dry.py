@@ -25,6 +25,7 @@ from pbe_cfd.runs import model
 from pbe_cfd.methods.laguerre import rhs as L
 from pbe_cfd.methods.laguerre import layout as LL
 from pbe_cfd.methods.laguerre import tensor as LT
+from pbe_cfd.methods.registry import method_plan
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.scene.scene import load_scene
 from pbe_cfd.runs.simulate import run_well_mixed
@@ -336,7 +337,7 @@ def test_output_columns_add_the_classes_and_the_droplets(cache):
     state = L.initial_state(WET, arrays.params, arrays.config, n_droplets=2e8)
     for k in range(m):
         state[m * m + k] = dry_moment(k) / (arrays.number_scale * arrays.mass_scale ** k)
-    cols = model.moment_outputs(scene, arrays, state[None, :], aux)
+    cols = model.moment_outputs(method_plan(scene), arrays, state[None, :], aux)
     pd = arrays.droplet_mass
     for i in range(m):
         for j in range(m):
