@@ -45,6 +45,7 @@ class CoupledResult:
     psd: dict | None = None         # psd.csv columns of the bed (distribution.tables)
     labels: dict = field(default_factory=dict)   # columns.json: file -> column -> meaning
     plan: OutputPlan | None = None  # what the writers read of the scene
+    cell_psd: dict | None = None    # cell_psd.csv columns ([output] cell_psd; None: not asked)
 
 
 def run_coupled(scene, domain: Domain, progress=None, threads: int | None = None,
@@ -73,6 +74,7 @@ def _run_coupled(scene, domain: Domain, progress, threads, executor) -> CoupledR
     arrays, aux, times, idx = problem.arrays, problem.aux, problem.times, problem.cell_ids
     active, spray, notes = problem.active, problem.spray, problem.notes
     warnings = []
+    selection = select_psd_cells(plan, cells, active)    # a bad selection fails before the run
     batch = CellBatch.for_problem(problem)
     batch.air = coupled_air(problem.air, arrays, executor)
     transport = None
@@ -125,11 +127,39 @@ def _run_coupled(scene, domain: Domain, progress, threads, executor) -> CoupledR
     phases = {"setup_s": setup_s, "compile_s": compile_s, "solve_s": solve_end - solve_start,
               "assemble_s": _time.perf_counter() - solve_end}
     psd, labels = _bed_distribution(plan, arrays, times, bed, mixtures, cell_fields, warnings)
+    cell_psd = _cell_psd(plan, selection, times, mixtures, [idx] * len(times), psd, labels,
+                         warnings)
     phases["assemble_s"] = _time.perf_counter() - solve_end
     return CoupledResult(times=times, cell_fields=cell_fields, bed_columns=bed, stats=run_stats,
                          wall_time_s=wall, warnings=warnings, compile_time_s=compile_s,
                          kernels_compiled=batch.compiled_now, phases=phases, psd=psd,
-                         labels=labels, plan=plan)
+                         labels=labels, plan=plan, cell_psd=cell_psd)
+
+
+def select_psd_cells(plan, cells, active):
+    """The cells of ``[output] cell_psd`` (``distribution.cell_psd.CellSelection``) on the
+    mesh ``cells`` with ``active`` the cells holding granules; None when not asked. SceneError
+    (exit 2) for a selection outside the mesh or a cell without granules."""
+    if not plan.cell_psd:
+        return None
+    from ..distribution.cell_psd import select_cells
+    return select_cells(plan.cell_psd, cells, np.asarray(active, dtype=bool), plan.alpha_min,
+                        plan.source)
+
+
+def _cell_psd(plan, selection, times, mixtures, cell_ids, psd, labels, warnings):
+    """cell_psd.csv columns of the selected cells on the bed's psd.csv grid, their labels
+    into ``labels``; None without a selection. ``cell_ids``: the mesh cells of each output
+    time's rows (the active cells)."""
+    if selection is None or psd is None:
+        return None
+    from ..distribution import cell_psd
+    grid = np.unique(np.asarray(psd["d_m"], dtype=float))
+    cols, notes = cell_psd.cell_psd_columns(selection, times, [m.parts for m in mixtures],
+                                            cell_ids, grid)
+    warnings.extend(x for x in notes if x not in warnings)
+    labels["cell_psd.csv"] = cell_psd.cell_psd_labels(plan.distribution, cols)
+    return cols
 
 
 def _cell_distribution(plan, arrays, aux, states, populations, idx, n, t, fields, notes):
@@ -254,6 +284,8 @@ def write_coupled(out_dir: Path, domain: Domain, result: CoupledResult,
     output.write_columns_csv(out_dir / "bed_moments.csv", result.bed_columns)
     if result.psd is not None:
         output.write_columns_csv(out_dir / "psd.csv", result.psd)
+        if result.cell_psd is not None:
+            output.write_columns_csv(out_dir / "cell_psd.csv", result.cell_psd)
         output.write_json(out_dir / "columns.json", result.labels)
     extra, started = [], None
     if render:
@@ -322,6 +354,11 @@ def _bed_figures(out_dir: Path, plan, result: CoupledResult) -> list:
         from ..viz.psd_figure import PSD_COST, plot_psd
         tasks.append((plot_psd, (png / "psd.png", out_dir / "psd.csv"),
                       {"title": f"{plan.title}: the bed's granules"}, PSD_COST))
+    if result.cell_psd is not None:
+        from ..viz.cell_psd_figure import CELL_PSD_COST, plot_cell_psd
+        tasks.append((plot_cell_psd, (png / "cell_psd.png", out_dir / "cell_psd.csv",
+                                      out_dir / "psd.csv"),
+                      {"title": f"{plan.title}: granules of single cells"}, CELL_PSD_COST))
     return tasks
 
 

@@ -226,6 +226,10 @@ def run_two_way(scene, store, progress=None, log=None, warn=None) -> TwoWayRun:
         run.warnings.extend(w for w in domain.warnings if w not in run.warnings)
         rows, active, spray, _ = build_cells(scene, domain.cells)
         idx = np.flatnonzero(active)
+        if k == 0:               # [output] cell_psd checked on the first CFD fields
+            from .couple import select_psd_cells
+            from .problem import output_plan
+            select_psd_cells(output_plan(scene), domain.cells, active)
         if idx.size == 0:
             raise SimulationError(f"two-way segment {k}: no cell of {domain.description} has "
                                   f"alpha >= alpha_min = {scene.domain.alpha_min:g}")

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .couple import CoupledResult, _bed_distribution, _outputs
+from .couple import CoupledResult, _bed_distribution, _cell_psd, _outputs, select_psd_cells
 from .problem import output_plan
 from ..physics.fluidisation import minimum_fluidisation_velocity
 
@@ -117,9 +117,11 @@ def combined_result(scene, run, wall_s: float) -> CoupledResult:
     """The coupled outputs across the segments: cell fields and bed columns at every output
     time (a boundary's time once, from the segment that ended there), psd and labels."""
     from ..io.spool import Spool
-    times, fields, mixtures, bed = [], Spool(), [], {}
+    times, fields, mixtures, bed, cell_ids = [], Spool(), [], {}, []
     plan = output_plan(scene)
     warnings = list(run.warnings)
+    first = run.segments[0]
+    selection = select_psd_cells(plan, first.domain.cells, first.active)
     for seg in run.segments:
         cf, b, mx = _outputs(plan, run.arrays, seg.aux, seg.domain.cells, seg.active,
                              seg.spray, seg.idx, seg.times, seg.history, warnings)
@@ -131,12 +133,14 @@ def combined_result(scene, run, wall_s: float) -> CoupledResult:
         cf.close()
         times.extend(seg.times[skip:])
         mixtures.extend(mx[skip:])
+        cell_ids.extend([seg.idx] * len(mx[skip:]))
         for name, values in b.items():
             bed.setdefault(name, []).extend(np.asarray(values)[skip:])
     times = np.asarray(times)
     bed = {k: np.asarray(v, dtype=float) for k, v in bed.items()}
     warnings.extend(defluidisation_warnings(scene, run))
     psd, labels = _bed_distribution(plan, run.arrays, times, bed, mixtures, fields, warnings)
+    cell_psd = _cell_psd(plan, selection, times, mixtures, cell_ids, psd, labels, warnings)
     stats = {"cells": int(run.segments[0].domain.cells.n_cells), "segments": len(run.segments),
              "active_cells": int(run.segments[-1].idx.size),
              "cfd_wall_s": float(sum(s.cfd_wall_s for s in run.segments)),
@@ -144,7 +148,7 @@ def combined_result(scene, run, wall_s: float) -> CoupledResult:
     return CoupledResult(times=times, cell_fields=fields, bed_columns=bed, stats=stats,
                          wall_time_s=wall_s, warnings=warnings,
                          compile_time_s=run.compile_time_s, psd=psd, labels=labels,
-                         plan=plan)
+                         plan=plan, cell_psd=cell_psd)
 
 
 def plot_segments(path, cols, title: str, metadata=None):

@@ -88,6 +88,9 @@ def describe_plan(scene) -> str:
     lines.append(f"  method: {method_of(scene).plan_line(scene)}")
     from ..distribution.tables import distribution_text
     lines.append(f"  size distribution (d10/d50/d90, psd.csv): {distribution_text(scene)}")
+    if scene.output is not None and dom.type == "openfoam" and unconverted_reason(scene):
+        lines.append(f"  per-cell size distribution (cell_psd.csv, png/cell_psd.png): "
+                     f"{len(scene.output.cell_psd)} cells, resolved when the case is read")
     if not scene.bivariate:
         left_out.append("binder coordinate (dry start, no injection)")
     lines.append(f"  cell fields needed: {', '.join(sorted(fields)) or 'none'}")
@@ -290,4 +293,17 @@ def case_lines(scene) -> list[str]:
             else "  averaging window: none (instantaneous fields)",
             f"  cells: {cells.n_cells}; active {int(active.sum())} (alpha >= alpha_min = "
             f"{scene.domain.alpha_min:g}; {int((~active).sum())} below it hold no granules)",
-            *spray_lines(scene, cells, active)]
+            *spray_lines(scene, cells, active), *cell_psd_lines(scene, cells, active)]
+
+
+def cell_psd_lines(scene, cells, active) -> list[str]:
+    """The cells of ``[output] cell_psd`` (SceneError, as the run, for a bad selection)."""
+    if scene.output is None:
+        return []
+    from .couple import select_psd_cells
+    from .problem import output_plan
+    sel = select_psd_cells(output_plan(scene), cells, active)
+    alpha = np.asarray(cells.alpha, dtype=float)[sel.cells]
+    cells_text = "; ".join(f"{sel.label(j)}, alpha {alpha[j]:.3g}"
+                           for j in range(len(sel.cells)))
+    return [f"  per-cell size distribution (cell_psd.csv, png/cell_psd.png): {cells_text}"]

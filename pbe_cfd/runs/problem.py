@@ -65,6 +65,8 @@ class OutputPlan:
                     ``model.moment_outputs``, ``MethodEntry.columns``)
     distribution    the size distribution's plan (``distribution.tables.DistributionPlan``:
                     reconstruction, labels)
+    cell_psd        ``[output] cell_psd``: mesh cell ids and points [m] whose own size
+                    distribution is written (empty: none; ``distribution.cell_psd``)
     """
     title: str
     method_name: str
@@ -80,6 +82,7 @@ class OutputPlan:
     dries: bool
     method_plan: MethodPlan
     distribution: DistributionPlan
+    cell_psd: tuple = ()
 
 
 def output_plan(scene) -> OutputPlan:
@@ -95,7 +98,8 @@ def output_plan(scene) -> OutputPlan:
                                   if scene.binder_injection is not None else None),
                       echo=describe(scene), source=scene.source,
                       dries=scene.drying is not None, method_plan=method_plan(scene),
-                      distribution=distribution_plan(scene))
+                      distribution=distribution_plan(scene),
+                      cell_psd=scene.output.cell_psd if scene.output is not None else ())
 
 
 @dataclass(frozen=True)

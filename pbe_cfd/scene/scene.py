@@ -15,6 +15,7 @@ from typing import Any
 from . import coupling as scene_coupling, limits, spray
 from .drying import Drying, drying_refusals, parse_drying
 from .method import COMMON_METHOD_KEYS, Method
+from .output import Output, parse_output
 from .spray import BinderInjection, Zone  # noqa: F401 (part of the scene API)
 from ..io.openfoam import case_keys
 from ..methods import registry
@@ -143,6 +144,7 @@ class Scene:
     breakage: Breakage | None = None
     drying: Drying | None = None
     coupling: scene_coupling.Coupling | None = None   # two-way coupling; None: one-way
+    output: Output | None = None    # outputs on request (the per-cell size distribution)
     source: str = ""
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -165,7 +167,7 @@ class Scene:
 
 # ------------------------------------------------------------------------------ validation
 _TABLES = ("scene", "domain", "material", "initial", "aggregation", "binder_injection",
-           "method", "transport", "breakage", "coupling", "drying")
+           "method", "transport", "breakage", "coupling", "drying", "output")
 
 
 class _Table:
@@ -322,10 +324,12 @@ def scene_from_dict(data: dict, path="<scene>") -> Scene:
               else None)
     coupling = (scene_coupling.parse_coupling(_Table(path, "coupling", data["coupling"]),
                                               domain, SceneError) if "coupling" in data else None)
+    output = (parse_output(path, data["output"], domain, _Table, _vector3, SceneError)
+              if "output" in data else None)
     scene = Scene(name=name, end_time=end_time, output_interval=output_interval, domain=domain,
                   material=material, initial=initial, method=method, aggregation=aggregation,
                   binder_injection=injection, transport=transport, breakage=breakage,
-                  drying=drying, coupling=coupling, source=str(path), raw=data)
+                  drying=drying, coupling=coupling, output=output, source=str(path), raw=data)
     _cross_checks(path, scene)
     for key, refusal in limits.scene_refusals(scene, registry.METHODS[scene.method.name]):
         raise SceneError(path, key, refusal)
@@ -560,5 +564,7 @@ def describe(scene: Scene) -> dict[str, Any]:
     """The scene as plain data (for summary.json); the method as its flat ``[method]`` table
     (the common keys, then the method's own)."""
     out = dataclasses.asdict(scene) | {"raw": None}
+    if out["output"] is None:          # no [output] table: the echo without its key
+        del out["output"]
     out["method"] = out["method"] | out["method"].pop("options")
     return out
