@@ -158,3 +158,31 @@ def test_the_bed_percentiles_share_one_panel_in_um():
     panels = _bed_panels(["time_s", "M00", "d32_m", "d43_m", "d10_m", "d50_m", "d90_m", "span"])
     holding = [(cols, unit) for _, cols, unit in panels if "d50_m" in cols]
     assert holding == [(["d10_m", "d50_m", "d90_m"], "m")]
+
+
+@pytest.mark.parametrize("lo_um, hi_um", [(80.3, 401.6), (78.0, 205.0), (20.0, 3000.0),
+                                          (95.0, 110.0), (100.39, 100.41)])
+def test_the_log_diameter_axis_labels_at_least_four_values_apart(lo_um, hi_um):
+    """A psd.png of any span labels at least MIN_LABELS distinct diameters inside the axis,
+    no two nearer than MIN_GAP of its span in ln d (the seed run's 80-400 um axis labelled only
+    100 and 200 before)."""
+    import math
+
+    from pbe_cfd.viz import psd_figure
+    d = np.geomspace(lo_um, hi_um, 40) * 1e-6
+    q3 = np.exp(-0.5 * ((np.log(d) - np.log(d).mean()) / 0.1) ** 2)
+    cols = {"time_s": np.zeros(40), "d_m": d, "Q3": np.cumsum(q3) / q3.sum(), "q3_per_ln_d": q3}
+    fig = psd_figure.psd_figure(cols, "ticks")
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    lo, hi = ax.get_xlim()
+    shown = [(t.get_position()[0], t.get_text()) for t in ax.get_xticklabels()
+             if t.get_text() and lo <= t.get_position()[0] <= hi]
+    assert len(shown) >= psd_figure.MIN_LABELS, shown
+    assert len({text for _, text in shown}) == len(shown), shown
+    assert all(float(text) == pytest.approx(v, rel=1e-9, abs=0) for v, text in shown), shown
+    where = sorted(v for v, _ in shown)
+    gaps = np.diff(np.log(where)) / math.log(hi / lo)
+    assert gaps.min() >= psd_figure.MIN_GAP * (1 - 1e-12), (shown, gaps)
+    import matplotlib.pyplot as plt
+    plt.close(fig)
