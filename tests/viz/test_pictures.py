@@ -53,6 +53,7 @@ def _bar_labels(fig):
 
 @pytest.mark.parametrize("field,lo,hi,unit,scale", [
     ("d43_m", 103.0e-6, 103.9e-6, "d43 [um]", 1e6),          # a narrow size range, in um
+    ("d50_m", 100.4e-6, 155.0e-6, "d50 [um]", 1e6),          # the bundled bed's d50 map
     ("M00", 1.030e10, 1.039e10, "M00 [1e10 1/m3]", 1e-10),    # the power of ten in the unit
 ])
 def test_colour_bar_tick_labels_are_distinct_and_true(block_series, field, lo, hi, unit, scale):
