@@ -129,9 +129,10 @@ def plot_psd(path, cols, title="", metadata=None):
     return path
 
 
-def psd_overlay(path, runs, title="", metadata=None):
+def psd_overlay_figure(runs, title=""):
     """Several runs' q3 at each run's last output time in one panel: ``runs`` a list of
-    (label, psd.csv columns); a cNMC's band filled. Returns the path."""
+    (label, psd.csv columns); a run with the replicas' band (a cNMC's q3_lo, q3_hi) gets it
+    filled and says so in its legend entry. Returns the figure."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -139,9 +140,18 @@ def psd_overlay(path, runs, title="", metadata=None):
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for k, (label, cols) in enumerate(runs):
         t = _times(cols)[-1]
-        _draw(ax, _at(cols, t), colours[k % len(colours)], f"{label} (t = {t:g} s)")
+        band = ", shaded: 95% band of its replicas" if "q3_lo" in cols else ""
+        _draw(ax, _at(cols, t), colours[k % len(colours)], f"{label} (t = {t:g} s{band})")
     _axes(ax, title)
     ax.legend(fontsize=8)
+    return fig
+
+
+def psd_overlay(path, runs, title="", metadata=None):
+    """Draw ``psd_overlay_figure`` of ``runs`` (a list of (label, psd.csv columns)) to
+    ``path``; ``metadata`` goes into the image file. Returns the path."""
+    import matplotlib.pyplot as plt
+    fig = psd_overlay_figure(runs, title)
     fig.savefig(path, dpi=110, metadata=metadata, bbox_inches="tight")
     plt.close(fig)
     return path

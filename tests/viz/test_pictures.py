@@ -187,3 +187,29 @@ def test_the_log_diameter_axis_labels_at_least_four_values_apart(lo_um, hi_um):
     assert gaps.min() >= psd_figure.MIN_GAP * (1 - 1e-12), (shown, gaps)
     import matplotlib.pyplot as plt
     plt.close(fig)
+
+
+def test_the_psd_overlay_fills_the_cnmc_band_between_its_bounds():
+    """`compare`'s PSD overlay: a run with the replicas' band (q3_lo, q3_hi) gets the band
+    filled between exactly those bounds at its last output time, and its legend entry says so;
+    a run without one gets a line only."""
+    from matplotlib.collections import PolyCollection
+
+    from pbe_cfd.viz import psd_figure
+    d = np.geomspace(80e-6, 400e-6, 30)
+    q3 = np.exp(-0.5 * ((np.log(d) - np.log(170e-6)) / 0.2) ** 2)
+    one = {"time_s": np.repeat([0.0, 600.0], 30), "d_m": np.tile(d, 2),
+           "Q3": np.tile(np.cumsum(q3) / q3.sum(), 2), "q3_per_ln_d": np.tile(q3, 2)}
+    cnmc = dict(one, q3_lo=np.tile(0.9 * q3, 2) - np.repeat([1.0, 0.0], 30),
+                q3_hi=np.tile(1.2 * q3, 2) + np.repeat([1.0, 0.0], 30))
+    fig = psd_figure.psd_overlay_figure([("qmom", one), ("cnmc", cnmc)])
+    ax = fig.axes[0]
+    bands = [c for c in ax.collections if isinstance(c, PolyCollection)]
+    assert len(bands) == 1
+    y = bands[0].get_paths()[0].vertices[:, 1]
+    assert y.min() == pytest.approx(0.9 * q3.min(), rel=1e-12, abs=0)      # the last time's
+    assert y.max() == pytest.approx(1.2 * q3.max(), rel=1e-12, abs=0)      # band, not t = 0
+    texts = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert texts == ["qmom (t = 600 s)", "cnmc (t = 600 s, shaded: 95% band of its replicas)"]
+    import matplotlib.pyplot as plt
+    plt.close(fig)
