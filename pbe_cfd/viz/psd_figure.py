@@ -31,13 +31,63 @@ def _draw(ax, part, colour, label, lw=1.4):
     ax.plot(d_um, part["q3_per_ln_d"], color=colour, lw=lw, label=label)
 
 
+#: leading digits of the labelled diameters per decade, coarsest first; the first set that
+#: labels at least MIN_LABELS values inside the axis is used (earlier digits win a crowded place)
+LABEL_DIGITS = ((1,), (1, 2, 5), (1, 2, 3, 5), (1, 2, 5, 3, 4, 6, 7, 8, 9))
+#: labelled ticks a diameter axis shows at least
+MIN_LABELS = 4
+#: the nearest two labels on the axis, in parts of its span in ln d (the labels stay apart)
+MIN_GAP = 0.1
+
+
+def _spaced(values, lo, hi):
+    """``values`` (in order of priority) inside [lo, hi], without those nearer in log d than
+    MIN_GAP of the span to one kept before them; sorted."""
+    import math
+    gap = MIN_GAP * math.log(hi / lo)
+    kept = []
+    for v in values:
+        if lo <= v <= hi and all(abs(math.log(v / k)) >= gap for k in kept):
+            kept.append(v)
+    return sorted(kept)
+
+
+def diameter_ticks(lo: float, hi: float) -> list[float]:
+    """Labelled tick values (plain numbers, the axis unit, e.g. um) for a log axis from ``lo``
+    to ``hi`` (> 0): lead digits x 10^k of the coarsest set in LABEL_DIGITS that puts at least
+    MIN_LABELS of them, spaced by MIN_GAP, inside [lo, hi]; for a span narrower than that,
+    round values of a linear step (matplotlib's MaxNLocator)."""
+    import math
+
+    from matplotlib.ticker import MaxNLocator
+    lo, hi = sorted((float(lo), float(hi)))
+    decades = range(math.floor(math.log10(lo)) - 1, math.ceil(math.log10(hi)) + 1)
+    for digits in LABEL_DIGITS:
+        ticks = _spaced([float(f"{d * 10.0 ** k:.6g}") for d in digits for k in decades],
+                        lo, hi)
+        if len(ticks) >= MIN_LABELS:
+            return ticks
+    for bins in range(MIN_LABELS, 3 * MIN_LABELS):
+        ticks = MaxNLocator(nbins=bins, steps=[1, 2, 2.5, 5, 10]).tick_values(lo, hi)
+        inside = [float(f"{v:.6g}") for v in ticks if lo <= v <= hi and v > 0]
+        if len(inside) >= MIN_LABELS:
+            break
+    return inside
+
+
+def label_diameter_axis(ax):
+    """Put diameter_ticks of the x axis' current limits on a log x axis as plain numbers
+    (the minor ticks stay, unlabelled). Call after the data are drawn."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
+    ticks = diameter_ticks(*ax.get_xlim())
+    ax.xaxis.set_major_locator(FixedLocator(ticks))
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.xaxis.set_minor_formatter(NullFormatter())
+
+
 def _axes(ax, title):
-    from matplotlib.ticker import FuncFormatter
     ax.set_xscale("log")
-    plain = FuncFormatter(lambda v, _: f"{v:g}")
-    ax.xaxis.set_major_formatter(plain)
-    ax.xaxis.set_minor_formatter(FuncFormatter(
-        lambda v, _: f"{v:g}" if f"{v:.1g}"[0] in "25" else ""))
+    label_diameter_axis(ax)
     ax.set_xlabel("granule diameter d [um]")
     ax.set_ylabel("q3 = dQ3/d(ln d) [-]")
     ax.set_ylim(bottom=0.0)
@@ -79,9 +129,10 @@ def plot_psd(path, cols, title="", metadata=None):
     return path
 
 
-def psd_overlay(path, runs, title="", metadata=None):
+def psd_overlay_figure(runs, title=""):
     """Several runs' q3 at each run's last output time in one panel: ``runs`` a list of
-    (label, psd.csv columns); a cNMC's band filled. Returns the path."""
+    (label, psd.csv columns); a run with the replicas' band (a cNMC's q3_lo, q3_hi) gets it
+    filled and says so in its legend entry. Returns the figure."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -89,9 +140,18 @@ def psd_overlay(path, runs, title="", metadata=None):
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for k, (label, cols) in enumerate(runs):
         t = _times(cols)[-1]
-        _draw(ax, _at(cols, t), colours[k % len(colours)], f"{label} (t = {t:g} s)")
+        band = ", shaded: 95% band of its replicas" if "q3_lo" in cols else ""
+        _draw(ax, _at(cols, t), colours[k % len(colours)], f"{label} (t = {t:g} s{band})")
     _axes(ax, title)
     ax.legend(fontsize=8)
+    return fig
+
+
+def psd_overlay(path, runs, title="", metadata=None):
+    """Draw ``psd_overlay_figure`` of ``runs`` (a list of (label, psd.csv columns)) to
+    ``path``; ``metadata`` goes into the image file. Returns the path."""
+    import matplotlib.pyplot as plt
+    fig = psd_overlay_figure(runs, title)
     fig.savefig(path, dpi=110, metadata=metadata, bbox_inches="tight")
     plt.close(fig)
     return path

@@ -81,7 +81,7 @@ def figure(ref, rows, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.ticker import FuncFormatter
+    from pbe_cfd.viz.psd_figure import label_diameter_axis
     grid = np.asarray(ref["grid_m"])
     fig, axes = plt.subplots(1, len(psd_cases.CASES), figsize=(15, 4.4))
     for ax, case in zip(axes, psd_cases.CASES):
@@ -104,9 +104,7 @@ def figure(ref, rows, path):
             ax.plot(np.array(row["d_m"]) * 1e6, row["q3_per_ln_d"], style, lw=2,
                     label=f"{row['method']}, L1(Q3) = {row['l1_q3']:.3f}")
         ax.set_xscale("log")
-        ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-        ax.xaxis.set_minor_formatter(FuncFormatter(      # minor labels at 2 and 5 only
-            lambda v, _: f"{v:g}" if f"{v:.1g}"[0] in "25" else ""))
+        label_diameter_axis(ax)                           # plain um, at least 4 labels
         ax.set_xlabel("d [um]")
         ax.set_ylabel("q3 = dQ3/d ln d [-]")
         ax.set_title(f"{case}, t = {psd_cases.END[case]:g} s")
@@ -118,6 +116,10 @@ def figure(ref, rows, path):
 if __name__ == "__main__":
     with open(sys.argv[1]) as fh:
         ref = json.load(fh)
+    if len(sys.argv) > 4 and sys.argv[4] == "--redraw":      # the figure of the stored rows
+        with open(sys.argv[3]) as fh:
+            figure(ref, json.load(fh), sys.argv[2])
+        sys.exit(0)
     rows = measure(ref)
     with open(sys.argv[3], "w") as fh:
         json.dump(rows, fh)

@@ -4,12 +4,14 @@ Physics asserted: a one-cell bed's cell distribution is the bed's; q3 integrates
 ends at 1 within the psd grid's bounds (GRID_FRACTIONS); the d50 read off Q3 lies in the grid
 interval of the cell's d50 field; a single gamma kernel's Q3 equals scipy's closed form; a
 selection outside the mesh or in a cell without granules is exit 2 naming the key; a run
-without the key writes no cell output and echoes no [output] table.
+without the key writes no cell output and echoes no [output] table; a two-way run (two CFD
+segments) writes every output time's cell distributions, each agreeing with its VTK d50.
 """
 import dataclasses
 import json
 import math
 import re
+import shutil
 import tomllib
 
 import numpy as np
@@ -257,3 +259,62 @@ def test_couple_without_the_key_writes_no_cell_output(tmp_path):
     assert not (out / "cell_psd.csv").exists() and not (out / "png" / "cell_psd.png").exists()
     assert "cell_psd.csv" not in json.loads((out / "columns.json").read_text())
     assert "output" not in json.loads((out / "summary.json").read_text())["scene"]
+
+
+# ---------------------------------------------------------------------------- two-way
+def two_way_text() -> str:
+    """The bundled transport scene over 4 s in two segments of 0.05 s of flow each (the
+    smallest two-way setup, tests/runs/test_coupling_two_way.py: its spray zone moved into the
+    packed bed), three cells selected by point: sprayed (y 0.2 m, and y 0.25 m at the wall) and
+    below the spray zone (y 0.05 m)."""
+    text = fluid_bed_text(end=4.0, scene="fluid-bed-transport")
+    text = re.sub(r"(?m)^output_interval = .*", "output_interval = 1.0", text, count=1)
+    text = re.sub(r"(?m)^zone = .*", "zone = { alpha_low = 0.05, alpha_high = 0.6, box_min = "
+                  "[0.0, 0.1, -1.0], box_max = [0.15, 0.3, 1.0] }", text, count=1)
+    return text + ("\n[coupling]\ninterval = 2.0\nflow_time = 0.05\naverage_from = 0.02\n"
+                   "\n[output]\ncell_psd = [[0.075, 0.2, 0.0], [0.075, 0.05, 0.0], "
+                   "[0.015, 0.25, 0.0]]\n")
+
+
+@pytest.mark.openfoam
+@pytest.mark.skipif(shutil.which("twoPhaseEulerFoam") is None, reason="needs OpenFOAM")
+def test_a_two_way_run_writes_each_cell_s_distribution_at_every_time(tmp_path):
+    """`pbe-cfd couple` of a two-way scene (each segment its own CFD) writes cell_psd.csv at
+    every output time of both segments: per cell and time q3 integrates to 1 and Q3 ends at 1
+    within GRID_FRACTIONS, and the d50 the run wrote into that segment's VTK field for that cell
+    lies in the grid interval where the cell's Q3 crosses 1/2 (the same reconstruction)."""
+    import meshio
+    path = tmp_path / "two-way.toml"
+    path.write_text(two_way_text())
+    out = tmp_path / "out"
+    assert main(["couple", str(path), "--out", str(out)]) == 0
+    cols = read_columns_csv(out / "cell_psd.csv")
+    manifest = json.loads((out / "pbe-cfd-manifest.json").read_text())
+    assert {"cell_psd.csv", "png/cell_psd.png"} <= set(manifest["files"])
+    times = np.unique(cols["time_s"])
+    assert np.array_equal(times, [0.0, 1.0, 2.0, 3.0, 4.0])
+    cells = [int(c) for c in dict.fromkeys(cols["cell"])]
+    assert len(cells) == 3
+    for c, want in zip(cells, [(0.075, 0.2), (0.075, 0.05), (0.015, 0.25)]):
+        at = cols["cell"] == c
+        assert abs(cols["x_m"][at][0] - want[0]) <= 0.005 + 1e-12      # half a cell: 5 mm
+        assert abs(cols["y_m"][at][0] - want[1]) <= 0.005 + 1e-12
+    lo_f, hi_f = tables.GRID_FRACTIONS
+    grid = np.unique(cols["d_m"])
+    h = math.log(grid[1] / grid[0])
+    series = sorted((out / "vtk").glob("*.vtu"))
+    assert len(series) == len(times)
+    for k, t in enumerate(times):
+        d50_field = meshio.read(series[k]).cell_data["d50_m"][0]
+        for c in cells:
+            at = (cols["time_s"] == t) & (cols["cell"] == c)
+            assert np.all(cols["active"][at] == 1)
+            q3, big_q, d = cols["q3_per_ln_d"][at], cols["Q3"][at], cols["d_m"][at]
+            assert np.sum(q3) * h == pytest.approx(1.0, rel=0, abs=lo_f + (1 - hi_f))
+            assert big_q[-1] >= hi_f and np.all(np.diff(big_q) >= 0)
+            j = int(np.searchsorted(big_q, 0.5))
+            d50 = d50_field[c]
+            assert d[j - 1] <= d50 * (1 + 1e-12) and d50 <= d[j] * (1 + 1e-12), (t, c, d50)
+    # the sprayed cells hold binder once the spray has run, the bed's lowest cell at the start not
+    first = cols["time_s"] == 1.0
+    assert np.max(cols["binder_fraction"][first & (cols["cell"] == cells[0])]) > 0

@@ -53,6 +53,7 @@ def _bar_labels(fig):
 
 @pytest.mark.parametrize("field,lo,hi,unit,scale", [
     ("d43_m", 103.0e-6, 103.9e-6, "d43 [um]", 1e6),          # a narrow size range, in um
+    ("d50_m", 100.4e-6, 155.0e-6, "d50 [um]", 1e6),          # the bundled bed's d50 map
     ("M00", 1.030e10, 1.039e10, "M00 [1e10 1/m3]", 1e-10),    # the power of ten in the unit
 ])
 def test_colour_bar_tick_labels_are_distinct_and_true(block_series, field, lo, hi, unit, scale):
@@ -158,3 +159,57 @@ def test_the_bed_percentiles_share_one_panel_in_um():
     panels = _bed_panels(["time_s", "M00", "d32_m", "d43_m", "d10_m", "d50_m", "d90_m", "span"])
     holding = [(cols, unit) for _, cols, unit in panels if "d50_m" in cols]
     assert holding == [(["d10_m", "d50_m", "d90_m"], "m")]
+
+
+@pytest.mark.parametrize("lo_um, hi_um", [(80.3, 401.6), (78.0, 205.0), (20.0, 3000.0),
+                                          (95.0, 110.0), (100.39, 100.41)])
+def test_the_log_diameter_axis_labels_at_least_four_values_apart(lo_um, hi_um):
+    """A psd.png of any span labels at least MIN_LABELS distinct diameters inside the axis,
+    no two nearer than MIN_GAP of its span in ln d (the seed run's 80-400 um axis labelled only
+    100 and 200 before)."""
+    import math
+
+    from pbe_cfd.viz import psd_figure
+    d = np.geomspace(lo_um, hi_um, 40) * 1e-6
+    q3 = np.exp(-0.5 * ((np.log(d) - np.log(d).mean()) / 0.1) ** 2)
+    cols = {"time_s": np.zeros(40), "d_m": d, "Q3": np.cumsum(q3) / q3.sum(), "q3_per_ln_d": q3}
+    fig = psd_figure.psd_figure(cols, "ticks")
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    lo, hi = ax.get_xlim()
+    shown = [(t.get_position()[0], t.get_text()) for t in ax.get_xticklabels()
+             if t.get_text() and lo <= t.get_position()[0] <= hi]
+    assert len(shown) >= psd_figure.MIN_LABELS, shown
+    assert len({text for _, text in shown}) == len(shown), shown
+    assert all(float(text) == pytest.approx(v, rel=1e-9, abs=0) for v, text in shown), shown
+    where = sorted(v for v, _ in shown)
+    gaps = np.diff(np.log(where)) / math.log(hi / lo)
+    assert gaps.min() >= psd_figure.MIN_GAP * (1 - 1e-12), (shown, gaps)
+    import matplotlib.pyplot as plt
+    plt.close(fig)
+
+
+def test_the_psd_overlay_fills_the_cnmc_band_between_its_bounds():
+    """`compare`'s PSD overlay: a run with the replicas' band (q3_lo, q3_hi) gets the band
+    filled between exactly those bounds at its last output time, and its legend entry says so;
+    a run without one gets a line only."""
+    from matplotlib.collections import PolyCollection
+
+    from pbe_cfd.viz import psd_figure
+    d = np.geomspace(80e-6, 400e-6, 30)
+    q3 = np.exp(-0.5 * ((np.log(d) - np.log(170e-6)) / 0.2) ** 2)
+    one = {"time_s": np.repeat([0.0, 600.0], 30), "d_m": np.tile(d, 2),
+           "Q3": np.tile(np.cumsum(q3) / q3.sum(), 2), "q3_per_ln_d": np.tile(q3, 2)}
+    cnmc = dict(one, q3_lo=np.tile(0.9 * q3, 2) - np.repeat([1.0, 0.0], 30),
+                q3_hi=np.tile(1.2 * q3, 2) + np.repeat([1.0, 0.0], 30))
+    fig = psd_figure.psd_overlay_figure([("qmom", one), ("cnmc", cnmc)])
+    ax = fig.axes[0]
+    bands = [c for c in ax.collections if isinstance(c, PolyCollection)]
+    assert len(bands) == 1
+    y = bands[0].get_paths()[0].vertices[:, 1]
+    assert y.min() == pytest.approx(0.9 * q3.min(), rel=1e-12, abs=0)      # the last time's
+    assert y.max() == pytest.approx(1.2 * q3.max(), rel=1e-12, abs=0)      # band, not t = 0
+    texts = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert texts == ["qmom (t = 600 s)", "cnmc (t = 600 s, shaded: 95% band of its replicas)"]
+    import matplotlib.pyplot as plt
+    plt.close(fig)
