@@ -18,7 +18,8 @@ import math
 
 import numpy as np
 
-from .layout import (AUX_OFF_F43, AUX_OFF_F43D, AUX_ORDER, carried_shape, weight_corners,
+from .layout import (AUX_NSLICE, AUX_OFF_F43, AUX_OFF_F43D, AUX_ORDER, carried_shape,
+                     weight_corners,
                      wet_support)
 
 #: relative slack of the Hankel conditions [-], ours: a class that starts on the equality (a
@@ -47,6 +48,32 @@ def reconstructed_m43(state, aux):
         total += frac * float(np.dot(aux[o:o + K], s[:K]))
     od = int(aux[AUX_OFF_F43D])
     return total + float(np.dot(aux[od:od + m], s[K:K + m]))
+
+
+def aggregation_number_rates(state, aux):
+    """The granule number's aggregation rate d(W00 + D0)/dt of a scaled state's reconstruction
+    at every collision-velocity slice of the tables, per unit kernel multiplier (the cell
+    factor k0 N_ref F_cell > 0 only scales it) [1/s in scaled units, one value per slice]:
+    the wet, dry and dry-wet quadratic forms of the RHS, blended over the weight slices as
+    the RHS blends them, without capture (which moves no granule number) or breakage. For
+    any positive population every value is <= 0 (-1/2 of the double integral of beta n n
+    with beta >= 0); a positive value means the signed reconstruction, as the kernel sees
+    it, is not a population (docs/results/laguerre.md, the bed batch's M00)."""
+    from .position import _weight_position
+    from .rhs import _aggregation_and_capture, _any_nonzero
+    m = int(aux[AUX_ORDER])
+    K = m * m
+    s = np.ascontiguousarray(state, dtype=float)
+    wet, dry = _any_nonzero(s, 0, K), _any_nonzero(s, K, K + m)
+    wpos = _weight_position(s, aux, m)
+    out = np.zeros(s.size)
+    rates = []
+    for sl in range(max(1, int(aux[AUX_NSLICE]))):
+        out[:] = 0.0
+        if wet or dry:
+            _aggregation_and_capture(s, out, aux, m, 1.0, 0.0, wet, dry, wpos, sl, 0.0)
+        rates.append(out[0] + out[K])
+    return np.array(rates)
 
 
 def _class_failure(M, m, floor0, floor1, wet):

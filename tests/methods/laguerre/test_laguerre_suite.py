@@ -143,6 +143,9 @@ def test_every_sectional_reference_holds_its_population(measured):
 
 @pytest.mark.slow
 @pytest.mark.study
+@pytest.mark.xfail(strict=True, reason="measured (docs/results/laguerre.md, graded rule): sum "
+                   "a=2 equal +droplets stops at 6.697 s on the output guard, its dry class "
+                   "unrealizable (D2 D0 / D1^2 = 0.080)")
 def test_every_case_finishes(measured):
     stopped = {r["case"]: r[label] for r in measured for label in S.METHODS
                if label.startswith("laguerre m=3 following") and isinstance(r[label], str)}
@@ -156,9 +159,9 @@ def _worst(row, label):
 
 @pytest.mark.slow
 @pytest.mark.study
-@pytest.mark.xfail(strict=True, reason="measured (docs/results/laguerre.md, shape axis): "
-                   "sum a=1/3 equal 61%, sum a=2 uniform 37%, eke a=1 uniform 8.9%, eke a=2 "
-                   "equal 7.6% (bands 0.9%, 0.0%, 0.1%, 0.1%)")
+@pytest.mark.xfail(strict=True, reason="measured (docs/results/laguerre.md, graded rule): "
+                   "sum a=1/3 equal 11.2%, sum a=2 uniform 31%, eke a=2 equal 14.2% (bands "
+                   "0.9%, 0.0%, 0.1%), sum a=2 equal +droplets stops")
 def test_following_rom_within_5_percent_on_every_case(measured):
     bad = {r["case"]: _worst(r, "laguerre m=3 following") for r in measured
            if _worst(r, "laguerre m=3 following") > S.TARGET + max(r["band"].values())}
@@ -167,8 +170,8 @@ def test_following_rom_within_5_percent_on_every_case(measured):
 
 @pytest.mark.slow
 @pytest.mark.study
-@pytest.mark.xfail(strict=True, reason="measured (docs/results/laguerre.md, shape axis): "
-                   "no worse than QMOM N = 3 on 5 of 12 cases (droplet cases)")
+@pytest.mark.xfail(strict=True, reason="measured (docs/results/laguerre.md, graded rule): "
+                   "no worse than QMOM N = 3 on 7 of 12 cases")
 def test_following_rom_no_worse_than_qmom_on_3_of_4_cases(measured):
     wins = 0
     for r in measured:
