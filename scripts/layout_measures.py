@@ -17,7 +17,9 @@
    moves to a file of a higher layer than the one before (the layer of tests/test_layers.py).
    Where the package has the one pass (``runs.problem.problem_of``), the same counts are
    given for the part of the path after the run's call of it returns (the run's own file
-   included): what still reads the scene after the pass.
+   included, the files entered inside a pass left out): what still reads the scene after
+   the pass. The same for the two-way run from coupling.run_two_way, whose passes are
+   ``two_way_plan`` and each segment's ``segment_problem`` (which calls ``problem_of``).
 """
 import ast
 import re
@@ -185,17 +187,26 @@ def _counts(seq):
     return runs, len(runs), len(set(runs)), returns, climbs
 
 
+#: the one pass, and the two-way run's passes (its plan, and the pass of each CFD segment)
 PASS = ("pbe_cfd.runs.problem", "problem_of")
+PASSES = (PASS, ("pbe_cfd.runs.coupling", "two_way_plan"),
+          ("pbe_cfd.runs.coupling", "segment_problem"))
 
 
 def scene_path(start=("couple", "run_coupled")):
-    """The counts of the whole path (``_counts``), and of its part after the first return
-    from the one pass (``PASS``; None where the package has none)."""
-    start_mod = next(m for m in ("pbe_cfd.couple", "pbe_cfd.runs.couple") if m in MODS)
-    seq, seen, after = [], set(), []
+    """The counts of the whole path (``_counts``) from the function ``start`` (a module
+    under pbe_cfd/ or pbe_cfd/runs/, a function), and of its part after the first return
+    from a pass (``PASSES``), the files entered inside any pass left out (None where the
+    package has no pass)."""
+    start_mod = next((m for m in (f"pbe_cfd.{start[0]}", f"pbe_cfd.runs.{start[0]}")
+                      if m in MODS and start[1] in functions_of(m)), None)
+    if start_mod is None:
+        return None, None
+    seq, inside, seen, after = [], [], set(), []
 
-    def visit(module, fname):
+    def visit(module, fname, depth):
         seq.append(module)
+        inside.append(depth > 0)
         if (module, fname) in seen:
             return
         seen.add((module, fname))
@@ -205,13 +216,37 @@ def scene_path(start=("couple", "run_coupled")):
         for call in calls:
             target = callee(module, node, call)
             if target and target != (module, fname):
-                visit(*target)
+                is_pass = target in PASSES
+                visit(*target, depth + (1 if is_pass else 0))
                 seq.append(module)
-                if target == PASS and not after:
+                inside.append(depth > 0)
+                if is_pass and depth == 0 and not after:
                     after.append(len(seq) - 1)
 
-    visit(start_mod, start[1])
-    return _counts(seq), (_counts(seq[after[0]:]) if after else None)
+    visit(start_mod, start[1], 0)
+    if not after:
+        return _counts(seq), None
+    outside = [m for i, m in enumerate(seq) if i >= after[0] and not inside[i]]
+    return _counts(seq), _counts(outside)
+
+
+def report_path(title, start):
+    whole, after = scene_path(start)
+    if whole is None:
+        print(f"scene through {title}: no such function")
+        return
+    runs, stays, files, returns, climbs = whole
+    print(f"scene through {title}: {stays} stays in {files} files, {returns} returns "
+          f"to a file already left, {climbs} climbs to a higher layer")
+    print("  " + " > ".join(m.split(".", 1)[1] for m in runs))
+    if after is not None:
+        a_runs, a_stays, a_files, a_returns, a_climbs = after
+        print(f"  after the pass, outside the passes ({', '.join(f for _, f in PASSES)}): "
+              f"{a_stays} stays in {a_files} files, {a_returns} returns, {a_climbs} climbs: "
+              + " > ".join(m.split(".", 1)[1] for m in a_runs))
+    visits = Counter(runs)
+    print("  stays per file: " + ", ".join(f"{m.split('.', 1)[1]} {n}"
+                                          for m, n in visits.most_common(6)))
 
 
 if __name__ == "__main__":
@@ -224,15 +259,5 @@ if __name__ == "__main__":
     nl = name_literals()
     print(f"method-name literals outside the method's modules: {sum(nl.values())} in "
           f"{len(nl)} files: {dict(sorted(nl.items()))}")
-    (runs, stays, files, returns, climbs), after = scene_path()
-    print(f"scene through couple.run_coupled: {stays} stays in {files} files, {returns} returns "
-          f"to a file already left, {climbs} climbs to a higher layer")
-    print("  " + " > ".join(m.split(".", 1)[1] for m in runs))
-    if after is not None:
-        a_runs, a_stays, a_files, a_returns, a_climbs = after
-        print(f"  after the one pass (runs.problem.problem_of returns): {a_stays} stays in "
-              f"{a_files} files, {a_returns} returns, {a_climbs} climbs: "
-              + " > ".join(m.split(".", 1)[1] for m in a_runs))
-    visits = Counter(runs)
-    print("  stays per file: " + ", ".join(f"{m.split('.', 1)[1]} {n}"
-                                          for m, n in visits.most_common(6)))
+    report_path("couple.run_coupled", ("couple", "run_coupled"))
+    report_path("coupling.run_two_way (two-way)", ("coupling", "run_two_way"))

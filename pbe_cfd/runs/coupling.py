@@ -16,6 +16,11 @@ over the new active cells in proportion to their alpha (granules fill the solids
 at the start). Every moment of the bed is conserved exactly; the spatial structure within the
 bed is the new flow's (its circulation mixes the bed in seconds, segments last minutes).
 
+What reads the scene: ``two_way_plan`` (the run's ``TwoWayPlan``, before the first CFD) and
+each segment's pass ``segment_problem`` (its CFD fields and ``runs.problem.problem_of``, with
+segment 0's scales for the later segments); the rest of the run reads the plan and the
+segments' problems.
+
 Every finished step is kept in the segment store (``runs.coupling_store``) so that a killed
 run continues from its last finished step (``--resume``) with bitwise the same result.
 """
@@ -30,13 +35,12 @@ from pathlib import Path
 import numpy as np
 
 from . import model
-from .batch import CellBatch, SimulationError, check_physics, output_times
+from .batch import CellBatch, SimulationError, check_physics
 from ..io import openfoam as of
-from .domain import (Domain, build_cells, case_path, coupled_scales, initial_states,
-                      load_domain, theta_grid)
+from .domain import Domain, case_path, load_domain
 from .executor import SerialExecutor
 from ..io.openfoam import rerun
-from ..methods.registry import method_of
+from .problem import problem_of
 from ..physics import parameters as P
 from ..util.population import mean_diameters
 
@@ -67,15 +71,56 @@ class Segment:
     d32_end: float = float("nan")
 
 
+@dataclass(frozen=True)
+class TwoWayPlan:
+    """What a two-way run reads of its scene besides the segments' problems (SI).
+
+    name, source     the scene's name and file (titles, messages)
+    coupling         the ``[coupling]`` table (``scene.coupling.Coupling``)
+    end_time         the scene's end time [s]
+    density          granule material density [kg/m3] (U_mf)
+    phase            the CFD's particle phase (``[domain] phase``)
+    diameter         diameter of a granule of the initial mean mass [m] (the template's CFD)
+    user_case        the user's OpenFOAM case (None: the bundled template) and
+    domain_time      its ``[domain] time`` (segment 0's fields)
+    fluidisation     gas density [kg/m3], viscosity [Pa s], inlet velocity [m/s]
+                     (``fluidisation_values``)
+    """
+    name: str
+    source: str
+    coupling: object
+    end_time: float
+    density: float
+    phase: str
+    diameter: float
+    user_case: Path | None
+    domain_time: object
+    fluidisation: dict
+
+
+def two_way_plan(scene) -> TwoWayPlan:
+    """The ``TwoWayPlan`` of a validated scene with ``[coupling]`` (SceneError where its
+    physics cannot run: ``batch.check_physics``, before any CFD runs)."""
+    check_physics(scene)
+    return TwoWayPlan(name=scene.name, source=scene.source, coupling=scene.coupling,
+                      end_time=float(scene.end_time), density=float(scene.material.density),
+                      phase=scene.domain.phase, diameter=initial_diameter(scene),
+                      user_case=case_path(scene), domain_time=scene.domain.time,
+                      fluidisation=fluidisation_values(scene))
+
+
 @dataclass
 class TwoWayRun:
-    """What ``run_two_way`` returns: the segments, the packed arrays of the run, warnings,
-    compile seconds and the gas and inlet values of the defluidisation check (SI)."""
+    """What ``run_two_way`` returns: the segments, the packed arrays of the run (segment 0's
+    scales), warnings, compile seconds, the gas and inlet values of the defluidisation check
+    (SI), the run's plan and the output plan (``runs.problem.OutputPlan``)."""
     segments: list
     arrays: object
     warnings: list = field(default_factory=list)
     compile_time_s: float = 0.0
     fluidisation: dict = field(default_factory=dict)
+    plan: TwoWayPlan | None = None
+    outputs: object = None
 
 
 def initial_diameter(scene) -> float:
@@ -117,21 +162,34 @@ def segment_domain(scene, case, time, need_flux: bool, first: bool) -> Domain:
     return domain
 
 
-def _first_cfd(scene, store, log) -> dict:
+def segment_problem(scene, case, time, k: int, scales=None):
+    """The pass of segment k: the CFD fields of its ``case`` at ``time`` (``segment_domain``)
+    and the scene packed on them (``runs.problem.problem_of``; ``scales``: segment 0's number
+    scales [1/m3] for the later segments, so that all integrate in the same scaled units).
+    Returns (domain, problem)."""
+    domain = segment_domain(scene, case, time, scene.transport is not None, first=k == 0)
+    try:
+        problem = problem_of(scene, domain, scales=scales)
+    except SimulationError as exc:
+        raise SimulationError(f"two-way segment {k}: {exc}") from None
+    return domain, problem
+
+
+def _first_cfd(plan, store, log) -> dict:
     """Segment 0's CFD: the user's case as it is, or the template run from its packed bed."""
-    c = scene.coupling
-    user = case_path(scene)
+    c = plan.coupling
+    user = plan.user_case
     if user is not None:
-        t = of.pick_time(user, scene.domain.time, phase=scene.domain.phase)
+        t = of.pick_time(user, plan.domain_time, phase=plan.phase)
         from ..io.openfoam.material import case_material
-        d = case_material(user, scene.domain.phase)["diameter"][0] or initial_diameter(scene)
+        d = case_material(user, plan.phase)["diameter"][0] or plan.diameter
         return {"case": str(user), "time_name": of.time_name(user, t), "diameter": d,
                 "cfd_wall_s": 0.0, "window": None}
     target = store.case_dir(0)
-    d = initial_diameter(scene)
+    d = plan.diameter
     t0 = _time.perf_counter()
     try:
-        rerun.start_case(target, scene.domain.phase, d, c.first_flow, c.first_window_start,
+        rerun.start_case(target, plan.phase, d, c.first_flow, c.first_window_start,
                          mesh=c.mesh, log=log)
     except of.OpenFOAMError as exc:
         raise _segment_error(0, 0.0, 0.0, exc) from None
@@ -140,14 +198,14 @@ def _first_cfd(scene, store, log) -> dict:
             "window": [c.first_window_start, c.first_flow]}
 
 
-def _next_cfd(scene, store, k, prev_case, prev_time, d, t_process, log) -> dict:
+def _next_cfd(plan, store, k, prev_case, prev_time, d, t_process, log) -> dict:
     """Segment k's CFD: the previous case continued with diameter d [m]."""
-    c = scene.coupling
+    c = plan.coupling
     target = store.case_dir(k)
     t0 = _time.perf_counter()
     start = float(prev_time)
     try:
-        rerun.continue_case(prev_case, prev_time, target, scene.domain.phase, d, c.flow_time,
+        rerun.continue_case(prev_case, prev_time, target, plan.phase, d, c.flow_time,
                             c.window_start, log=log)
     except of.OpenFOAMError as exc:
         raise _segment_error(k, t_process, start, exc) from None
@@ -193,104 +251,92 @@ def check_times(t0: float, t1: float, step: float | None) -> list:
     return [t0 + (t1 - t0) * k / n for k in range(1, n)] + [t1]
 
 
-def _nears_umf(scene, fluid, d_cfd, d32) -> bool:
+def _nears_umf(plan, fluid, d_cfd, d32) -> bool:
     """True when granules of d32 [m] reach U_mf >= warn_fraction x U_inlet and the CFD's
-    diameter d_cfd [m] did not."""
+    diameter d_cfd [m] did not (``plan``: the run's ``TwoWayPlan``)."""
     from .coupling_output import umf_of
     u_in = fluid.get("inlet_velocity")
     if u_in is None:
         return False
-    limit = scene.coupling.warn_fraction * u_in
-    return bool(umf_of(scene, fluid, d32) >= limit > umf_of(scene, fluid, d_cfd))
+    limit = plan.coupling.warn_fraction * u_in
+    return bool(umf_of(plan, fluid, d32) >= limit > umf_of(plan, fluid, d_cfd))
 
 
 def run_two_way(scene, store, progress=None, log=None, warn=None) -> TwoWayRun:
     """Run the segments of a two-way coupled scene (module docstring), continuing the finished
     steps the ``store`` holds. ``progress(fraction, text)`` after each output time, ``log``
     receives the CFD's progress lines, ``warn`` the defluidisation warning of a segment's end
-    (``coupling_output.defluidisation_warning``) before the next CFD runs."""
-    check_physics(scene)
-    method = method_of(scene)
-    times = output_times(scene)
+    (``coupling_output.defluidisation_warning``) before the next CFD runs. The scene is read
+    by ``two_way_plan`` and each segment's ``segment_problem`` only."""
+    plan = two_way_plan(scene)
     cfd = store.cfd(0)
     if cfd is None:
-        cfd = _first_cfd(scene, store, log)
+        cfd = _first_cfd(plan, store, log)
         store.save_cfd(0, cfd)
-    need_flux = scene.transport is not None
-    run = TwoWayRun(segments=[], arrays=None, fluidisation=fluidisation_values(scene))
-    states = volumes = None
+    run = TwoWayRun(segments=[], arrays=None, fluidisation=plan.fluidisation, plan=plan)
+    states = volumes = scales = None
     k, t_start = 0, 0.0
     while True:
         case = Path(cfd["case"]) if Path(cfd["case"]).is_absolute() else store.case_dir(k)
-        domain = segment_domain(scene, case, cfd["time_name"], need_flux, first=k == 0)
+        domain, problem = segment_problem(scene, case, cfd["time_name"], k, scales)
         run.warnings.extend(w for w in domain.warnings if w not in run.warnings)
-        rows, active, spray, _ = build_cells(scene, domain.cells)
-        idx = np.flatnonzero(active)
         if k == 0:               # [output] cell_psd checked on the first CFD fields
             from .couple import select_psd_cells
-            from .problem import output_plan
-            select_psd_cells(output_plan(scene), domain.cells, active)
-        if idx.size == 0:
-            raise SimulationError(f"two-way segment {k}: no cell of {domain.description} has "
-                                  f"alpha >= alpha_min = {scene.domain.alpha_min:g}")
-        if run.arrays is None:
-            scaled = coupled_scales(scene, rows[idx, P.ALPHA])
-            run.arrays = model.pack(scaled)
-        arrays = run.arrays
-        grid = theta_grid(rows[idx, P.THETA]) if method.tabulates_theta else None
-        aux = method.aux(scaled, arrays, grid)
+            select_psd_cells(problem.outputs, domain.cells, problem.active)
+            run.arrays, run.outputs, scales = problem.arrays, problem.outputs, problem.scales
+        idx = problem.cell_ids
         vol = np.asarray(domain.cells.cell_volume, dtype=float)[idx]
         seg = Segment(k, t_start, t_start, str(case), float(domain.cells.time),
                       tuple(cfd["window"] or ()), float(cfd["diameter"]), domain, None, None,
-                      idx, aux, float(cfd["cfd_wall_s"]), 0.0, rows, active, spray)
+                      idx, problem.aux, float(cfd["cfd_wall_s"]), 0.0, problem.mesh_rows,
+                      problem.active, problem.spray)
         done = store.granulation(k)
         if done is not None:
             seg.times, seg.history = done["times"], list(done["history"])
             seg.pbe_wall_s, seg.t_end, seg.d32_end = (done["pbe_wall_s"], done["t_end"],
                                                       done["d32_end"])
         else:
-            first = (initial_states(scene, arrays, rows[idx, P.ALPHA]) if states is None
-                     else carry_over(states, volumes, rows[idx, P.ALPHA], vol))
-            run.compile_time_s += _granulate(scene, seg, arrays, aux, first, times, progress,
-                                             run.fluidisation)
+            first = (problem.states if states is None
+                     else carry_over(states, volumes, problem.rows[:, P.ALPHA], vol))
+            run.compile_time_s += _granulate(plan, problem, seg, first, progress)
             store.save_granulation(k, {"t_end": seg.t_end, "d32_end": seg.d32_end,
                                        "pbe_wall_s": seg.pbe_wall_s},
                                    seg.times, seg.history, idx)
         run.segments.append(seg)
         states, volumes = np.asarray(seg.history[-1]), vol
-        if seg.t_end >= scene.end_time * (1 - 1e-12):
+        if seg.t_end >= plan.end_time * (1 - 1e-12):
             return run
         if warn is not None:
             from .coupling_output import defluidisation_warning
-            text = defluidisation_warning(scene, run.fluidisation, seg.d32_end, seg.t_end)
+            text = defluidisation_warning(plan, run.fluidisation, seg.d32_end, seg.t_end)
             if text:
                 warn(text)
         k, t_start, prev = k + 1, seg.t_end, cfd
         cfd = store.cfd(k)
         if cfd is None:
-            cfd = _next_cfd(scene, store, k, case, prev["time_name"], seg.d32_end, t_start, log)
+            cfd = _next_cfd(plan, store, k, case, prev["time_name"], seg.d32_end, t_start, log)
             store.save_cfd(k, cfd)
 
 
-def _granulate(scene, seg, arrays, aux, states, times, progress, fluid) -> float:
-    """Integrate segment ``seg`` from its start over the scene's output times until it ends
-    (``_ends_here``, checked every ``check_interval``); fills its times, history, end time,
-    d32 and wall seconds. ``fluid``: the case's gas values for U_mf. Returns the compile
-    seconds."""
-    batch = CellBatch.for_scene(scene, arrays, aux, np.ascontiguousarray(seg.rows[seg.idx]),
-                                np.ascontiguousarray(states), cell_ids=seg.idx)
+def _granulate(plan, problem, seg, states, progress) -> float:
+    """Integrate segment ``seg`` (its ``problem``, from ``states``) from its start over the
+    output times until it ends (``_ends_here``, checked every ``check_interval``); fills its
+    times, history, end time, d32 and wall seconds. ``plan``: the run's ``TwoWayPlan`` (the
+    case's gas values for U_mf). Returns the compile seconds."""
+    batch = CellBatch.for_problem(dataclasses.replace(problem, states=states))
     compile_s = batch.compile()
     t0 = _time.perf_counter()
+    arrays, aux = problem.arrays, problem.aux
     transport = None
-    if scene.transport is not None:
-        from ..transport.operator import build_transport, transport_settings
-        transport = build_transport(transport_settings(scene), seg.domain, seg.active,
-                                    seg.rows, arrays=arrays, aux=aux)
+    if problem.transport is not None:
+        from ..transport.operator import build_transport
+        transport = build_transport(problem.transport, seg.domain, seg.active, seg.rows,
+                                    arrays=arrays, aux=aux)
     executor = SerialExecutor()
     vol = np.asarray(seg.domain.cells.cell_volume, dtype=float)[seg.idx]
     out_t, history = [seg.t_start], [batch.states.copy()]
-    later = [t for t in times if t > seg.t_start * (1 + 1e-12) + 1e-12]
-    c = scene.coupling
+    later = [t for t in problem.times if t > seg.t_start * (1 + 1e-12) + 1e-12]
+    c, end_time, fluid = plan.coupling, plan.end_time, plan.fluidisation
     ended = False
     for t in later:
         last = out_t[-1]
@@ -298,14 +344,14 @@ def _granulate(scene, seg, arrays, aux, states, times, progress, fluid) -> float
             executor.run(batch, np.array([last, tc]), transport)
             last = tc
             d32 = granule_d32(batch.plan, arrays, aux, batch.states, vol)
-            ended = _ends_here(c, seg.t_start, tc, d32, seg.diameter, scene.end_time,
-                               _nears_umf(scene, fluid, seg.diameter, d32))
+            ended = _ends_here(c, seg.t_start, tc, d32, seg.diameter, end_time,
+                               _nears_umf(plan, fluid, seg.diameter, d32))
             if ended or tc == t:
                 out_t.append(float(tc))
                 history.append(batch.states.copy())
                 break
         if progress is not None:
-            progress(out_t[-1] / scene.end_time, f"segment {seg.index}: t = {out_t[-1]:.4g} "
+            progress(out_t[-1] / end_time, f"segment {seg.index}: t = {out_t[-1]:.4g} "
                      f"s, d32 = {d32 * 1e6:.1f} um")
         if ended:
             seg.d32_end = d32

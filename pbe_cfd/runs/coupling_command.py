@@ -82,30 +82,32 @@ def two_way(args, default_scene: str) -> int:
         raise
     finally:
         progress.close()
-    result = combined_result(scene, run, _time.perf_counter() - started)
+    result = combined_result(run, _time.perf_counter() - started)
     for w in result.warnings:
         if w not in said:
             print(f"warning: {w}", file=sys.stderr)
     with output.atomic_directory(out, args.overwrite, kind="couple") as tmp:
-        write_two_way(tmp, scene, store, run, result)
+        write_two_way(tmp, store, run, result)
     store.remove()
     st = result.stats
-    print(f"{scene.name}: two-way, {st['segments']} segments to t = {scene.end_time:g} s; "
+    print(f"{run.plan.name}: two-way, {st['segments']} segments to t = {run.plan.end_time:g} s; "
           f"CFD {st['cfd_wall_s']:.1f} s, population balance {st['pbe_wall_s']:.1f} s of wall "
           f"time; wrote {out_arg}/ (segments.csv, segments.png, segments/NNN/ logs)")
     return 0
 
 
-def write_two_way(tmp: Path, scene, store, run, result):
+def write_two_way(tmp: Path, store, run, result):
     """The coupled outputs across segments, segments.csv and .png, each segment's logs and
-    dictionaries (segments/NNN/), and summary.json's ``coupling`` section."""
+    dictionaries (segments/NNN/), and summary.json's ``coupling`` section (of the run's
+    ``coupling.TwoWayPlan``)."""
     from .couple import write_coupled
     from ..io.openfoam import rerun
     from .coupling_output import plot_segments, segment_rows
-    cols = segment_rows(scene, run)
+    plan = run.plan
+    cols = segment_rows(run)
     phases = write_coupled(tmp, run.segments[0].domain, result)
     output.write_columns_csv(tmp / "segments.csv", cols)
-    plot_segments(tmp / "png" / "segments.png", cols, f"{scene.name}: two-way segments",
+    plot_segments(tmp / "png" / "segments.png", cols, f"{plan.name}: two-way segments",
                   metadata=output.figure_metadata("png", "couple"))
     for seg in run.segments:
         case = Path(seg.case)
@@ -113,7 +115,7 @@ def write_two_way(tmp: Path, scene, store, run, result):
             rerun.copy_logs(case, tmp / "segments" / f"{seg.index:03d}")
     summary = json.loads((tmp / "summary.json").read_text())
     summary["coupling"] = {
-        "table": {k: getattr(scene.coupling, k) for k in scene.coupling.__dataclass_fields__},
+        "table": {k: getattr(plan.coupling, k) for k in plan.coupling.__dataclass_fields__},
         "segments": {k: v.tolist() for k, v in cols.items()},
         "fluidisation": run.fluidisation,
         "cfd_wall_s": result.stats["cfd_wall_s"], "pbe_wall_s": result.stats["pbe_wall_s"]}

@@ -15,7 +15,6 @@ from __future__ import annotations
 import numpy as np
 
 from .couple import CoupledResult, _bed_distribution, _cell_psd, _outputs, select_psd_cells
-from .problem import output_plan
 from ..physics.fluidisation import minimum_fluidisation_velocity
 
 #: fraction of the solids volume below the bed height [-] (ours: a bed surface that ignores
@@ -56,21 +55,23 @@ def bed_state(domain, active, spray) -> dict:
             "spray_volume_m3": float(np.sum(vol[spray]))}
 
 
-def umf_of(scene, fluid: dict, d: float) -> float:
-    """Wen & Yu's U_mf [m/s] of granules of diameter d [m] in the case's gas (nan when the
-    case does not give the gas's density and viscosity)."""
+def umf_of(plan, fluid: dict, d: float) -> float:
+    """Wen & Yu's U_mf [m/s] of granules of diameter d [m] and the density [kg/m3] of
+    ``plan`` (the run's ``coupling.TwoWayPlan``) in the case's gas (nan when the case does
+    not give the gas's density and viscosity)."""
     if fluid.get("gas_density") is None or fluid.get("gas_viscosity") is None:
         return float("nan")
-    return minimum_fluidisation_velocity(d, scene.material.density, fluid["gas_density"],
+    return minimum_fluidisation_velocity(d, plan.density, fluid["gas_density"],
                                          fluid["gas_viscosity"])
 
 
-def defluidisation_warning(scene, fluid, d, t) -> str | None:
+def defluidisation_warning(plan, fluid, d, t) -> str | None:
     """The warning when granules of d32 = d [m] at process time t [s] have a minimum
-    fluidisation velocity at or above ``warn_fraction`` of the inlet's (None otherwise)."""
+    fluidisation velocity at or above ``warn_fraction`` of the inlet's (None otherwise);
+    ``plan``: the run's ``coupling.TwoWayPlan``."""
     u_in = fluid.get("inlet_velocity")
-    umf = umf_of(scene, fluid, d)
-    frac = scene.coupling.warn_fraction
+    umf = umf_of(plan, fluid, d)
+    frac = plan.coupling.warn_fraction
     if u_in is None or not np.isfinite(umf) or umf < frac * u_in:
         return None
     state = ("the bed is defluidised: U_mf exceeds it" if umf >= u_in else
@@ -81,8 +82,8 @@ def defluidisation_warning(scene, fluid, d, t) -> str | None:
             f"([coupling] warn_fraction = {frac:g}); {state}")
 
 
-def segment_rows(scene, run) -> dict:
-    """The columns of segments.csv (one row per segment, SI)."""
+def segment_rows(run) -> dict:
+    """The columns of segments.csv (one row per segment, SI) of a ``coupling.TwoWayRun``."""
     cols = {}
     fluid = run.fluidisation
     for seg in run.segments:
@@ -91,7 +92,7 @@ def segment_rows(scene, run) -> dict:
                "cfd_window_start_s": seg.cfd_window[0] if seg.cfd_window else np.nan,
                "diameter_m": seg.diameter, "d32_end_m": seg.d32_end,
                **bed_state(seg.domain, seg.active, seg.spray),
-               "u_mf_m_s": umf_of(scene, fluid, seg.diameter),
+               "u_mf_m_s": umf_of(run.plan, fluid, seg.diameter),
                "inlet_velocity_m_s": fluid.get("inlet_velocity") or np.nan,
                "cfd_wall_s": seg.cfd_wall_s, "pbe_wall_s": seg.pbe_wall_s}
         for key, value in row.items():
@@ -99,26 +100,28 @@ def segment_rows(scene, run) -> dict:
     return {k: np.asarray(v, dtype=float) for k, v in cols.items()}
 
 
-def defluidisation_warnings(scene, run) -> list:
-    """One warning per segment whose CFD diameter, or the final d32, nears U_mf = U_inlet."""
+def defluidisation_warnings(run) -> list:
+    """One warning per segment of a ``coupling.TwoWayRun`` whose CFD diameter, or the final
+    d32, nears U_mf = U_inlet."""
     out = []
     for seg in run.segments:
-        w = defluidisation_warning(scene, run.fluidisation, seg.diameter, seg.t_start)
+        w = defluidisation_warning(run.plan, run.fluidisation, seg.diameter, seg.t_start)
         if w:
             out.append(w)
     last = run.segments[-1]
-    w = defluidisation_warning(scene, run.fluidisation, last.d32_end, last.t_end)
+    w = defluidisation_warning(run.plan, run.fluidisation, last.d32_end, last.t_end)
     if w and w not in out:
         out.append(w)
     return out
 
 
-def combined_result(scene, run, wall_s: float) -> CoupledResult:
-    """The coupled outputs across the segments: cell fields and bed columns at every output
-    time (a boundary's time once, from the segment that ended there), psd and labels."""
+def combined_result(run, wall_s: float) -> CoupledResult:
+    """The coupled outputs across the segments of a ``coupling.TwoWayRun`` (what they read of
+    the scene: its ``outputs``): cell fields and bed columns at every output time (a
+    boundary's time once, from the segment that ended there), psd and labels."""
     from ..io.spool import Spool
     times, fields, mixtures, bed, cell_ids = [], Spool(), [], {}, []
-    plan = output_plan(scene)
+    plan = run.outputs
     warnings = list(run.warnings)
     first = run.segments[0]
     selection = select_psd_cells(plan, first.domain.cells, first.active)
@@ -138,7 +141,7 @@ def combined_result(scene, run, wall_s: float) -> CoupledResult:
             bed.setdefault(name, []).extend(np.asarray(values)[skip:])
     times = np.asarray(times)
     bed = {k: np.asarray(v, dtype=float) for k, v in bed.items()}
-    warnings.extend(defluidisation_warnings(scene, run))
+    warnings.extend(defluidisation_warnings(run))
     psd, labels = _bed_distribution(plan, run.arrays, times, bed, mixtures, fields, warnings)
     cell_psd = _cell_psd(plan, selection, times, mixtures, cell_ids, psd, labels, warnings)
     stats = {"cells": int(run.segments[0].domain.cells.n_cells), "segments": len(run.segments),

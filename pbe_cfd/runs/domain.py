@@ -243,9 +243,14 @@ def initial_states(scene, arrays: model.Arrays, alpha: np.ndarray) -> np.ndarray
     return granules[:, None] * unit(1.0, 0.0) + droplets[:, None] * unit(0.0, 1.0)
 
 
-def coupled_scales(scene, alpha_active: np.ndarray):
+def coupled_scales(scene, alpha_active: np.ndarray, scales=None):
     """The scene with the number density set to the bed's largest cell value, so that the
-    non-dimensional states of all cells are O(1) or below."""
+    non-dimensional states of all cells are O(1) or below; ``scales``: given (granule,
+    free-droplet) number densities [1/m3] instead (an earlier segment's)."""
+    if scales is not None:
+        n_max, nd_max = scales
+        return dataclasses.replace(scene, initial=dataclasses.replace(
+            scene.initial, number_density=n_max, droplet_number_density=nd_max))
     granules, droplets = cell_number_densities(scene, alpha_active)
     n_max = float(granules.max()) if granules.size else 1.0
     nd_max = float(droplets.max()) if droplets.size else 0.0

@@ -18,8 +18,10 @@ the transport, the air balance, the inventory and the coupled run's outputs read
 and its plans, never the scene; the scene's ``source`` rides along for messages. Only this
 module and what it calls to pack (``model``, ``domain``, ``batch.check_physics``, the plans'
 builders, the methods' ``aux``/``state_names``/``initial_state``) read the scene. The two-way
-coupled run (``coupling``) packs its plans once the same way and re-reads the scene only for
-its CFD segments.
+coupled run (``coupling``) makes this pass once per CFD segment (``coupling.segment_problem``:
+the segment's CFD fields, then ``problem_of`` with segment 0's ``scales``, so every segment
+integrates in the same scaled units) and otherwise reads its problems and its
+``coupling.TwoWayPlan``, never the scene.
 """
 from __future__ import annotations
 
@@ -120,6 +122,8 @@ class Problem:
     mesh_rows       (n_cells, N_CELL) rows of every mesh cell (coupled; None well-mixed)
     active, spray   (n_cells,) the cells holding granules and the sprayed cells (coupled)
     notes           what building the cell rows reported (``domain.build_cells``)
+    scales          the number densities the states are scaled by (granules, free droplets)
+                    [1/m3] (coupled; ``domain.coupled_scales``; None well-mixed)
     outputs         the output plan (``OutputPlan``; its ``method_plan`` the method's hooks')
     source          the scene's file (messages)
     end_time        the scene's end time [s] (progress fractions)
@@ -149,6 +153,7 @@ class Problem:
     active: np.ndarray | None = None
     spray: np.ndarray | None = None
     notes: dict = field(default_factory=dict)
+    scales: tuple | None = None
 
     @property
     def n_cells(self) -> int:
@@ -156,9 +161,11 @@ class Problem:
         return self.rows.shape[0]
 
 
-def problem_of(scene, domain=None) -> Problem:
+def problem_of(scene, domain=None, scales=None) -> Problem:
     """The packed problem of a validated scene on ``domain`` (a ``runs.domain.Domain``; None:
-    the well-mixed cell of the scene's ``[domain]``). Raises SceneError for a method the
+    the well-mixed cell of the scene's ``[domain]``). ``scales``: the (granule, free-droplet)
+    number densities [1/m3] the states are scaled by, an earlier problem's ``scales`` (a
+    two-way run's later segments keep segment 0's); None: the bed's own (coupled runs). Raises SceneError for a method the
     per-cell integrator does not run on a domain or whose physics cannot run
     (``batch.check_physics``), SimulationError when no mesh cell holds granules (alpha >=
     alpha_min)."""
@@ -195,7 +202,7 @@ def problem_of(scene, domain=None) -> Problem:
         raise SimulationError(f"{scene.source}: no cell has alpha >= alpha_min = "
                               f"{scene.domain.alpha_min:g} (max alpha "
                               f"{float(np.max(cells.alpha)):.3g})")
-    scaled_scene = coupled_scales(scene, mesh_rows[idx, P.ALPHA])
+    scaled_scene = coupled_scales(scene, mesh_rows[idx, P.ALPHA], scales)
     arrays = model.pack(scaled_scene)
     grid = theta_grid(mesh_rows[idx, P.THETA]) if method.tabulates_theta else None
     aux = method.aux(scaled_scene, arrays, grid)
@@ -203,7 +210,8 @@ def problem_of(scene, domain=None) -> Problem:
     return Problem(arrays=arrays, aux=aux, rows=np.ascontiguousarray(mesh_rows[idx]),
                    states=states, cell_ids=idx, mesh_rows=mesh_rows, active=active,
                    spray=sprayed, notes=notes, air=coupled_air_plan(scene, cells, idx),
-                   **common)
+                   scales=(scaled_scene.initial.number_density,
+                           scaled_scene.initial.droplet_number_density), **common)
 
 
 def _transport_settings(scene):

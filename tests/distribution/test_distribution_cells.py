@@ -226,6 +226,7 @@ def test_cell_psd_conserves_mass_and_gives_the_cell_s_d50(one_cell_run):
 
 
 # ---------------------------------------------------------------------------- the outputs
+@pytest.mark.slow
 @pytest.mark.parametrize("scene", ["fluid-bed", "fluid-bed-transport"])
 def test_couple_writes_cell_psd_through_the_output_machinery(tmp_path, capsys, scene):
     path = tmp_path / "cells.toml"

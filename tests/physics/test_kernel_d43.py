@@ -41,6 +41,7 @@ def rhs_at_droplet_numbers(method_table, binder_fraction=0.15):
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", [{"name": "qmom", "nodes": 2, "_replace": True},
                                     {"name": "laguerre", "order": 3, "_replace": True}],
                          ids=["qmom", "laguerre"])

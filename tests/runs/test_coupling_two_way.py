@@ -84,11 +84,11 @@ def test_the_bed_population_is_carried_over_whole(straight):
 
 def test_outputs_across_segments(straight):
     scene, _, run = straight
-    result = combined_result(scene, run, 1.0)
+    result = combined_result(run, 1.0)
     assert result.times.tolist() == [0.0, 1.0, 2.0, 3.0, 4.0]   # the boundary once
     cfd = [f["cfd_time_s"][0] for f in result.cell_fields]
     assert cfd == pytest.approx([FLOW, FLOW, FLOW, 2 * FLOW, 2 * FLOW], abs=1e-12)
-    cols = segment_rows(scene, run)
+    cols = segment_rows(run)
     assert cols["diameter_m"][1] == pytest.approx(run.segments[0].d32_end, rel=1e-15, abs=0)
     assert np.all(cols["theta_p10_m2_s2"] <= cols["theta_p90_m2_s2"])
     assert np.all((cols["mean_alpha"] > 0) & (cols["mean_alpha"] < scene.domain.alpha_max))

@@ -137,6 +137,7 @@ def test_failed_chunk_is_reported_and_completed_on_resume(client, serial_short, 
             client=client, chunks=3, store_dir=store, resume=True))
 
 
+@pytest.mark.slow
 def test_killed_worker_chunk_is_reported_and_resumed(serial_short, tmp_path):
     """A worker process that dies (os._exit) while running chunk 0: the scheduler gives up
     on the chunk (allowed-failures 0), the run names it, the resume completes it."""

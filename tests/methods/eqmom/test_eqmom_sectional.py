@@ -132,6 +132,7 @@ def marked(cases):
             if c in KNOWN_MISSES else c for c in cases]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", marked(CI_CASES), ids=case_id)
 def test_eqmom_within_3_percent_where_qmom_misses(case):
     check(case)

@@ -161,6 +161,7 @@ def test_mass_and_binder_exact_with_seed_physics(m, consistent, adaptive, cache)
     assert abs(out[1] + out[K + m] * xd) <= 1e-12 * scale
 
 
+@pytest.mark.slow
 def test_univariate_scene_runs_in_the_dry_class():
     """A scene without binder: every granule stays in the dry class, which is a univariate
     Laguerre ROM in p; constant kernel, M00 = 2 N0 / (2 + tau), M20 = M20(0) + k0 M10^2 t

@@ -162,6 +162,7 @@ def gamma_state(sc, arrays, c_m, shape, number=N0):
     return LT.scene_initial_state(sc, arrays, mom)   # binder in every granule: no dry class
 
 
+@pytest.mark.slow
 def test_mass_beyond_the_span_inside_the_range_is_not_blamed_on_following_growth():
     """A broad wet population (gamma shape 0.02) whose c_m lies inside the following grid,
     95% of the way from one grid point to the next: the smallest blended slice's support is
