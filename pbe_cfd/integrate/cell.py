@@ -39,7 +39,7 @@ from .codes import (ACCEPT, ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, F0, FTM
                     STOKES_EVENTS, SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START, YNEW, YTMP)
 from .explicit import bs3_attempt
 from .exponential import capture_column, exp_bs3_attempt
-from .rosenbrock import jacobian, rodas3_attempt, spectral_radius
+from .rosenbrock import rodas3_attempt, secant_jacobian, spectral_radius
 from .switches import held_params, locate_next, located, location_memory, release
 
 STIFF_H_RHO = 1.0        # h rho above which an explicit step counts as stability-limited
@@ -82,7 +82,7 @@ def _implicit(scheme, method, y, h, buf, jac, lu, piv, cell, aux, params, config
 
 
 def _jacobian(scheme, method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, config,
-              work, rtol, atol, n):
+              work, rtol, atol, n, h_scale):
     raise NotImplementedError("numba only")
 
 
@@ -139,16 +139,17 @@ def _implicit_impl(scheme, method, y, h, buf, jac, lu, piv, cell, aux, params, c
 
 @overload(_jacobian, prefer_literal=True)
 def _jacobian_impl(scheme, method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params,
-                   config, work, rtol, atol, n):
+                   config, work, rtol, atol, n, h_scale):
     code = _scheme(scheme)
     if code is None:
         return None
     if code == EXPLICIT:      # never called
         return lambda scheme, method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, \
-            config, work, rtol, atol, n: 0
+            config, work, rtol, atol, n, h_scale: 0
     return lambda scheme, method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, \
-        config, work, rtol, atol, n: jacobian(method, y, buf, jac, pivots, coefs, n_inv, cell,
-                                              aux, params, config, work, rtol, atol, n)
+        config, work, rtol, atol, n, h_scale: secant_jacobian(
+            method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, config, work, rtol,
+            atol, n, h_scale)
 
 
 @nb.njit(cache=True)
@@ -417,10 +418,12 @@ def _clear_crossed(local):
 
 @nb.njit(cache=True)
 def _attempt(scheme, method, mode, state, h_try, buf, phis, cap, jac, lu, piv, pivots, coefs,
-             n_inv, have_jac, cell, aux, local, config, work, rtol, atol, droplet, n, stats):
+             n_inv, have_jac, secant, cell, aux, local, config, work, rtol, atol, droplet, n,
+             stats):
     """One attempted step of h_try [s] in mode (0 explicit, 1 implicit); the Jacobian is
-    evaluated first where the implicit mode has none. Returns (outcome, error norm, h rho,
-    whether the capture was exact, have_jac)."""
+    evaluated first where the implicit mode has none (``secant``: as a secant over the step,
+    after a realizability rejection; ``rosenbrock.secant_jacobian``). Returns (outcome, error
+    norm, h rho, whether the capture was exact, have_jac)."""
     h_rho, expo = 0.0, False
     if mode == 0:
         expo = droplet >= 0 and scheme == AUTO and _capture_chosen(
@@ -433,7 +436,8 @@ def _attempt(scheme, method, mode, state, h_try, buf, phis, cap, jac, lu, piv, p
     else:
         if not have_jac:
             stats[RHS_CALLS] += _jacobian(scheme, method, state, buf, jac, pivots, coefs,
-                                          n_inv, cell, aux, local, config, work, rtol, atol, n)
+                                          n_inv, cell, aux, local, config, work, rtol, atol, n,
+                                          h_try if secant else 0.0)
             stats[JACOBIANS] += 1
             have_jac = True
         _clear_crossed(local)
@@ -446,16 +450,12 @@ def _attempt(scheme, method, mode, state, h_try, buf, phis, cap, jac, lu, piv, p
 @nb.njit(cache=True)
 def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_end, step,
                    rtol, atol, max_steps, stats):
-    """Advance one cell's state from t_start to t_end [s] in place.
-
-    method, scheme: literal codes (methods.dispatch, integrate.codes). ``step`` is a
-    one-element array holding the proposed step [s] (updated for the next call; its sign is
-    the auto scheme's memory). ``stats`` accumulates the columns of ``codes``. Returns
-    (status, time reached [s]).
-
-    Under the sharp viscous Stokes step the pairs' decisions are held within a step and a step
-    across a switch restarts the next from its end (``switches``).
-    """
+    """Advance one cell's state from t_start to t_end [s] in place. method, scheme: literal
+    codes (methods.dispatch, integrate.codes). ``step``: one-element array, the proposed step
+    [s] (updated for the next call; its sign is the auto scheme's memory). ``stats``
+    accumulates the columns of ``codes``. Returns (status, time reached [s]). Under the sharp
+    viscous Stokes step the pairs' decisions are held within a step and a step across a switch
+    restarts the next from its end (``switches``)."""
     n = config[P.N_STATE]
     work = np.empty(WORK_SIZE)
     if not realizable(method, state, aux, params, config, work):
@@ -478,9 +478,9 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
         step[0] = _memory(scheme, mode, h)
         return NOT_FINITE, t_start
     floor = local[P.STEP_FLOOR]
-    # np.bool_: a variable first bound to a constant is typed as that literal at first, and
-    # numba would compile _attempt once more for the literal
-    t, taken, have_jac = t_start, 0, np.bool_(False)
+    # np.bool_: a constant would be typed as a literal (one more compile of _attempt); secant:
+    # after an implicit step's realizability rejection the next Jacobian is a secant over it
+    t, taken, have_jac, secant = t_start, 0, np.bool_(False), np.bool_(False)
     loc = location_memory()           # locating a Stokes switching time
     cap = np.zeros(N_CAP, dtype=np.int64)   # what buf[GCOL] holds (CAP_* below)
     # the step proposed after this call's first accepted step [s]; whether that step was
@@ -498,7 +498,8 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
         taken += 1
         outcome, err, h_rho, expo, have_jac = _attempt(
             scheme, method, mode, state, h_try, buf, phis, cap, jac, lu, piv, pivots, coefs,
-            n_inv, have_jac, cell, aux, local, config, work, rtol, atol, droplet, n, stats)
+            n_inv, have_jac, secant, cell, aux, local, config, work, rtol, atol, droplet, n,
+            stats)
         crossed = hold and outcome == ACCEPT and local[P.STOKES_CROSSED] != 0.0
         if crossed:
             outcome, err = located(method, t, state, h_try, buf, cell, aux, local, config,
@@ -525,6 +526,7 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
             factor = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** (-1.0 / 3.0)))
             h = h_try * factor if not last else max(h, h_try * factor)
             have_jac = False
+            secant = np.bool_(False)
             mode, h = _next_mode(scheme == AUTO, mode, h, h_try, h_rho, sw, jac, buf, n, stats)
             if hold:
                 h = locate_next(crossed, t, h, loc)
@@ -537,6 +539,8 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
             if cap[CAP_AGE] > 0:
                 cap[CAP_FRESH] = 0
             h = _after_reject(outcome, err, h_try, stats)
+            if outcome == REJECT_REALIZABILITY and mode == 1 and not secant:   # tangent failed
+                have_jac, secant = np.bool_(False), np.bool_(True)
     # a call that opened on a transient (its first attempt rejected, or its first step accepted
     # with little margin) hands the next call the step it opened with, not the one it ended
     # with: with transport every call opens on a fresh transient (droplets carried in) and the

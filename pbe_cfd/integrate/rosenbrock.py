@@ -36,11 +36,25 @@ SQRT_EPS = 1.4901161193847656e-08
 @nb.njit(cache=True)
 def jacobian(method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, config, work,
              rtol, atol, n):
+    """``secant_jacobian`` with the differences at sqrt(eps) (h_scale = 0): the Jacobian
+    J = df/dy at y [1/s]. Returns the number of RHS calls."""
+    return secant_jacobian(method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params,
+                           config, work, rtol, atol, n, 0.0)
+
+
+@nb.njit(cache=True)
+def secant_jacobian(method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, config,
+                    work, rtol, atol, n, h_scale):
     """Central-difference Jacobian of the RHS at y (buf[F0] = f(y)) into jac (n, n) [1/s].
 
     Column j perturbs y_j by +- sqrt(eps) max(|y_j|, atol / rtol); where only one side is
     realizable it is a one-sided difference against f(y); if neither is, the column is left
-    zero (the Rosenbrock step then treats that direction explicitly). Central, not forward:
+    zero (the Rosenbrock step then treats that direction explicitly). With h_scale [s] > 0
+    (after a realizability rejection, ``cell``) each perturbation is at least the change
+    h_scale |f_j(y)| the step makes in that entry: a secant over the step, not the tangent at
+    y, where the RHS is curved on a far smaller scale than the step (a quadrature node carrying
+    1e-8 of the number, whose per-node binder moves by 1/w with the binder moments;
+    docs/results/hard-cases.md). Central, not forward:
     near the realizability boundary the moment RHS is strongly curved (its linearisation holds
     for relative changes below ~1e-4) and its Jacobian columns are large and cancel along the
     trajectory, so the forward differences' O(delta) bias made J f wrong by 2.6% on the
@@ -60,6 +74,8 @@ def jacobian(method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, confi
         yp[j] = y[j]
     for j in range(n):
         delta = SQRT_EPS * max(abs(y[j]), floor)
+        if h_scale > 0.0:
+            delta = max(delta, h_scale * abs(f0[j]))
         yp[j] = y[j] + delta
         up = realizable(method, yp, aux, params, config, work)
         if up:

@@ -37,7 +37,8 @@ def thin_section(path: str | os.PathLike):
 
     import meshio
     try:
-        with contextlib.redirect_stderr(io.StringIO()):   # meshio prints, then exits
+        with contextlib.redirect_stderr(io.StringIO()), \
+                contextlib.redirect_stdout(io.StringIO()):   # meshio prints, then exits
             mesh = meshio.read(str(path))
     except (Exception, SystemExit):  # noqa: BLE001 - not a file meshio reads: let VTK try
         return None
@@ -123,12 +124,17 @@ def read_section(path: str | os.PathLike, plane: tuple[str, float] | None = None
     import warnings
 
     import pyvista as pv
+    from vtkmodules.vtkCommonCore import vtkObject
+    shown = vtkObject.GetGlobalWarningDisplay()
+    vtkObject.GlobalWarningDisplayOff()      # a truncated file: a page of VTK reader errors
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), pv.vtk_verbosity("off"):
             warnings.simplefilter("ignore")          # VTK's reader warns, then returns nothing
             mesh = pv.read(str(path))
     except Exception as exc:  # noqa: BLE001 - VTK raises plain errors for unreadable files
         raise ValueError(f"cannot read {path}: {exc}") from None
+    finally:
+        vtkObject.SetGlobalWarningDisplay(shown)
     if mesh.n_cells == 0:
         raise ValueError(f"cannot read {path}: no cells in it (not a VTK mesh file?)")
     return section(mesh, plane)

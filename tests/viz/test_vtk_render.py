@@ -242,3 +242,19 @@ def test_plot_bed_moments(tmp_path):
     bad.write_text("t,M00\n0,1\n")
     with pytest.raises(ValueError, match="first column must be 'time_s'"):
         plot_bed_moments(bad, tmp_path / "x.png")
+
+
+def test_a_truncated_vtu_is_one_error_and_nothing_printed(tmp_path, capfd):
+    """A VTU cut short (a killed writer): reading its section raises one ValueError naming the
+    file, and neither meshio (which prints, then calls sys.exit) nor VTK's reader (a page of
+    XML parser errors on the C++ side, file descriptor 2) prints anything."""
+    from pbe_cfd.viz.section import read_section
+    data = of.default_snapshot_path().read_bytes()
+    path = tmp_path / "cut.vtu"
+    path.write_bytes(data[: len(data) // 3])
+    capfd.readouterr()
+    with pytest.raises(ValueError, match="cannot read .*cut.vtu") as err:
+        read_section(path)
+    assert "\n" not in str(err.value)
+    out, errs = capfd.readouterr()
+    assert out == "" and errs == "", (out, errs)
