@@ -79,9 +79,13 @@ def run_command(args):
                                    inputs=[("the scene", scene.source)])
     progress = Progress(f"{scene.name} ({scene.method.name})")
     try:
-        result = run_well_mixed(scene, progress=progress)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = run_well_mixed(scene, progress=progress)
     finally:
         progress.close()
+    result.warnings.extend(m for m in (str(w.message).splitlines()[0] for w in caught)
+                           if m not in result.warnings)    # library warnings: one line each
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
     with output.atomic_directory(out, args.overwrite, kind="run") as tmp:

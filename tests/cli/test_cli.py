@@ -371,3 +371,27 @@ def test_coupled_summary_keeps_compile_and_run_apart(coupled_run):
     st = summary["stats"]
     assert st["cell_steps_per_second"] == pytest.approx(st["accepted_steps"]
                                                          / summary["wall_time_s"], rel=1e-12, abs=0)
+
+
+def test_a_library_warning_of_a_run_is_one_line_and_kept_in_the_summary(tmp_path, capsys,
+                                                                         monkeypatch):
+    """A Python warning raised inside a well-mixed run (numpy, scipy, meshio ...) is printed
+    as one ``warning:`` line and listed in summary.json, never as a raw warning with its
+    source line."""
+    from pbe_cfd.runs import simulate
+    real = simulate.run_well_mixed
+
+    def warning_run(scene, **kwargs):
+        import warnings
+        warnings.warn("a library's first line\nits second line", UserWarning)
+        return real(scene, **kwargs)
+
+    monkeypatch.setattr(simulate, "run_well_mixed", warning_run)
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(GOOD)
+    assert main(["run", str(scene), "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("warning: a library's first line") == 1
+    assert "UserWarning" not in err and "its second line" not in err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert "a library's first line" in summary["warnings"]
