@@ -51,6 +51,11 @@ class MethodEntry(NamedTuple):
     output_check    f(states, aux, arrays) -> None or (row, text): the first row of scaled
                     states (one per cell, at an output time) that is no answer, and why;
                     the run stops there (None: no check)
+    output_watch    f() -> a watcher of one run, or None: ``update(t [s], states, rows, aux,
+                    arrays, cell_ids)`` at every output time that passed ``output_check``
+                    (True: it found something), then ``text()`` (one warning line) and
+                    ``stats()`` (summary entries) if it found anything (Laguerre ROM: a
+                    positive aggregation rate of the granule number)
     plan_line       f(scene) -> the method's line of ``pbe-cfd plan``
     repairs_mixture f(plan) -> True if a mixture of realizable states (transport) may need
                     the method's projection before the next source step (plan: the
@@ -162,6 +167,7 @@ class MethodEntry(NamedTuple):
     solute_droplets: bool = True
     evaporates_droplets: bool = False
     output_check: Callable | None = None
+    output_watch: Callable | None = None
 
     def order(self, method) -> int:
         """config[P.ORDER] of the scene's ``Method`` (its options' nodes, order; 0)."""

@@ -106,6 +106,9 @@ class CellBatch:
     schedule: list = field(default_factory=list)
     #: the bed's air balance (``runs.air.BedAir``): None, the scene's air at every cell
     air: object = None
+    #: the method's output-time watcher (``MethodEntry.output_watch``) and its line in notes
+    watch: object = None
+    watch_note: int = -1
 
     def __post_init__(self):
         n = self.states.shape[0]
@@ -340,6 +343,7 @@ class CellBatch:
         states = self.states if states is None else states
         found = check(states, self.aux, self.arrays)
         if found is None:
+            self._watch(t, states)
             return
         c, text = found
         source = self.source
@@ -350,12 +354,23 @@ class CellBatch:
                      f"Theta {self.rows[c, P.THETA]:.3g} m2/s2) at t = {t:.6g} s")
         raise SimulationError(f"{where}: {text}")
 
+    def _watch(self, t: float, states: np.ndarray):
+        """The method's ``output_watch`` at output time t [s]: one line in ``notes``."""
+        make = getattr(self.plan.method, "output_watch", None)
+        if make is None:
+            return
+        self.watch = self.watch or make()
+        if self.watch.update(t, states, self.rows, self.aux, self.arrays, self.cell_ids):
+            self.watch_note = len(self.notes) if self.watch_note < 0 else self.watch_note
+            self.notes[self.watch_note:self.watch_note + 1] = [self.watch.text()]
+
     # -- accounting ----------------------------------------------------------------------
     def stats(self) -> dict:
         """Counters summed over the cells (``integrate.stats_summary``): accepted steps, steps
         rejected by the error control and by realizability, right-hand-side calls, implicit
-        steps, Jacobians and scheme switches."""
-        return integrate.stats_summary(self.stats_counts)
+        steps, Jacobians and scheme switches; the output watch's entries if it found any."""
+        out = integrate.stats_summary(self.stats_counts)
+        return out | (self.watch.stats() if self.watch_note >= 0 else {})
 
     def shared(self) -> dict:
         """What every chunk of this batch shares (aux, params, config, tolerances, step

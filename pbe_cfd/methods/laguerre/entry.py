@@ -2,6 +2,7 @@
 line and its numba functions (``methods.registry`` lists it)."""
 from ..entry import MethodEntry
 from .guard import output_check
+from .number_watch import output_watch
 from .options import LaguerreOptions
 from .tensor import (aux_for_scene, escaped_share_report, failure_hint, population_for_output,
                      plan_columns, scene_initial_state, scene_keys, state_names, table_bytes)
@@ -122,4 +123,5 @@ ENTRY = MethodEntry(
                       "size class",
     moments_text="integral of the Laguerre density over its support",
     accuracy_knobs=_accuracy_knobs, table_build=_table_build_seconds,
-    solute_droplets=False, dries=True, output_check=output_check)
+    solute_droplets=False, dries=True, output_check=output_check,
+    output_watch=output_watch)

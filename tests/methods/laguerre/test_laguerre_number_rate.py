@@ -17,10 +17,12 @@ import numpy as np
 import pytest
 
 from pbe_cfd.methods.laguerre.guard import aggregation_number_rates
+from pbe_cfd.methods.laguerre.number_watch import EPS, number_rate
 from pbe_cfd.methods.laguerre.position import laguerre_d43
 from pbe_cfd.methods.laguerre.rhs import laguerre_rhs
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.kernels import KTGF, kernel_cell_factor
+from pbe_cfd.runs.batch import CellBatch
 from pbe_cfd.runs.problem import problem_of
 from pbe_cfd.scene.scene import load_scene
 
@@ -93,3 +95,56 @@ def test_the_population_at_1020_s_loses_granules(proxy):
 @pytest.mark.parametrize("t", [1200.0, 1440.0])
 def test_aggregation_never_raises_the_granule_number(proxy, t):
     assert aggregation_number_rates(np.array(STATES[t]), proxy.aux)[0] <= 0.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("t", sorted(STATES))
+def test_watch_rate_is_the_rhs_granule_number_rate(proxy, t):
+    """The output watch's rate is the RHS's own d(W00 + D0)/dt of the cell (no breakage:
+    aggregation alone moves the granule number), to round-off of its terms: red if the watch
+    leaves out a class, the dry-wet term, a blend weight or the multiplier."""
+    s = np.array(STATES[t])
+    out = np.zeros(s.size)
+    a, params, config = proxy.aux, proxy.arrays.params, proxy.arrays.config
+    laguerre_rhs(s, out, proxy.rows[0], a, params, config)
+    rate, total, n = number_rate(s, proxy.rows[0], a, params, config)
+    assert rate == pytest.approx(out[0] + out[9], rel=0.0, abs=(n + 8) * EPS * total)
+    assert (rate > (n + 8) * EPS * total) == (t != 1020.0)   # the measured signs
+
+
+def _watched(proxy, t0, dt):
+    """A batch of the proxy cell started from the proxy run's state at t0 [s], advanced by
+    dt [s] and checked at t0 + dt as a run's output time: (notes, stats)."""
+    batch = CellBatch.for_problem(proxy)
+    batch.states[0] = STATES[t0]
+    if dt > 0.0:
+        batch.step(t0, t0 + dt)
+    batch.check_output(t0 + dt)
+    batch.check_output(t0 + 2 * dt)           # a second output time: still one line
+    return batch.notes, batch.stats()
+
+
+@pytest.mark.slow
+def test_a_run_through_a_positive_number_rate_warns_once(proxy):
+    """Ten seconds of the proxy from its state at 1440 s (M00 rising, +3.9% over
+    1420-1440 s in the full run): the run gives one warning line naming the method, the
+    well-mixed cell, the time and the relative rate, and its summary counts it; red if the
+    watch is not called (batch._watch) or the flag's sign is reversed."""
+    notes, stats = _watched(proxy, 1440.0, 10.0)
+    lines = [n for n in notes if "granule number M00" in n]
+    assert len(lines) == 1
+    assert lines[0].startswith("laguerre:") and "well-mixed at t = 1450 s" in lines[0]
+    assert "not a population" in lines[0] and "M00 is not trustworthy" in lines[0]
+    assert stats["positive_number_rate_cells"] == 1
+    assert stats["positive_number_rate_output_times"] == 2
+    assert stats["positive_number_rate_first_time_s"] == pytest.approx(1450.0, abs=1e-9)
+    assert stats["positive_number_rate_largest_per_s"] > 0.0
+
+
+@pytest.mark.slow
+def test_a_population_that_loses_granules_gives_no_warning(proxy):
+    """The proxy's state at 1020 s (rate -1.3e-7 per unit multiplier): no line, no summary
+    entry (so scenes without the flaw keep their summary.json bitwise)."""
+    notes, stats = _watched(proxy, 1020.0, 0.0)
+    assert not any("granule number M00" in n for n in notes)
+    assert not any(k.startswith("positive_number_rate") for k in stats)
