@@ -1,5 +1,6 @@
 """Free droplets of their own evaporate with [drying] (docs/physics.md section 15, "Free
-droplets' evaporation") in every method that carries them: QMOM, CQMOM and EQMOM.
+droplets' evaporation") in every method that carries them: QMOM, CQMOM, EQMOM and the cNMC
+(whose droplets are particles: its own tests below).
 
 Closed forms: an initial charge of N_d free droplets, no capture (droplet_factor = 0), dry
 granules (nothing else dries), slip 0 (Sh = 2). All droplets have the same age, so the
