@@ -169,7 +169,8 @@ def advance_liquid(p, b, dt, slip, params):
     already in the sphere) classical RK4 steps of LIQUID_SPHERE_STEP b / e. Once the skeleton
     is the larger, e_c is constant and the drying curve is solved exactly: b - e_c t down to
     X_cr m_s, then X_eq m_s + (b - X_eq m_s) exp(-e_c t / ((X_cr - X_eq) m_s)), so the liquid
-    never falls below X_eq m_s >= 0. A pure liquid (p = b) is a sphere to the end, exactly 0 (``liquid_sphere_after``)."""
+    never falls below X_eq m_s >= 0. A pure liquid (p = b) is a sphere to the end, exactly 0
+    (``liquid_sphere_after``)."""
     dry = p - b
     if b <= 0.0 or dt <= 0.0:
         return b
