@@ -164,15 +164,27 @@ LIQUID_SPHERE_STEP = 0.02
 def advance_liquid(p, b, dt, slip, params):
     """Liquid [kg] of a particle of mass p [kg] holding liquid b [kg] after drying for dt [s]
     at slip velocity [m/s] (its dry mass p - b fixed). While the liquid sphere is the larger
-    exchange diameter the rate follows b: classical RK4 steps of LIQUID_SPHERE_STEP b / e
-    (4th order). Once the skeleton is the larger, e_c is constant and the drying curve is
-    solved exactly: b - e_c t down to X_cr m_s, then X_eq m_s + (b - X_eq m_s)
-    exp(-e_c t / ((X_cr - X_eq) m_s)), so the liquid never falls below X_eq m_s >= 0."""
+    exchange diameter the rate follows b: exactly (``liquid_sphere_after``, to the diameter
+    switch b = (rho_l / rho_s) m_s) where X_cr <= rho_l / rho_s; else (the falling rate
+    already in the sphere) classical RK4 steps of LIQUID_SPHERE_STEP b / e. Once the skeleton
+    is the larger, e_c is constant and the drying curve is solved exactly: b - e_c t down to
+    X_cr m_s, then X_eq m_s + (b - X_eq m_s) exp(-e_c t / ((X_cr - X_eq) m_s)), so the liquid
+    never falls below X_eq m_s >= 0. A pure liquid (p = b) is a sphere to the end, exactly 0
+    (``liquid_sphere_after``)."""
     dry = p - b
-    if b <= 0.0 or dt <= 0.0 or not dry > 0.0:
+    if b <= 0.0 or dt <= 0.0:
         return b
+    if not dry > 0.0:
+        return liquid_sphere_after(b, dt, slip, params, 0.0)
     ratio = params[P.BINDER_DENSITY] / params[P.DENSITY]
     left = dt
+    if b > ratio * dry and params[P.DRY_CRITICAL] <= ratio:   # the sphere, exactly
+        b_sw = ratio * dry
+        t_sw = liquid_sphere_time(b, b_sw, slip, params)
+        if left < t_sw:
+            return liquid_sphere_after(b, left, slip, params, b_sw)
+        left -= t_sw
+        b = b_sw
     while left > 0.0 and b > ratio * dry:        # the liquid sphere: d shrinks with b
         e1 = drying_rate(dry + b, b, slip, params)
         if not e1 > 0.0:
@@ -201,3 +213,77 @@ def advance_liquid(p, b, dt, slip, params):
         return b
     tau = (params[P.DRY_CRITICAL] - params[P.DRY_EQUILIBRIUM]) * dry / e_c
     return b_eq + (b - b_eq) * math.exp(-left / tau)
+
+
+@nb.njit(cache=True, inline="always")
+def _sphere_integral(u, c):
+    """G(u) = int_0^u s^3 / (2 + c s) ds [m^2] (u = d^(1/2) [m^(1/2)], c [m^(-1/2)]): the
+    series u^4 sum_n (-c u / 2)^n / (2 (n + 4)) below c u = 1/2 (no cancellation), else the
+    closed form (x^3/3 - x^2 + 4 x - 8 ln(1 + x/2)) / c^4, x = c u."""
+    x = c * u
+    if x < 0.5:
+        total = 0.0
+        term = 1.0
+        for n in range(60):
+            total += term / (2.0 * (n + 4))
+            term *= -0.5 * x
+            if abs(term) < 1e-18:
+                break
+        return u ** 4 * total
+    return (x ** 3 / 3.0 - x * x + 4.0 * x - 8.0 * math.log1p(0.5 * x)) / c ** 4
+
+
+@nb.njit(cache=True, inline="always")
+def _sphere_g(b, c, rho_l):
+    """G(u) of ``_sphere_integral`` for a liquid sphere of mass b [kg], density rho_l."""
+    if not b > 0.0:
+        return 0.0
+    return _sphere_integral((6.0 * b / (math.pi * rho_l)) ** (1.0 / 6.0), c)
+
+
+@nb.njit(cache=True, inline="always")
+def _sphere_c(slip, params):
+    """c = 0.6 (rho_g slip / mu_g)^(1/2) Sc^(1/3) [m^(-1/2)]: Sh = 2 + c d^(1/2)."""
+    return 0.6 * math.sqrt(params[P.DRY_RE] * slip) * params[P.DRY_SCHMIDT] ** (1.0 / 3.0)
+
+
+@nb.njit(cache=True)
+def liquid_sphere_time(b, b_end, slip, params):
+    """Time [s] a liquid sphere of mass b [kg] takes to evaporate down to b_end [kg] (0 <=
+    b_end <= b) at slip velocity [m/s]: rho_l (G(u) - G(u_end)) / K (``liquid_sphere_after``)."""
+    c = _sphere_c(slip, params)
+    rho_l = params[P.BINDER_DENSITY]
+    return rho_l * (_sphere_g(b, c, rho_l) - _sphere_g(b_end, c, rho_l)) / params[P.DRY_DRIVING]
+
+
+@nb.njit(cache=True)
+def liquid_sphere_after(b, dt, slip, params, b_end):
+    """Mass [kg] of a liquid sphere of mass b [kg] after evaporating for dt [s] at slip
+    velocity [m/s], not below b_end [kg] (docs/physics.md section 15, "A liquid sphere,
+    exactly"). With b = rho_l pi d^3 / 6 and e = pi d Sh K (K = D_v rho_g (Y_s - Y),
+    Sh = 2 + c d^(1/2), c = 0.6 (rho_g slip / mu_g)^(1/2) Sc^(1/3)), u = d^(1/2) obeys
+    G(u(t)) = G(u0) - K t / rho_l, G(u) = int_0^u s^3 / (2 + c s) ds (the d^2 law d^2 = d0^2 -
+    8 K t / rho_l at c = 0). Returns exactly b_end once G(u0) - K dt / rho_l <= G(u_end) +
+    1e-14 G(u0) (for b_end = 0: the droplet is gone; the margin is the round-off of that
+    difference), else the root u of G(u) = target (Newton from u0: G convex and increasing, so
+    the iterates fall monotonically onto the root)."""
+    if b <= 0.0 or dt <= 0.0:
+        return max(b, 0.0)
+    rho_l = params[P.BINDER_DENSITY]
+    c = _sphere_c(slip, params)
+    u = (6.0 * b / (math.pi * rho_l)) ** (1.0 / 6.0)
+    g0 = _sphere_integral(u, c)
+    target = g0 - params[P.DRY_DRIVING] * dt / rho_l
+    if not target > _sphere_g(b_end, c, rho_l) + 1e-14 * g0:
+        return b_end
+    for _ in range(100):
+        step = (_sphere_integral(u, c) - target) * (2.0 + c * u) / u ** 3
+        u_new = u - step
+        if not u_new > 0.0:
+            u_new = 0.5 * u
+        if abs(u_new - u) <= 1e-15 * u:
+            u = u_new
+            break
+        u = u_new
+    d = u * u
+    return max(rho_l * math.pi * d * d * d / 6.0, b_end)

@@ -1,5 +1,6 @@
 """Free droplets of their own evaporate with [drying] (docs/physics.md section 15, "Free
-droplets' evaporation") in every method that carries them: QMOM, CQMOM and EQMOM.
+droplets' evaporation") in every method that carries them: QMOM, CQMOM, EQMOM and the cNMC
+(whose droplets are particles: its own tests below).
 
 Closed forms: an initial charge of N_d free droplets, no capture (droplet_factor = 0), dry
 granules (nothing else dries), slip 0 (Sh = 2). All droplets have the same age, so the
@@ -127,8 +128,54 @@ def test_solution_droplets_shrink_then_dry_on_their_skeleton(method):
     assert (t < t1).sum() >= 5 and ((t > t1) & (t < t2)).sum() >= 2 and (t > t2).sum() >= 5
 
 
-@pytest.mark.parametrize("method", [{"name": "laguerre", "order": 3},
-                                    {"name": "cnmc", "particles": 64, "replicas": 2}])
+#: the cNMC's box: 110 particles of which 10 droplets (N nd0 / (n0 + nd0) = 10)
+CNMC = {"name": "cnmc", "particles": 110, "replicas": 2, "seed": 7}
+
+
+def _cnmc_check(c, b, b0):
+    """The cNMC's droplets are particles of the box: its liquid is nd(0) b(t) (the box's own
+    droplet density; its volume stays V0 while only the liquid leaves, section 15)."""
+    nd = c["droplet_number_density"][0]
+    assert nd == pytest.approx(ND, rel=0.0, abs=1e-6 * ND)
+    scale = nd * b0
+    assert np.allclose(c["M01"], nd * b, rtol=0.0, atol=TOL * scale)
+    assert np.allclose(c["liquid_evaporated"], nd * (b0 - b), rtol=0.0, atol=TOL * scale)
+    assert np.all(c["M01"] >= 0.0)
+    return nd
+
+
+def test_cnmc_pure_liquid_droplets_end_at_exactly_zero_mass_and_leave_the_box():
+    """The cNMC's pure-liquid droplets follow the d^2 law (``physics.drying.liquid_sphere_after``,
+    exact) to exactly zero mass at tau; then they have left the population: no droplet, no
+    liquid, the number density the granules' (the vanished slots take copies of granules)."""
+    _, tau = _pure_liquid(0.0)
+    c = run_well_mixed(_scene(0.0, 1.5 * tau, 0.05, CNMC, tolerances=False)).columns
+    t = c["time_s"]
+    b = np.array([_pure_liquid(x)[0] for x in t])
+    nd = _cnmc_check(c, b, b[0])
+    after = t > tau
+    assert after.sum() >= 5 and (t < 0.9 * tau).sum() >= 15
+    assert np.all(c["M01"][after] == 0.0)
+    assert np.all(c["droplet_number_density"][after] == 0.0)
+    assert np.allclose(c["M00"][after], c["M00"][0] - nd, rtol=1e-12, atol=0.0)
+    assert np.allclose(c["liquid_evaporated"][after], nd * b[0], rtol=1e-12, atol=0.0)
+
+
+def test_cnmc_solution_droplets_shrink_then_dry_on_their_skeleton():
+    s, x_cr = 0.1, 0.5
+    _, t1, t2 = _solution(1e9, s, x_cr)
+    ms = s * RHO_L * math.pi / 6.0 * D0 ** 3
+    d_s = (6.0 * ms / (math.pi * RHO_S)) ** (1.0 / 3.0)
+    tail = x_cr * ms / (2.0 * math.pi * d_s * _k())
+    c = run_well_mixed(_scene(s, t2 + 3.0 * tail, x_cr, CNMC, tolerances=False)).columns
+    t = c["time_s"]
+    b = np.array([_solution(x, s, x_cr)[0] for x in t])
+    nd = _cnmc_check(c, b, b[0])
+    assert np.allclose(c["droplet_number_density"], nd, rtol=1e-12, atol=0.0)
+    assert (t < t1).sum() >= 5 and ((t > t1) & (t < t2)).sum() >= 2 and (t > t2).sum() >= 5
+
+
+@pytest.mark.parametrize("method", [{"name": "laguerre", "order": 3}])
 def test_methods_whose_droplets_do_not_evaporate_refuse_drying_with_free_droplets(method):
     from pbe_cfd.scene.scene import SceneError
     with pytest.raises(SceneError) as err:

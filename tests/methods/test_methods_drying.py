@@ -75,7 +75,10 @@ def test_constant_rate_then_falling_rate_closed_form(method):
 # The ROM integrated through the constant-rate period holds every moment to 1e-10 of its start
 # except M02: 1.15e-8 of its start at 0.9 t_c (1.5e-7 of its value there), growing steadily
 # from t = 0, while its drift at the closed form's state is exact to round-off
-# (test_rom_drift_of_a_monodisperse_class_is_exact). The cause is not found. Strict.
+# (test_rom_drift_of_a_monodisperse_class_is_exact). The error is the Hankel gap
+# M00 M02 / M01^2 - 1 the integration opens on the realizability boundary, where the drift's
+# points switch between one and two liquid points (docs/physics.md section 15, "The
+# constant-rate closed form's M02"). Strict.
 ROM_M02 = pytest.mark.xfail(strict=True, reason="Laguerre M02 1.15e-8 of its start off")
 
 

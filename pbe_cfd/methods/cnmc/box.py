@@ -10,8 +10,9 @@ from ...physics import parameters as P
 from ...physics.injection import droplet_liquid
 from ...physics.breakage import cell_selection_factor
 from ...physics.kernels import collision_frequency
-from ...physics.rates import aggregation_rate, droplet_capture_rate
+from ...physics.rates import aggregation_rate
 from .breakage import breakage_trial, breakage_weights
+from .droplets import capture_rate, new_drying_array
 from .drying import drift_box, drift_due
 from .slots import C_D as _C_D
 from .slots import N_BINS, Particles, Slots
@@ -47,14 +48,15 @@ _D43_MARGIN = 1.02         # majorant tables use d43 * 1.02, rebuilt when d43 le
 # numba core
 # ---------------------------------------------------------------------------------------------
 @nb.njit(cache=True)
-def _kernel_d43(s4, ptot, n_free_droplets, pd, rho):
+def _kernel_d43(s4, ptot, n_free_droplets, dry, rho):
     """d43 [m] the ktgf kernel uses: sum d^4 / sum d^3 of the granules (docs/physics.md
     section 4.3), from the box sums s4 = sum d^4 [m^4] and ptot = sum p [kg] less the free
-    droplets (mass pd [kg] each); 0 if the box holds no granule mass."""
-    gran_mass = ptot - n_free_droplets * pd
+    droplets at their mean mass dry[4] [kg] and mean d^4 dry[5] [m^4] (``cnmc.droplets``);
+    0 if the box holds no granule mass."""
+    gran_mass = ptot - n_free_droplets * dry[4]
     if not gran_mass > 0.0:
         return 0.0
-    return max(s4 - n_free_droplets * _d4(pd, rho), 0.0) / (_C_D / rho * gran_mass)
+    return max(s4 - n_free_droplets * dry[5], 0.0) / (_C_D / rho * gran_mass)
 
 
 @nb.njit(cache=True)
@@ -95,8 +97,9 @@ def interval_pair_bound(lo1, hi1, lo2, hi2, alpha, theta, d43, params, config):
 
 
 @nb.njit(cache=True)
-def _bound_row(c, lo, hi, table, tabd, alpha, theta, d43, params, config):
-    """Recompute the majorants of class c against every class with a valid interval."""
+def _bound_row(c, lo, hi, table, tabd, alpha, theta, d43, dlo, params, config):
+    """Recompute the majorants of class c against every class with a valid interval (the
+    droplets' masses in [dlo, p_d] [kg])."""
     sep = config[P.SEPARATE_DROPLETS] == 1
     for a in range(N_BINS):
         if hi[a] > 0.0 and hi[c] > 0.0:
@@ -110,7 +113,7 @@ def _bound_row(c, lo, hi, table, tabd, alpha, theta, d43, params, config):
     if sep and hi[c] > 0.0:
         pd = params[P.DROPLET_MASS]
         tabd[c] = params[P.DROPLET_FACTOR] * interval_pair_bound(
-            lo[c], hi[c], pd, pd, alpha, theta, d43, params, config)
+            lo[c], hi[c], dlo, pd, alpha, theta, d43, params, config)
 
 
 @nb.njit(cache=True)
@@ -235,13 +238,13 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
     cls = _new_classes(n)
     members, bcnt, bpos, bin_of, lo, hi, dirty, table, tabd, dlist, dpos, dcnt = cls[:12]
     occ, srow, trow, drow = cls[12:16]
-    bbound, brow, dry = np.zeros(N_BINS), np.zeros(N_BINS), np.zeros(3)   # dry: _store_outputs
+    bbound, brow, dry = np.zeros(N_BINS), np.zeros(N_BINS), new_drying_array(pd, rho)
     m_ref, ptot, s4 = _fill_classes(p, isdrop, sep, rho, bin_of, bpos, members, bcnt, lo, hi,
                                     dirty, dlist, dpos, dcnt)
     box, slots = Particles(p, b, isdrop, rho, m_ref), Slots(bin_of, bpos, members, bcnt, lo, hi,
                                                             dirty, dlist, dpos, dcnt)
     conc0, mass_rate = ptot / volume0, inj * pd     # kg/m3; kg/(m3 s) added by injection
-    d43_tab = _initial_bounds(rho, dcnt[0], pd, ptot, s4, lo, hi, dirty, table, tabd, alpha,
+    d43_tab = _initial_bounds(rho, dcnt[0], dry, ptot, s4, lo, hi, dirty, table, tabd, alpha,
                               theta, params, config)
     trials = accepted = injections = violations = break_trials = splits = since_sync = 0
     status, t, w_gg, w_dg, w_br, k_out, n_occ, changed = STATUS_OK, 0.0, 0.0, 0.0, 0.0, 0, 0, True
@@ -261,9 +264,9 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
             status = STATUS_NONFINITE
             break
         t_next = _next_event_time(t, r, exponential_dt)
-        k_out, ptot, changed = _store_outputs(k_out, t_next, output_times, box, conc0, mass_rate,
-                                              out, classes, percentiles, evaporated, dry, ptot,
-                                              params, config)
+        k_out, ptot, changed = _store_outputs(k_out, t_next, output_times, box, slots, conc0,
+                                              mass_rate, out, classes, percentiles, evaporated,
+                                              dry, ptot, params, config)
         since_sync = n - 1 if changed else since_sync    # dried: exact sums and intervals
         if k_out >= n_out:
             break
@@ -287,7 +290,7 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
             changed = changed or done == 1
         else:
             trials += 1
-            d43 = _kernel_d43(s4, ptot, nd, pd, rho)
+            d43 = _kernel_d43(s4, ptot, nd, dry, rho)
             granules = (u < r_inj + r_gg and r_gg > 0.0) or r_dg <= 0.0
             i, j, rate, bound = _propose(granules, w_gg, w_dg, n_occ, occ, trow, srow, drow,
                                          bcnt, table, tabd, members, dlist, nd, p, b, alpha,
@@ -304,7 +307,7 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
             break
         if changed:
             since_sync, ptot, s4, d43_tab = _refresh_bounds(
-                since_sync, p, rho, dcnt[0], pd, ptot, s4, d43_tab, bin_of, lo, hi, dirty,
+                since_sync, p, rho, dcnt[0], dry, ptot, s4, d43_tab, bin_of, lo, hi, dirty,
                 table, tabd, alpha, theta, params, config)
     out[k_out:] = np.nan
     return trials, accepted, injections, violations, status, t, break_trials, splits
@@ -350,19 +353,19 @@ def _fill_classes(p, isdrop, sep, rho, bin_of, bpos, members, bcnt, lo, hi, dirt
 
 
 @nb.njit(cache=True, inline="always")
-def _initial_bounds(rho, n_free_droplets, pd, ptot, s4, lo, hi, dirty, table, tabd, alpha,
+def _initial_bounds(rho, n_free_droplets, dry, ptot, s4, lo, hi, dirty, table, tabd, alpha,
                     theta, params, config):
-    """Build every class's majorant row at the box's initial granule d43 x margin; returns
-    that d43 [m]."""
-    d43_tab = _kernel_d43(s4, ptot, n_free_droplets, pd, rho) * _D43_MARGIN
+    """Build every class's majorant row at the box's initial granule d43 x margin (droplet
+    statistics ``dry``: ``cnmc.droplets``); returns that d43 [m]."""
+    d43_tab = _kernel_d43(s4, ptot, n_free_droplets, dry, rho) * _D43_MARGIN
     for c in range(N_BINS):
-        _bound_row(c, lo, hi, table, tabd, alpha, theta, d43_tab, params, config)
+        _bound_row(c, lo, hi, table, tabd, alpha, theta, d43_tab, dry[3], params, config)
         dirty[c] = False
     return d43_tab
 
 
 @nb.njit(cache=True, inline="always")
-def _store_outputs(k_out, t_next, output_times, box, conc0, mass_rate, out, classes,
+def _store_outputs(k_out, t_next, output_times, box, slots, conc0, mass_rate, out, classes,
                    percentiles, evaporated, dry, ptot, params, config):
     """Store the box at every output time before t_next [s]; with drying (``dry``: evaporated
     [kg/m3], last drift [s], proposals since) dry it to each output time first, and to t_next
@@ -374,7 +377,7 @@ def _store_outputs(k_out, t_next, output_times, box, conc0, mass_rate, out, clas
     dry[2] += 1.0
     while k_out < n_out and output_times[k_out] < t_next:
         if drying:
-            ptot = drift_box(p, b, isdrop, output_times[k_out], conc0, mass_rate, dry, ptot,
+            ptot = drift_box(box, slots, output_times[k_out], conc0, mass_rate, dry, ptot,
                              params)
             drifted = True
         box_quantities(p, b, isdrop, conc0 + mass_rate * output_times[k_out] - dry[0], rho,
@@ -383,7 +386,7 @@ def _store_outputs(k_out, t_next, output_times, box, conc0, mass_rate, out, clas
         evaporated[k_out] = dry[0]
         k_out += 1
     if drying and k_out < n_out and drift_due(dry[2], p.size, t_next):
-        ptot = drift_box(p, b, isdrop, t_next, conc0, mass_rate, dry, ptot, params)
+        ptot = drift_box(box, slots, t_next, conc0, mass_rate, dry, ptot, params)
         drifted = True
     return k_out, ptot, drifted
 
@@ -437,7 +440,7 @@ def _propose(granules, w_gg, w_dg, n_occ, occ, trow, srow, drow, bcnt, table, ta
         rate = aggregation_rate(p[i], b[i], p[j], b[j], alpha, theta, u0, d43, params, config)
         return i, j, rate, table[a, c]
     i, j, a = _pick_capture(w_dg, n_occ, occ, drow, bcnt, members, dlist, nd)
-    rate = droplet_capture_rate(p[i], b[i], alpha, theta, u0, d43, params, config)
+    rate = capture_rate(i, j, p, b, alpha, theta, u0, d43, params, config)
     return i, j, rate, tabd[a]
 
 
@@ -547,7 +550,7 @@ def _merge(i, j, p, b, isdrop, rho, m_ref, ptot, s4, bin_of, bpos, members, bcnt
 
 
 @nb.njit(cache=True, inline="always")
-def _refresh_bounds(since_sync, p, rho, n_free_droplets, pd, ptot, s4, d43_tab, bin_of, lo, hi,
+def _refresh_bounds(since_sync, p, rho, n_free_droplets, dry, ptot, s4, d43_tab, bin_of, lo, hi,
                     dirty, table, tabd, alpha, theta, params, config):
     """After a change of the box: every N changes an exact O(N) pass over the sums and class
     intervals; the majorant tables rebuilt when d43 leaves their margin (else only the dirty
@@ -570,17 +573,17 @@ def _refresh_bounds(since_sync, p, rho, n_free_droplets, pd, ptot, s4, d43_tab, 
                 lo[c] = min(lo[c], p[k])
                 hi[c] = max(hi[c], p[k])
         rebuild = True
-    d43 = _kernel_d43(s4, ptot, n_free_droplets, pd, rho)
+    d43 = _kernel_d43(s4, ptot, n_free_droplets, dry, rho)
     if d43 > d43_tab or d43 * _D43_MARGIN ** 3 < d43_tab:
         rebuild = True
     if rebuild:
         d43_tab = d43 * _D43_MARGIN
         for c in range(N_BINS):
-            _bound_row(c, lo, hi, table, tabd, alpha, theta, d43_tab, params, config)
+            _bound_row(c, lo, hi, table, tabd, alpha, theta, d43_tab, dry[3], params, config)
             dirty[c] = False
     else:
         for c in range(N_BINS):
             if dirty[c]:
-                _bound_row(c, lo, hi, table, tabd, alpha, theta, d43_tab, params, config)
+                _bound_row(c, lo, hi, table, tabd, alpha, theta, d43_tab, dry[3], params, config)
                 dirty[c] = False
     return since_sync, ptot, s4, d43_tab

@@ -2,12 +2,15 @@
 granule's liquid drifts at db/dt = dp/dt = -e(p, b) (``physics.drying``), integrated per
 particle over the interval (``physics.drying.advance_liquid``: exact in the skeleton period);
 the events see the box as dried to the last drift (operator splitting, see ``DRIFT_TRIALS``).
-Free droplets of their own do not dry (their mass is p_d in every method). Masses in kg."""
+Free droplets of their own dry like every particle (a solution's through its liquid sphere to
+its solids; a pure liquid by ``physics.drying.liquid_sphere_after`` to exactly zero mass, when
+``cnmc.droplets.refill_vanished`` takes it out of the box). Masses in kg."""
 import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
 from ...physics.drying import advance_liquid
+from .droplets import droplet_stats, refill_vanished
 
 #: the box drifts at every output time and after every N / DRIFT_TRIALS event proposals
 #: (N particles), so an event sees a particle dried to within ~1/DRIFT_TRIALS of the mean
@@ -16,17 +19,20 @@ DRIFT_TRIALS = 32
 
 
 @nb.njit(cache=True)
-def dry_box(p, b, isdrop, dt, params):
-    """Dry every granule of the box (masses p, liquid b [kg]; isdrop 1 for a free droplet)
+def dry_box(p, b, dt, params):
+    """Dry every particle of the box (masses p, liquid b [kg]; granules and free droplets)
     for dt [s], in place; returns the liquid evaporated [kg]."""
     lost = 0.0
     slip = params[P.DRY_SLIP]
     for k in range(p.size):
-        if isdrop[k] != 0 or not b[k] > 0.0:
+        if not b[k] > 0.0:
             continue
         bk = advance_liquid(p[k], b[k], dt, slip, params)
         loss = b[k] - bk
-        p[k] -= loss
+        if p[k] == b[k]:         # pure liquid: stays pure (p = b), 0 once gone
+            p[k] = bk
+        else:
+            p[k] -= loss
         b[k] = bk
         lost += loss
     return lost
@@ -40,16 +46,21 @@ def drift_due(trials_since, n, t_next):
 
 
 @nb.njit(cache=True, inline="always")
-def drift_box(p, b, isdrop, t, conc0, mass_rate, dry, ptot, params):
-    """Dry the box from its last drift (dry[1] [s]) to t [s] in its volume at t, V = P / (C0 +
-    rate t - E) (``methods.cnmc``, E = dry[0] the evaporated liquid [kg/m3], P = ptot [kg]);
-    adds the loss to E, resets the proposal count dry[2]; returns the box's total mass [kg]."""
+def drift_box(box, slots, t, conc0, mass_rate, dry, ptot, params):
+    """Dry the box (``box``, ``slots``: ``cnmc.slots``) from its last drift (dry[1] [s]) to t
+    [s] in its volume at t, V = P / (C0 + rate t - E) (``methods.cnmc``, E = dry[0] the
+    evaporated liquid [kg/m3], P = ptot [kg]); adds the loss to E, resets the proposal count
+    dry[2], refills the slots of droplets that vanished and refreshes the droplet statistics
+    dry[3:6] (``cnmc.droplets``); returns the box's total mass [kg]."""
+    p, b = box.p, box.b
     vol = ptot / (conc0 + mass_rate * t - dry[0])
-    lost = dry_box(p, b, isdrop, t - dry[1], params)
+    lost = dry_box(p, b, t - dry[1], params)
     dry[0] += lost / vol
     dry[1] = t
     dry[2] = 0.0
-    return ptot - lost
+    ptot = refill_vanished(box, slots, ptot - lost)
+    droplet_stats(p, slots.dlist, slots.dcnt, params[P.DROPLET_MASS], box.rho, dry)
+    return ptot
 
 
 def evaporated_columns(evaporated, t_factor, config):

@@ -49,9 +49,10 @@ accepted 1 trial in 175, with the classes 3 in 4.
   in seed 000). Removing among the N + 1 (droplet included) instead would be biased: the box's
   droplet fraction f must grow at cell[INJECTION] V (1 - f) / N, which is what removal among
   the N old particles gives.
-* Drying (a [drying] table): between events every granule's liquid drifts (``methods.cnmc.
-  drying``); the box dries at each output time and after every N / DRIFT_TRIALS proposals,
-  and the evaporated liquid E [kg/m3] leaves the mass concentration below.
+* Drying (a [drying] table): between events every particle's liquid drifts, free droplets
+  too (``methods.cnmc.drying``, ``methods.cnmc.droplets``); the box dries at each output
+  time and after every N / DRIFT_TRIALS proposals, and the evaporated liquid E [kg/m3]
+  leaves the mass concentration below.
 * Volume: aggregation conserves mass and injection adds p_d * cell[INJECTION] kg per m3 per s,
   so the exact mass concentration is C(t) = M10(0) + cell[INJECTION] p_d t (- E with drying). The box volume is
   V(t) = P_box / C(t), P_box the total mass in the box. After a refill this is the seed's
@@ -99,7 +100,8 @@ A proposal with rate above its bound is counted in ``violations`` and makes
 ktgf needs d43 = sum d^4 / sum d^3 [m] of the granules of the box (free droplets excluded
 where they are a population of their own, as in every method: docs/physics.md section 4.3;
 with d = (6 p / (pi rho_s))^(1/3)); sum d^3 follows from P and sum d^4 is updated per event,
-the free droplets (all of mass p_d) are subtracted (``cnmc_box._kernel_d43``).
+the free droplets are subtracted at their mean mass and mean d^4 (all p_d without drying;
+with drying refreshed at every drift: ``cnmc.droplets``, ``cnmc_box._kernel_d43``).
 
 Finite-N bias (why the band can be trusted, and when it cannot)
 ---------------------------------------------------------------

@@ -46,4 +46,4 @@ ENTRY = MethodEntry(
     diagnostics=no_diagnostics, plan_line=_plan, ensemble=_ensemble,
     distribution_text="mass histogram of each replica's particle list (50 classes per decade "
                       "of d), the replicas' mean and 95% band; d10/d50/d90 exact per replica",
-    accuracy_knobs=_accuracy_knobs, dries=True)
+    accuracy_knobs=_accuracy_knobs, dries=True, evaporates_droplets=True)
