@@ -64,6 +64,12 @@ def write_size_distribution(directory, psd, labels, title, what):
                         metadata=output.figure_metadata("png", what))
 
 
+def _add_library_warnings(found: list, caught) -> None:
+    """Append the Python warnings ``caught`` (``warnings.catch_warnings(record=True)``) of a
+    run to its warnings ``found``: each as its first line, once, never as a raw warning."""
+    found.extend(m for m in (str(w.message).splitlines()[0] for w in caught) if m not in found)
+
+
 def run_command(args):
     """``pbe-cfd run [SCENE] --out DIR``: a well-mixed run."""
     from .io import output
@@ -84,8 +90,7 @@ def run_command(args):
             result = run_well_mixed(scene, progress=progress)
     finally:
         progress.close()
-    result.warnings.extend(m for m in (str(w.message).splitlines()[0] for w in caught)
-                           if m not in result.warnings)    # library warnings: one line each
+    _add_library_warnings(result.warnings, caught)
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
     with output.atomic_directory(out, args.overwrite, kind="run") as tmp:
@@ -270,8 +275,7 @@ def _couple_recorded(args, scene, out, phases, t_read, caught):
     finally:
         progress.close()
         executor.close()
-    result.warnings.extend(m for m in (str(w.message).splitlines()[0] for w in caught)
-                           if m not in result.warnings)    # library warnings: one line each
+    _add_library_warnings(result.warnings, caught)
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
     with output.atomic_directory(out, args.overwrite, kind="couple") as tmp:

@@ -356,7 +356,7 @@ class CellBatch:
 
     def _watch(self, t: float, states: np.ndarray):
         """The method's ``output_watch`` at output time t [s]: one line in ``notes``."""
-        make = getattr(self.plan.method, "output_watch", None)
+        make = self.plan.method.output_watch
         if make is None:
             return
         self.watch = self.watch or make()
