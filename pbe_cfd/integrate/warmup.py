@@ -62,8 +62,8 @@ def warm_stages(method: int, scheme: int, aux, params, config) -> list:
               ("_capture_chosen", cell._capture_chosen,
                (s, m, V, f, M, I, V, A, V, C, V, f, f, i, i, I))]
     if scheme != EXPLICIT:
-        first += [("jacobian", rosenbrock.jacobian,
-                   (m, V, M, M, I, M, i, V, A, V, C, V, f, f, i)),
+        first += [("secant_jacobian", rosenbrock.secant_jacobian,
+                   (m, V, M, M, I, M, i, V, A, V, C, V, f, f, i, f)),
                   ("rodas3_attempt", rosenbrock.rodas3_attempt,
                    (m, V, f, M, M, M, I, V, A, V, C, V, f, f, i))]
     if scheme != IMPLICIT:

@@ -390,7 +390,7 @@ from pbe_cfd.integrate import rosenbrock, exponential, cell
 sigs = list(cell.integrate_cells_kernel.signatures)
 print(json.dumps({"laguerre": len(laguerre.laguerre_rhs.signatures),
                   "rodas3": len(rosenbrock.rodas3_attempt.signatures),
-                  "jacobian": len(rosenbrock.jacobian.signatures),
+                  "jacobian": len(rosenbrock.secant_jacobian.signatures),
                   "exponential": len(exponential.exp_bs3_attempt.signatures),
                   "kernels": [str(s[0]) + " " + str(s[1]) for s in sigs]}))
 """
