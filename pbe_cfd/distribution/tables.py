@@ -236,6 +236,14 @@ def cnmc_psd_columns(times, result, bivariate) -> tuple[dict, list]:
     return psd_columns(times, table, grid, band)
 
 
+#: bed_moments.csv columns that are totals over the bed, not volume-weighted means
+BED_TOTALS = {
+    "bed_mass_kg": "the particles' mass in the bed, free droplets included: the sum over the "
+                   "cells of M10 times the cell volume [kg]",
+    "bed_binder_mass_kg": "the binder mass in the bed, free droplets included: the sum over the "
+                          "cells of M01 times the cell volume [kg]"}
+
+
 def column_labels(plan: DistributionPlan, state_names, columns, bed: bool = False) -> dict:
     """name -> what the column is: carried (a moment of the method's state), derived or
     reconstructed (how), for the columns.json sidecar; ``plan`` the run's
@@ -259,14 +267,15 @@ def column_labels(plan: DistributionPlan, state_names, columns, bed: bool = Fals
         elif base == "binder_fraction":
             text = "derived: M01 / M10 [-]"
         else:
-            text = ""
+            text = BED_TOTALS.get(base, "")
         if base in SIZE_COLUMNS:
             text = (f"reconstructed size distribution, mass-based "
                     f"{'span (d90 - d10)/d50 [-]' if base == 'span' else 'percentile [m]'}: "
                     + how)
-        if bed and name != "time_s":
+        text = text or "derived"
+        if bed and name != "time_s" and base not in BED_TOTALS:
             text = "bed (volume-weighted over the cells): " + text
-        out[name] = text or "derived"
+        out[name] = text
     return out
 
 

@@ -31,8 +31,9 @@ def _read_csv(csv_path: Path) -> tuple[list[str], np.ndarray]:
 
 #: Panels of bed_moments.png: (title, column names, unit) in the units of the VTK fields.
 BED_PANELS = (
-    ("number of granules", ("M00",), "1/m3"),
-    ("granule and binder mass", ("M10", "M01"), "kg/m3"),
+    # the moments are the whole population's, free droplets included (docs/physics.md 11)
+    ("number of particles (free droplets included)", ("M00",), "1/m3"),
+    ("particle and binder mass", ("M10", "M01"), "kg/m3"),
     ("second moments", ("M20", "M11", "M02"), "kg2/m3"),
     ("free droplets", ("droplet_number_density",), "1/m3"),
     ("mean diameters", ("d32_m", "d43_m"), "m"),

@@ -395,3 +395,13 @@ def test_a_library_warning_of_a_run_is_one_line_and_kept_in_the_summary(tmp_path
     assert "UserWarning" not in err and "its second line" not in err
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert "a library's first line" in summary["warnings"]
+
+
+
+def test_every_bed_column_says_what_it_is(coupled_run):
+    """columns.json gives every bed_moments.csv column a meaning after its prefix (the bed
+    totals bed_mass_kg, bed_binder_mass_kg included), never a bare "bed (...): "."""
+    labels = json.loads((coupled_run / "columns.json").read_text())["bed_moments.csv"]
+    for name, text in labels.items():
+        assert text.split(": ", 1)[-1].strip(), (name, text)
+    assert "sum over the cells of M10 times the cell volume" in labels["bed_mass_kg"]
