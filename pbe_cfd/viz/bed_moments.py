@@ -39,7 +39,7 @@ BED_PANELS = (
     ("mean diameters", ("d32_m", "d43_m"), "m"),
     ("mass-based percentiles of the size distribution", ("d10_m", "d50_m", "d90_m"), "m"),
     ("binder fraction", ("binder_fraction",), "-"),
-    ("granule and binder mass in the whole bed", ("bed_mass_kg", "bed_binder_mass_kg"), "kg"),
+    ("particle and binder mass in the whole bed", ("bed_mass_kg", "bed_binder_mass_kg"), "kg"),
     ("liquid in the whole bed", ("liquid_sprayed_kg", "liquid_granules_kg",
                                  "liquid_droplets_kg", "liquid_evaporated_kg"), "kg"),
     ("binder solids in the whole bed", ("solids_sprayed_kg", "solids_held_kg"), "kg"),
