@@ -105,7 +105,8 @@ def method_list(text):
 def add_bench_parser(sub):
     """The ``bench`` subcommand of the ``pbe-cfd`` parser's subparsers ``sub``."""
     p = sub.add_parser("bench", help="benchmarks: accuracy-vs-cost, throughput, cnmc, coupling")
-    p.add_argument("study", choices=_Studies())
+    # a metavar: argparse then lists the studies (importing the bench) only for help/errors
+    p.add_argument("study", choices=_Studies(), metavar="STUDY", help="one of: %(choices)s")
     p.add_argument("scene", nargs="?", help="scene for the accuracy study; integrators: a "
                    "pbe_cfd source tree whose transport ratios are timed in the same run")
     p.add_argument("--out", default="bench-out")

@@ -42,3 +42,18 @@ def test_compile_builds_the_one_kernel_that_run_and_couple_then_use(tmp_path):
     for sub in ("run", "couple"):
         summary = json.loads((tmp_path / sub / "summary.json").read_text())
         assert summary["kernels_compiled"] is False
+
+
+def test_the_command_line_parser_leaves_the_bench_unimported():
+    """Every command builds the whole parser; the bench's study list is read only for help or
+    an error, so a `run` or `couple` does not import the benchmarks (and the Laguerre tensors
+    they import) before it starts."""
+    code = ("import sys; from pbe_cfd.cli import build_parser; build_parser(); "
+            "print(sorted(m for m in sys.modules if m.startswith('pbe_cfd.bench')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=Path(__file__).resolve().parents[2])
+    assert out.stdout.strip() == "[]"
+    usage = subprocess.run([sys.executable, "-m", "pbe_cfd.cli", "bench", "nosuch"],
+                           capture_output=True, text=True,
+                           cwd=Path(__file__).resolve().parents[2])
+    assert usage.returncode == 2 and "'accuracy'" in usage.stderr
