@@ -125,12 +125,11 @@ def plan_command(args):
 
 def scenes_command(args):
     """``pbe-cfd scenes``: the bundled scenes."""
-    from .scene.scene import bundled_scenes, load_scene
+    from .scene.scene import EFFECTS, bundled_scenes, load_scene
 
     for name, path in sorted(bundled_scenes().items()):
         scene = load_scene(path)
-        effects = [t for t in ("aggregation", "binder_injection", "breakage", "transport")
-                   if getattr(scene, t) is not None]
+        effects = [t for t in EFFECTS if getattr(scene, t) is not None]
         print(f"{name:24s} {scene.domain.type:10s} {scene.method.name:9s} "
               f"end {scene.end_time:g} s  effects: {', '.join(effects) or 'none'}")
     return 0

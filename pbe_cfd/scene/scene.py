@@ -129,8 +129,9 @@ class Transport:
 
 @dataclass(frozen=True)
 class Scene:
-    """A validated scene. ``aggregation``, ``binder_injection`` and ``transport`` are None
-    when their table is absent: that effect is not computed at all."""
+    """A validated scene. The effects (``EFFECTS``: aggregation, binder_injection, breakage,
+    drying, transport, coupling) are None when their table is absent: that effect is not
+    computed at all."""
     name: str
     end_time: float
     output_interval: float
@@ -166,6 +167,9 @@ class Scene:
 
 
 # ------------------------------------------------------------------------------ validation
+#: the optional tables that each switch an effect on (absent: not computed), as Scene fields
+EFFECTS = ("aggregation", "binder_injection", "breakage", "drying", "transport", "coupling")
+
 _TABLES = ("scene", "domain", "material", "initial", "aggregation", "binder_injection",
            "method", "transport", "breakage", "coupling", "drying", "output")
 

@@ -147,6 +147,24 @@ def test_scenes_lists_bundled(capsys):
     assert "seed-wurster" in capsys.readouterr().out
 
 
+def test_scenes_lists_every_effect_table_of_each_scene(capsys):
+    """Each bundled scene's line names exactly the effect tables its TOML file has (read here
+    with tomllib, not through the scene loader): drying and two-way coupling included."""
+    import tomllib
+    effect_tables = ("aggregation", "binder_injection", "breakage", "drying", "transport",
+                     "coupling")
+    assert main(["scenes"]) == 0
+    lines = {ln.split()[0]: ln for ln in capsys.readouterr().out.splitlines() if ln.strip()}
+    seen = set()
+    for name, path in bundled_scenes().items():
+        tables = tomllib.loads(path.read_text())
+        listed = lines[name].split("effects: ")[1]
+        named = set() if listed == "none" else set(listed.split(", "))
+        assert named == {t for t in effect_tables if t in tables}, name
+        seen |= named
+    assert "drying" in seen
+
+
 # ---------------------------------------------------------------------------- bad input
 @pytest.fixture(scope="module")
 def coupled_run(tmp_path_factory):
