@@ -148,8 +148,8 @@ def _text(entry, choice, floor, n, bivariate) -> str:
              "on [0, inf)" + (" (no floor: breakage, or a start reaching 0)"
                               if choice == SUPPORT else ""))
     if kind == "laguerre_density":
-        where += ("; a positive density by construction (the ROM's own expansion: "
-                  "size_distribution = \"expansion\")")
+        where += ("; a positive density by construction, where the ROM's own expansion "
+                  "(size_distribution = \"expansion\") can dip below zero")
     binder = ("; binder fraction per size class interpolated in ln p between the nodes' "
               "binder values" if bivariate else "")
     return f"{fitted} {where} ([method] size_distribution = \"{choice}\"){binder}"
