@@ -56,7 +56,8 @@ CASES = {
     "fluid-bed-workers": (["couple", "--workers", "2"], None),
     "two-way": (["couple", "{scene}"], ("fluid-bed-transport", None, None, 4.0, TWO_WAY)),
     # drying, the bed's air balance and the spray schedule: the batch's first 5 s
-    "fluid-bed-batch": (["couple", "{scene}"], ("fluid-bed-batch", None, None, 5.0)),
+    "fluid-bed-batch": (["couple", "{scene}"], ("fluid-bed-batch", None, None, 6.0,
+                                                {"scene": {"output_interval": 2.0}})),
 }
 
 WALL_KEYS = ("wall_time_s", "cell_steps_per_second", "cluster", "threads", "source",
