@@ -138,11 +138,13 @@ def source_lines(scene, cells, active) -> list[str]:
     inputs = {item.what: item for item in cell_inputs(scene, cells)} if cells is not None \
         else {}
     out = []
-    for what, scene_value in (("slip velocity [m/s]", dry.slip_velocity),
-                              ("gas temperature [K]", dry.air_temperature)):
+    for what, scene_value, key in (
+            ("slip velocity [m/s]", dry.slip_velocity, "slip_velocity_source"),
+            ("gas temperature [K]", dry.air_temperature, "air_temperature_source")):
         item = inputs.get(what)
         if item is None:
-            out.append(f"    {what}: the scene's {scene_value:g}, in every cell")
+            out.append(f"    {what}: the scene's {scene_value:g}, in every cell (per cell from "
+                       f"the case with [drying] {key} = \"cfd\")")
             continue
         v = item.values[np.asarray(active, dtype=bool)]
         out.append(f"    {what}: per cell from the CFD ({' - '.join(item.fields)}, "
