@@ -55,6 +55,9 @@ CASES = {
                             {"droplet_number_density": 8.5e10}, 10.0)),
     "fluid-bed-workers": (["couple", "--workers", "2"], None),
     "two-way": (["couple", "{scene}"], ("fluid-bed-transport", None, None, 4.0, TWO_WAY)),
+    # drying, the bed's air balance and the spray schedule: the batch's first 5 s
+    "fluid-bed-batch": (["couple", "{scene}"], ("fluid-bed-batch", None, None, 6.0,
+                                                {"scene": {"output_interval": 2.0}})),
 }
 
 WALL_KEYS = ("wall_time_s", "cell_steps_per_second", "cluster", "threads", "source",

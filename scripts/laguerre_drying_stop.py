@@ -62,11 +62,11 @@ def split(state, problem, batch):
 def fastest_relative_rate(arrays):
     """e / b [1/s] of a dried droplet residue (dry mass s p_d) in its falling-rate period."""
     from pbe_cfd.physics import parameters as P
-    from pbe_cfd.physics.drying import drying_rate
+    from pbe_cfd.physics.drying import drying_rate, scene_gas
     q = arrays.params
     dry = q[P.DROPLET_SOLIDS] * q[P.DROPLET_MASS]
     b = 0.5 * (q[P.DRY_CRITICAL] + q[P.DRY_EQUILIBRIUM]) * dry
-    return drying_rate(dry + b, b, q[P.DRY_SLIP], q) / b
+    return drying_rate(dry + b, b, scene_gas(q), q) / b
 
 
 def main(argv=None):

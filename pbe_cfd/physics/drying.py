@@ -18,13 +18,17 @@ liquid sphere's, (6 b / (pi rho_l))^(1/3): a granule's liquid fills its pores an
 surface (its size is the skeleton's, constant while it dries), a droplet of solution is a
 liquid sphere shrinking by the d^2 law until its solids remain.
 
-The gas state (rho_g, mu_g, D_v, the driving force Y_s(T_wb) - Y) depends on the scene only
-and is packed once (``gas_state``, plain Python); ``drying_rate`` is the per-particle rate the
-methods call (numba).
+The gas a particle dries in is a tuple ``gas`` = (slip velocity [m/s], K = D_v rho_g (Y_s(T_wb)
+- Y) [kg/(m s)], rho_g / mu_g [s/m2], Sc [-]) (slots GAS_SLIP, GAS_K, GAS_RE, GAS_SC). The
+scene's is packed once into params (``gas_state``, plain Python); where the CFD gives the slip
+velocity or the gas temperature per cell, the cell rows carry them (``gas_state_cells``,
+vectorised, once at setup) and ``cell_gas`` picks each cell's. ``drying_rate`` is the
+per-particle rate the methods call (numba).
 """
 import math
 
 import numba as nb
+import numpy as np
 
 from . import parameters as P
 
@@ -35,6 +39,8 @@ MOLAR_MASS_WATER = 0.01801528
 #: ratio of the molar masses, 0.622 in psychrometry
 EPSILON = MOLAR_MASS_WATER / MOLAR_MASS_AIR
 ATMOSPHERE = 101325.0
+#: slots of the ``gas`` tuple (module docstring)
+GAS_SLIP, GAS_K, GAS_RE, GAS_SC = 0, 1, 2, 3
 
 
 def saturation_pressure(temperature):
@@ -111,6 +117,58 @@ def gas_state(temperature, humidity, pressure):
             max(saturation_humidity(t_wb, pressure) - humidity, 0.0))
 
 
+def gas_state_cells(temperature, humidity, pressure):
+    """(K = D_v rho_g (Y_s(T_wb) - Y) [kg/(m s)], rho_g / mu_g [s/m2], Sc [-]) per cell of air
+    at the cells' temperature [K] (array), one humidity [kg water / kg dry air] and pressure
+    [Pa]: ``gas_state`` vectorised, the wet bulb by the same bisection run on every cell at
+    once to 1e-10 K."""
+    t = np.asarray(temperature, dtype=float)
+    ps = _magnus(t)
+    y_s = EPSILON * ps / (pressure - ps)
+    lo, hi = np.full(t.shape, 200.0), t.copy()
+    cs = humid_heat(humidity)
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        pm = _magnus(mid)
+        gap = latent_heat(mid) * (EPSILON * pm / (pressure - pm) - humidity) - cs * (t - mid)
+        hi = np.where(gap > 0.0, mid, hi)
+        lo = np.where(gap > 0.0, lo, mid)
+        if np.all(hi - lo < 1e-10):
+            break
+    t_wb = np.where(humidity >= y_s, t, 0.5 * (lo + hi))
+    pw = _magnus(t_wb)
+    driving = np.maximum(EPSILON * pw / (pressure - pw) - humidity, 0.0)
+    rho = air_density(t, pressure)
+    mu = air_viscosity(t)
+    diffusivity = vapour_diffusivity(t, pressure)
+    return diffusivity * rho * driving, rho / mu, mu / (rho * diffusivity)
+
+
+def _magnus(temperature):
+    """``saturation_pressure`` [Pa] of an array of temperatures [K]."""
+    t = temperature - 273.15
+    return 610.94 * np.exp(17.625 * t / (t + 243.04))
+
+
+@nb.njit(cache=True, inline="always")
+def scene_gas(params):
+    """The ``gas`` tuple (module docstring) of the scene's air: params' DRY_SLIP [m/s],
+    DRY_DRIVING [kg/(m s)], DRY_RE [s/m2], DRY_SCHMIDT [-]."""
+    return (params[P.DRY_SLIP], params[P.DRY_DRIVING], params[P.DRY_RE],
+            params[P.DRY_SCHMIDT])
+
+
+@nb.njit(cache=True, inline="always")
+def cell_gas(cell, params, config):
+    """The ``gas`` tuple of one cell: its row's SLIP_VELOCITY [m/s] where config
+    DRYING_CELL_SLIP is 1, its GAS_DRIVING, GAS_REYNOLDS, GAS_SCHMIDT where DRYING_CELL_AIR
+    is 1, the scene's (``scene_gas``) otherwise."""
+    slip = cell[P.SLIP_VELOCITY] if config[P.DRYING_CELL_SLIP] == 1 else params[P.DRY_SLIP]
+    if config[P.DRYING_CELL_AIR] == 1:
+        return (slip, cell[P.GAS_DRIVING], cell[P.GAS_REYNOLDS], cell[P.GAS_SCHMIDT])
+    return (slip, params[P.DRY_DRIVING], params[P.DRY_RE], params[P.DRY_SCHMIDT])
+
+
 @nb.njit(cache=True, inline="always")
 def sherwood(reynolds, schmidt):
     """Ranz-Marshall Sherwood number 2 + 0.6 Re^(1/2) Sc^(1/3) [-] (Ranz and Marshall 1952)."""
@@ -128,23 +186,23 @@ def exchange_diameter(p, b, params):
 
 
 @nb.njit(cache=True, inline="always")
-def surface_rate(d, slip, params):
-    """Constant-period evaporation rate [kg/s] of a wet sphere of diameter d [m] at slip
-    velocity [m/s]: pi d Sh D_v rho_g (Y_s(T_wb) - Y) (module docstring)."""
-    return math.pi * d * sherwood(params[P.DRY_RE] * slip * d, params[P.DRY_SCHMIDT]) * \
-        params[P.DRY_DRIVING]
+def surface_rate(d, gas):
+    """Constant-period evaporation rate [kg/s] of a wet sphere of diameter d [m] in ``gas``
+    (module docstring): pi d Sh D_v rho_g (Y_s(T_wb) - Y)."""
+    return math.pi * d * sherwood(gas[GAS_RE] * gas[GAS_SLIP] * d, gas[GAS_SC]) * \
+        gas[GAS_K]
 
 
 @nb.njit(cache=True)
-def drying_rate(p, b, slip, params):
-    """Evaporation rate e [kg/s] of the liquid b [kg] of a particle of mass p [kg] at gas-particle
-    slip velocity [m/s]: the constant rate e_c = pi d Sh D_v rho_g (Y_s(T_wb) - Y) times the
-    falling-rate factor min(1, (X - X_eq) / (X_cr - X_eq)), X = b / (p - b); 0 for b <= 0 or
-    X <= X_eq. Gas slots of params: DRY_DRIVING = D_v rho_g (Y_s - Y) [kg/(m s)], DRY_RE =
-    rho_g / mu_g [s/m2], DRY_SCHMIDT = Sc [-], DRY_CRITICAL X_cr, DRY_EQUILIBRIUM X_eq [-]."""
+def drying_rate(p, b, gas, params):
+    """Evaporation rate e [kg/s] of the liquid b [kg] of a particle of mass p [kg] in ``gas``
+    (module docstring: slip velocity [m/s], K = D_v rho_g (Y_s - Y) [kg/(m s)], rho_g / mu_g
+    [s/m2], Sc [-]): the constant rate e_c = pi d Sh K times the falling-rate factor
+    min(1, (X - X_eq) / (X_cr - X_eq)), X = b / (p - b); 0 for b <= 0 or X <= X_eq. Slots of
+    params: DRY_CRITICAL X_cr, DRY_EQUILIBRIUM X_eq [-], the densities."""
     if b <= 0.0:
         return 0.0
-    rate = surface_rate(exchange_diameter(p, b, params), slip, params)
+    rate = surface_rate(exchange_diameter(p, b, params), gas)
     dry = p - b
     x_cr = params[P.DRY_CRITICAL]
     x_eq = params[P.DRY_EQUILIBRIUM]
@@ -161,9 +219,9 @@ LIQUID_SPHERE_STEP = 0.02
 
 
 @nb.njit(cache=True)
-def advance_liquid(p, b, dt, slip, params):
+def advance_liquid(p, b, dt, gas, params):
     """Liquid [kg] of a particle of mass p [kg] holding liquid b [kg] after drying for dt [s]
-    at slip velocity [m/s] (its dry mass p - b fixed). While the liquid sphere is the larger
+    in ``gas`` (module docstring; its dry mass p - b fixed). While the liquid sphere is the larger
     exchange diameter the rate follows b: exactly (``liquid_sphere_after``, to the diameter
     switch b = (rho_l / rho_s) m_s) where X_cr <= rho_l / rho_s; else (the falling rate
     already in the sphere) classical RK4 steps of LIQUID_SPHERE_STEP b / e. Once the skeleton
@@ -175,32 +233,32 @@ def advance_liquid(p, b, dt, slip, params):
     if b <= 0.0 or dt <= 0.0:
         return b
     if not dry > 0.0:
-        return liquid_sphere_after(b, dt, slip, params, 0.0)
+        return liquid_sphere_after(b, dt, gas, params, 0.0)
     ratio = params[P.BINDER_DENSITY] / params[P.DENSITY]
     left = dt
     if b > ratio * dry and params[P.DRY_CRITICAL] <= ratio:   # the sphere, exactly
         b_sw = ratio * dry
-        t_sw = liquid_sphere_time(b, b_sw, slip, params)
+        t_sw = liquid_sphere_time(b, b_sw, gas, params)
         if left < t_sw:
-            return liquid_sphere_after(b, left, slip, params, b_sw)
+            return liquid_sphere_after(b, left, gas, params, b_sw)
         left -= t_sw
         b = b_sw
     while left > 0.0 and b > ratio * dry:        # the liquid sphere: d shrinks with b
-        e1 = drying_rate(dry + b, b, slip, params)
+        e1 = drying_rate(dry + b, b, gas, params)
         if not e1 > 0.0:
             return b
         h = min(left, LIQUID_SPHERE_STEP * b / e1)
         b2 = max(b - 0.5 * h * e1, 0.0)
-        e2 = drying_rate(dry + b2, b2, slip, params)
+        e2 = drying_rate(dry + b2, b2, gas, params)
         b3 = max(b - 0.5 * h * e2, 0.0)
-        e3 = drying_rate(dry + b3, b3, slip, params)
+        e3 = drying_rate(dry + b3, b3, gas, params)
         b4 = max(b - h * e3, 0.0)
-        e4 = drying_rate(dry + b4, b4, slip, params)
+        e4 = drying_rate(dry + b4, b4, gas, params)
         b = max(b - h * (e1 + 2.0 * e2 + 2.0 * e3 + e4) / 6.0, 0.0)
         left -= h
     if not left > 0.0:
         return b
-    e_c = surface_rate((6.0 * dry / (math.pi * params[P.DENSITY])) ** (1.0 / 3.0), slip, params)
+    e_c = surface_rate((6.0 * dry / (math.pi * params[P.DENSITY])) ** (1.0 / 3.0), gas)
     b_c = params[P.DRY_CRITICAL] * dry
     b_eq = params[P.DRY_EQUILIBRIUM] * dry
     if b > b_c:
@@ -242,24 +300,25 @@ def _sphere_g(b, c, rho_l):
 
 
 @nb.njit(cache=True, inline="always")
-def _sphere_c(slip, params):
-    """c = 0.6 (rho_g slip / mu_g)^(1/2) Sc^(1/3) [m^(-1/2)]: Sh = 2 + c d^(1/2)."""
-    return 0.6 * math.sqrt(params[P.DRY_RE] * slip) * params[P.DRY_SCHMIDT] ** (1.0 / 3.0)
+def _sphere_c(gas):
+    """c = 0.6 (rho_g slip / mu_g)^(1/2) Sc^(1/3) [m^(-1/2)] of ``gas``: Sh = 2 + c d^(1/2)."""
+    return 0.6 * math.sqrt(gas[GAS_RE] * gas[GAS_SLIP]) * gas[GAS_SC] ** (1.0 / 3.0)
 
 
 @nb.njit(cache=True)
-def liquid_sphere_time(b, b_end, slip, params):
+def liquid_sphere_time(b, b_end, gas, params):
     """Time [s] a liquid sphere of mass b [kg] takes to evaporate down to b_end [kg] (0 <=
-    b_end <= b) at slip velocity [m/s]: rho_l (G(u) - G(u_end)) / K (``liquid_sphere_after``)."""
-    c = _sphere_c(slip, params)
+    b_end <= b) in ``gas`` (module docstring): rho_l (G(u) - G(u_end)) / K
+    (``liquid_sphere_after``)."""
+    c = _sphere_c(gas)
     rho_l = params[P.BINDER_DENSITY]
-    return rho_l * (_sphere_g(b, c, rho_l) - _sphere_g(b_end, c, rho_l)) / params[P.DRY_DRIVING]
+    return rho_l * (_sphere_g(b, c, rho_l) - _sphere_g(b_end, c, rho_l)) / gas[GAS_K]
 
 
 @nb.njit(cache=True)
-def liquid_sphere_after(b, dt, slip, params, b_end):
-    """Mass [kg] of a liquid sphere of mass b [kg] after evaporating for dt [s] at slip
-    velocity [m/s], not below b_end [kg] (docs/physics.md section 15, "A liquid sphere,
+def liquid_sphere_after(b, dt, gas, params, b_end):
+    """Mass [kg] of a liquid sphere of mass b [kg] after evaporating for dt [s] in ``gas``
+    (module docstring), not below b_end [kg] (docs/physics.md section 15, "A liquid sphere,
     exactly"). With b = rho_l pi d^3 / 6 and e = pi d Sh K (K = D_v rho_g (Y_s - Y),
     Sh = 2 + c d^(1/2), c = 0.6 (rho_g slip / mu_g)^(1/2) Sc^(1/3)), u = d^(1/2) obeys
     G(u(t)) = G(u0) - K t / rho_l, G(u) = int_0^u s^3 / (2 + c s) ds (the d^2 law d^2 = d0^2 -
@@ -270,10 +329,10 @@ def liquid_sphere_after(b, dt, slip, params, b_end):
     if b <= 0.0 or dt <= 0.0:
         return max(b, 0.0)
     rho_l = params[P.BINDER_DENSITY]
-    c = _sphere_c(slip, params)
+    c = _sphere_c(gas)
     u = (6.0 * b / (math.pi * rho_l)) ** (1.0 / 6.0)
     g0 = _sphere_integral(u, c)
-    target = g0 - params[P.DRY_DRIVING] * dt / rho_l
+    target = g0 - gas[GAS_K] * dt / rho_l
     if not target > _sphere_g(b_end, c, rho_l) + 1e-14 * g0:
         return b_end
     for _ in range(100):

@@ -8,7 +8,8 @@ packs a scene into three arrays whose slots are named here:
 ``config`` (int64)
     switches: kernel code, which efficiency factors apply, droplet rules, method code and sizes.
 ``cell`` (float64, one row per mesh cell)
-    local fields: solids fraction, granular temperature, collision velocity, injection rate.
+    local fields: solids fraction, granular temperature, collision velocity, injection rate,
+    and the drying's gas where it comes from the CFD (slip velocity, the gas state).
 """
 
 
@@ -98,6 +99,10 @@ CONFIG = (
     ("DRYING", "1 if a [drying] table is present: the state holds the evaporated liquid"),
     ("DROPLET_LIQUID", "1 if the state carries the free droplets' liquid (entry N_STATE - 3: "
                        "drying with droplets of their own, which then evaporate)"),
+    ("DRYING_CELL_SLIP", "1: the drying's slip velocity is the cell row's SLIP_VELOCITY (the "
+                         "CFD's), 0: params[DRY_SLIP] (the scene's)"),
+    ("DRYING_CELL_AIR", "1: the drying air's GAS_DRIVING, GAS_REYNOLDS, GAS_SCHMIDT are the "
+                        "cell row's (the CFD's gas temperature), 0: params' (the scene's)"),
 )
 #: a new single slot is one more name in CONFIG; the efficiency switches follow them
 N_SWITCHES_START = numbered(CONFIG, globals())
@@ -123,6 +128,12 @@ CELL = (
     ("THETA", "granular temperature [m2/s2]"),
     ("COLLISION_VELOCITY", "u0 of the Stokes number [m/s]"),
     ("INJECTION", "droplet injection rate [droplets/(m3 s)]"),
+    ("SLIP_VELOCITY", "gas-particle slip velocity |U_gas - U_solids| of the drying's Sherwood "
+                      "number [m/s] (read with config DRYING_CELL_SLIP)"),
+    ("GAS_DRIVING", "D_v rho_g (Y_s(T_wb) - Y) of the cell's gas [kg/(m s)] (read with config "
+                    "DRYING_CELL_AIR; as params' DRY_DRIVING)"),
+    ("GAS_REYNOLDS", "rho_g / mu_g of the cell's gas [s/m2] (as params' DRY_RE)"),
+    ("GAS_SCHMIDT", "Schmidt number of water vapour in the cell's gas [-] (as DRY_SCHMIDT)"),
 )
 N_CELL = numbered(CELL, globals())
 

@@ -2,7 +2,8 @@
 
 Reads the time-averaged fields of an OpenFOAM fluid bed (a bundled snapshot, a snapshot .vtu or
 a case directory), builds one cell row per mesh cell (alpha [-], Theta [m2/s2], collision
-velocity [m/s] from Theta, spray-zone injection [droplets/(m3 s)]), marks the cells that hold
+velocity [m/s] from Theta, spray-zone injection [droplets/(m3 s)], and the drying's slip
+velocity [m/s] and gas state where the scene takes them from the CFD), marks the cells that hold
 granules (alpha >= alpha_min), sets the scales of the non-dimensional states and builds each
 cell's initial state. All SI.
 """
@@ -15,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from . import model
+from .cell_gas import fill_gas_rows
 from ..physics import parameters as P
 from ..physics.kernels import collision_velocity
 from ..scene.scene import SceneError
@@ -194,7 +196,8 @@ def spray_zone_cut(zone, alpha_min: float, cells, active) -> str:
 
 
 def build_cells(scene, cells) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
-    """Cell rows (n, N_CELL) for every mesh cell, the active mask (alpha >= alpha_min), the
+    """Cell rows (n, N_CELL) for every mesh cell (with the drying's gas from the CFD where the
+    scene asks for it: ``cell_gas.fill_gas_rows``), the active mask (alpha >= alpha_min), the
     spray mask, and notes (cells whose alpha was kept below alpha_max)."""
     n = cells.n_cells
     rows = np.zeros((n, P.N_CELL))
@@ -212,6 +215,7 @@ def build_cells(scene, cells) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]
     spray = spray_zone(scene, cells) & active
     if scene.binder_injection is not None:
         rows[spray, P.INJECTION] = scene.binder_injection.rate
+    fill_gas_rows(scene, cells, rows)
     notes = {"cells_capped_below_alpha_max": capped}
     return rows, active, spray, notes
 

@@ -87,7 +87,9 @@ def _breakage_params(scene, params, config):
 
 
 def _drying_params(scene, params, config):
-    """Slots of the [drying] table (physics.drying): the air's state once, the drying curve."""
+    """Slots of the [drying] table (physics.drying): the air's state once, the drying curve;
+    the switches that make the kernels read the slip velocity or the gas state from the cell
+    rows (filled from the CFD: ``runs.cell_gas``)."""
     dry = scene.drying
     if dry is None:
         return
@@ -99,7 +101,9 @@ def _drying_params(scene, params, config):
     params[P.DRY_SCHMIDT] = mu / (rho * diffusivity)
     params[P.DRY_CRITICAL] = dry.critical_moisture
     params[P.DRY_EQUILIBRIUM] = dry.equilibrium_moisture
-    params[P.DRY_SLIP] = dry.slip_velocity
+    params[P.DRY_SLIP] = dry.slip_velocity if dry.slip_velocity is not None else 0.0
+    config[P.DRYING_CELL_SLIP] = int(dry.slip_velocity_source == "cfd")
+    config[P.DRYING_CELL_AIR] = int(dry.air_temperature_source == "cfd")
 
 
 def pack(scene) -> Arrays:

@@ -203,9 +203,12 @@ def _drying_lines(dry) -> list[str]:
     from ..physics.drying import gas_state
     rho, mu, diffusivity, t_wb, driving = gas_state(dry.air_temperature, dry.air_humidity,
                                                     dry.pressure)
-    return [f"  drying: air at {dry.air_temperature:g} K, humidity {dry.air_humidity:g} kg/kg, "
+    air = "inlet air" if dry.air_temperature_source == "cfd" else "air"
+    return [f"  drying: {air} at {dry.air_temperature:g} K, humidity {dry.air_humidity:g} kg/kg, "
             f"{dry.pressure:g} Pa (wet bulb {t_wb:.2f} K, driving force {driving:.4g} kg/kg); "
-            f"Ranz-Marshall Sh at slip {dry.slip_velocity:g} m/s",
+            "Ranz-Marshall Sh at "
+            + (f"slip {dry.slip_velocity:g} m/s" if dry.slip_velocity is not None
+               else "each cell's slip velocity"),
             f"    constant rate above X_cr = {dry.critical_moisture:g}, falling rate to X_eq = "
             f"{dry.equilibrium_moisture:g} (kg liquid per kg dry solids)"]
 
@@ -216,8 +219,7 @@ def air_lines(scene) -> list[str]:
     from ..physics.drying import gas_state
     from .air import air_flow, case_inlet_velocity, domain_section
     dry = scene.drying
-    out = ["    slip velocity and gas temperature: the scene's, in every cell (per-cell values "
-           "from the CFD are not read)"]
+    out = _input_lines(scene)
     if dry.air_balance == "none":
         return out + ["    air balance: none (every granule sees the inlet air, as an isolated "
                       "granule would)"]
@@ -238,6 +240,20 @@ def air_lines(scene) -> list[str]:
                   f"({source}); capacity G dY_in = {flow * driving:.4g} kg water/s",
                   f"    the bed's humidity: held {dry.air_interval:g} s at a time, from the "
                   "evaporation of the interval before (first order in the interval)"]
+
+
+def _input_lines(scene) -> list[str]:
+    """The plan's lines on where each per-cell drying input comes from (``runs.cell_gas``):
+    the scene's value, or the CFD's fields with their range over the active cells."""
+    from .cell_gas import from_cfd, source_lines
+    if not from_cfd(scene):
+        return source_lines(scene, None, None)
+    reason = unconverted_reason(scene)
+    if reason is not None:
+        return [f"    per-cell drying inputs from the CFD not read: {reason}"]
+    from .domain import load_domain
+    cells = load_domain(scene).cells
+    return source_lines(scene, cells, np.asarray(cells.alpha) >= scene.domain.alpha_min)
 
 
 def _spray_lines(scene, inj) -> list[str]:

@@ -8,26 +8,42 @@ evaporated water away and the granules see the bed's humidity). The flow is ``ai
 [m2], by default an OpenFOAM domain's volume over its height) times the inlet air's dry-air
 density; without either an OpenFOAM domain takes the superficial velocity of its case's gas
 inlet. A well-mixed domain stands for ``bed_volume`` [m3] of bed.
+
+Per cell from the CFD (an OpenFOAM domain): ``slip_velocity_source = "cfd"`` takes each cell's
+slip velocity |U.<gas> - U.<solids>| [m/s] from the case's velocity fields at the coupled time
+instead of the one ``slip_velocity``; ``air_temperature_source = "cfd"`` takes each cell's gas
+temperature T.<gas> [K] for its gas state and driving force (the humidity and pressure stay
+the scene's, ``air_temperature`` the inlet air's). Default "scene": the scene's values in
+every cell.
 """
 from dataclasses import dataclass
 
 #: gas mixing of the bed's air balance; "none": the inlet air everywhere
 AIR_BALANCES = ("none", "well-mixed", "plug-flow")
+#: where a per-cell drying input comes from: the scene's one value, or the CFD's cell fields
+INPUT_SOURCES = ("scene", "cfd")
 
 
 @dataclass(frozen=True)
 class Drying:
     """Drying of the liquid binder: air_temperature [K], air_humidity [kg water / kg dry air],
-    pressure [Pa], slip_velocity [m/s] (gas-particle, for the Ranz-Marshall Sherwood number),
-    critical_moisture X_cr and equilibrium_moisture X_eq [kg liquid / kg dry solids]; the
+    pressure [Pa], slip_velocity [m/s] (gas-particle, for the Ranz-Marshall Sherwood number;
+    None where slip_velocity_source is "cfd"), critical_moisture X_cr and equilibrium_moisture
+    X_eq [kg liquid / kg dry solids]; slip_velocity_source and air_temperature_source, "scene"
+    or "cfd" (per cell from the case's fields, module docstring); the
     bed's air balance (module docstring): air_balance, air_mass_flow [kg/s],
     superficial_velocity [m/s], bed_area [m2], bed_volume [m3] (None: not given), and
     air_interval [s], the longest time over which the bed's humidity is held (it is updated
     from the evaporation of the interval before)."""
     air_temperature: float
     air_humidity: float
-    slip_velocity: float
     critical_moisture: float
+    # required with slip_velocity_source = "scene"; none with "cfd" (each cell its own)
+    slip_velocity: float | None = None
+    # "cfd": each cell's |U.<gas> - U.<solids>| of the case at the coupled time
+    slip_velocity_source: str = "scene"
+    # "cfd": each cell's T.<gas> of the case for its gas state (air_temperature: the inlet's)
+    air_temperature_source: str = "scene"
     pressure: float = 101325.0
     equilibrium_moisture: float = 0.0
     air_balance: str = "none"
@@ -47,7 +63,8 @@ def parse_drying(path, data, table, error):
                                  unit="K"),
         air_humidity=t.number("air_humidity", non_negative=True, high=0.5,
                               unit="kg water per kg dry air"),
-        slip_velocity=t.number("slip_velocity", non_negative=True, unit="m/s"),
+        slip_velocity_source=t.choice("slip_velocity_source", INPUT_SOURCES, "scene"),
+        air_temperature_source=t.choice("air_temperature_source", INPUT_SOURCES, "scene"),
         critical_moisture=t.number("critical_moisture", positive=True,
                                    unit="kg liquid per kg dry solids"),
         pressure=t.number("pressure", 101325.0, positive=True, unit="Pa"),
@@ -60,6 +77,13 @@ def parse_drying(path, data, table, error):
         bed_area=t.number("bed_area", None, positive=True, unit="m2"),
         bed_volume=t.number("bed_volume", None, positive=True, unit="m3"),
         air_interval=t.number("air_interval", 0.25, positive=True, unit="s"))
+    from_cfd = values["slip_velocity_source"] == "cfd"
+    if from_cfd and t.has("slip_velocity"):
+        raise error(path, "drying.slip_velocity",
+                    "slip_velocity_source = \"cfd\" takes each cell's slip velocity from the "
+                    "case: expected no slip_velocity")
+    values["slip_velocity"] = t.number("slip_velocity", None if from_cfd else ...,
+                                       non_negative=True, unit="m/s")
     t.finish()
     if values["air_mass_flow"] is not None and values["superficial_velocity"] is not None:
         raise error(path, "drying.superficial_velocity",
@@ -86,7 +110,7 @@ def drying_refusals(scene, methods):
     if not scene.bivariate or scene.material.binder_density is None:
         return [("drying", "nothing to dry: expected a liquid binder ([binder_injection] or "
                            "initial.binder_fraction > 0) and material.binder_density (kg/m3)")]
-    air = _air_refusals(scene)
+    air = _cfd_refusals(scene) or _air_refusals(scene)
     if air:
         return air
     entry = next(m for m in methods if m.name == scene.method.name)
@@ -102,6 +126,25 @@ def drying_refusals(scene, methods):
                  "pure-liquid droplets among the particles would dry to particles of no mass: "
                  "expected solids_fraction > 0, or [aggregation] droplet_factor (droplets a "
                  "population of their own)")]
+    return []
+
+
+def _cfd_refusals(scene):
+    """[(key, refusal)] of the per-cell inputs from the CFD: an OpenFOAM domain to read them
+    from, and no bed air balance with the CFD's gas temperature."""
+    dry = scene.drying
+    keys = [k for k in ("slip_velocity_source", "air_temperature_source")
+            if getattr(dry, k) == "cfd"]
+    if not keys:
+        return []
+    if scene.domain.type == "well-mixed":
+        return [(f"drying.{keys[0]}", "a well-mixed domain has no CFD fields: expected "
+                                      "\"scene\", or an OpenFOAM domain")]
+    if dry.air_temperature_source == "cfd" and dry.air_balance != "none":
+        return [("drying.air_temperature_source",
+                 "the bed's air balance holds one bed humidity at the inlet air's temperature: "
+                 "expected air_temperature_source = \"scene\" with air_balance = "
+                 f"{dry.air_balance!r}, or air_balance = \"none\"")]
     return []
 
 

@@ -570,5 +570,9 @@ def describe(scene: Scene) -> dict[str, Any]:
     out = dataclasses.asdict(scene) | {"raw": None}
     if out["output"] is None:          # no [output] table: the echo without its key
         del out["output"]
+    if out["drying"] is not None:      # the drying's inputs at the scene's: without the keys
+        for key in ("slip_velocity_source", "air_temperature_source"):
+            if out["drying"][key] == "scene":
+                del out["drying"][key]
     out["method"] = out["method"] | out["method"].pop("options")
     return out

@@ -21,6 +21,16 @@ from .install import DEFAULT_PHASE, OpenFOAMError, phase_fields
 
 # --------------------------------------------------------------------------- cell data
 
+#: the bases of the per-phase fields kept in ``CellData.flow`` (velocity [m/s], temperature [K])
+FLOW_FIELDS = ("U", "T")
+
+
+def flow_fields(cell_data: Mapping[str, np.ndarray], order: np.ndarray) -> dict:
+    """The ``U.<phase>``/``T.<phase>`` fields (and their ``...Mean``) of ``cell_data``, each
+    taken at ``order`` (OpenFOAM's cell order), as float64."""
+    return {k: np.asarray(v, dtype=np.float64)[order] for k, v in cell_data.items()
+            if k.split(".", 1)[0] in FLOW_FIELDS and "." in k}
+
 @dataclasses.dataclass
 class CellData:
     """Per-cell fields of one time of a case, in OpenFOAM's cell order (n cells).
@@ -34,6 +44,9 @@ class CellData:
                   polyhedra were split)
     time          the case time [s]
     source        provenance: file, field names used, whether time-averaged, ...
+    flow          the phases' velocities and temperatures the case wrote at that time, by
+                  field name (``U.<phase>`` (n, 3) [m/s], ``T.<phase>`` (n,) [K], and their
+                  ``...Mean``; ``FLOW_FIELDS``); empty where it wrote none
     """
 
     alpha: np.ndarray
@@ -44,6 +57,7 @@ class CellData:
     vtk_cell_id: np.ndarray
     time: float
     source: dict
+    flow: dict = dataclasses.field(default_factory=dict)
 
     @property
     def n_cells(self) -> int:
@@ -301,7 +315,7 @@ def _cell_data_from_vtu(path: Path, t: float, n_expected: int | None = None,
         "warnings": [n for n in (a_note, t_note) if n],
     }
     return CellData(alpha=alpha, theta=theta, cell_volume=vol, cell_centre=cen, mesh=bare,
-                    vtk_cell_id=cell_id, time=t, source=source)
+                    vtk_cell_id=cell_id, time=t, source=source, flow=flow_fields(cd, first))
 
 
 # --------------------------------------------------------------------------- face flux

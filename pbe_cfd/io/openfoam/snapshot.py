@@ -14,7 +14,7 @@ import meshio
 import numpy as np
 
 from .case import _control_summary
-from .fields import CellData, read_cell_fields
+from .fields import CellData, flow_fields, read_cell_fields
 from .flux import FaceFlux, read_face_flux
 from .install import OpenFOAMError
 
@@ -44,8 +44,9 @@ def write_snapshot(case_dir: str | os.PathLike, time: str | float,
     """Write a compact snapshot of a case time: ``path`` (.vtu) and ``<stem>_flux.npz``.
 
     The .vtu holds the mesh and cell data ``alpha`` [-], ``Theta`` [m2/s2], ``cell_volume``
-    [m3], ``cell_centre`` [m] and ``cellID``, in OpenFOAM's cell order (one VTK cell per
-    OpenFOAM cell is required). The .npz holds owner, neighbour, flux [m3/s], the boundary
+    [m3], ``cell_centre`` [m], ``cellID`` and the phases' velocities and temperatures the case
+    wrote (``CellData.flow``: ``U.<phase>`` [m/s], ``T.<phase>`` [K]), in OpenFOAM's cell
+    order (one VTK cell per OpenFOAM cell is required). The .npz holds owner, neighbour, flux [m3/s], the boundary
     faces and the provenance. Returns the two paths.
     """
     case_dir = Path(case_dir)
@@ -67,6 +68,7 @@ def write_snapshot(case_dir: str | os.PathLike, time: str | float,
             "cell_volume": [cells.cell_volume],
             "cell_centre": [cells.cell_centre],
             "cellID": [np.arange(cells.n_cells, dtype=np.int32)],
+            **{name: [values] for name, values in cells.flow.items()},
         },
     )
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -168,5 +170,5 @@ def _load_snapshot(path: Path, with_flux: bool):
         cell_centre=np.asarray(cd["cell_centre"], dtype=np.float64)[inv],
         mesh=meshio.Mesh(np.asarray(mesh.points, dtype=np.float64),
                          [(b.type, np.asarray(b.data)) for b in mesh.cells]),
-        vtk_cell_id=order, time=t, source=source)
+        vtk_cell_id=order, time=t, source=source, flow=flow_fields(cd, inv))
     return (cells, flux) if with_flux else cells

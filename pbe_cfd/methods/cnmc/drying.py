@@ -9,7 +9,7 @@ import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
-from ...physics.drying import advance_liquid
+from ...physics.drying import advance_liquid, scene_gas
 from .droplets import droplet_stats, refill_vanished
 
 #: the box drifts at every output time and after every N / DRIFT_TRIALS event proposals
@@ -21,13 +21,14 @@ DRIFT_TRIALS = 32
 @nb.njit(cache=True)
 def dry_box(p, b, dt, params):
     """Dry every particle of the box (masses p, liquid b [kg]; granules and free droplets)
-    for dt [s], in place; returns the liquid evaporated [kg]."""
+    for dt [s] in the scene's air (``physics.drying.scene_gas``: the cNMC is well-mixed, one
+    gas for the box), in place; returns the liquid evaporated [kg]."""
     lost = 0.0
-    slip = params[P.DRY_SLIP]
+    gas = scene_gas(params)
     for k in range(p.size):
         if not b[k] > 0.0:
             continue
-        bk = advance_liquid(p[k], b[k], dt, slip, params)
+        bk = advance_liquid(p[k], b[k], dt, gas, params)
         loss = b[k] - bk
         if p[k] == b[k]:         # pure liquid: stays pure (p = b), 0 once gone
             p[k] = bk

@@ -14,6 +14,7 @@ quantities are scaled (see ``methods.cqmom``); no allocation.
 import numba as nb
 
 from ...physics import parameters as P
+from ...physics.drying import cell_gas
 from ...physics.injection import droplet_liquid, droplet_liquid_entry
 from ...physics.breakage import daughter_moment_factor
 from ...physics.efficiency import efficiency_property_groups, pair_success_probability
@@ -322,9 +323,9 @@ def _breakage(out, state, work, n_max, m, n, cell, params, config, bivariate):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _drying(out, state, work, n_max, m, n, params, config, bivariate):
-    """Drying drift of the points (scaled moments per s): a point (x, b) of weight w loses
-    liquid at e(x, b) (``quadrature.drying_sources.point_drying_rate``, b clipped to [0, x]),
+def _drying(out, state, work, n_max, m, n, gas, params, config, bivariate):
+    """Drying drift of the points (scaled moments per s) in the cell's ``gas``
+    (``physics.drying.cell_gas``): a point (x, b) of weight w loses liquid at e(x, b) (``quadrature.drying_sources.point_drying_rate``, b clipped to [0, x]),
     so M_kl gains G_kl = -sum w e (k x^(k-1) b^l + l x^k b^(l-1)) and the evaporated liquid
     (entry N_STATE - 1 - SEPARATE_DROPLETS) sum w e.
 
@@ -345,7 +346,7 @@ def _drying(out, state, work, n_max, m, n, params, config, bivariate):
             i = a * m + q
             x = work[op + i]
             work[rates + i] = work[op + 2 * npt + i] * point_drying_rate(
-                x, min(max(work[op + npt + i], 0.0), x), params)
+                x, min(max(work[op + npt + i], 0.0), x), gas, params)
             out[evaporated] += work[rates + i]
     for l in range(lmax):
         for k in range(2 * n_max if l == 0 else n_max):
@@ -392,7 +393,8 @@ def cqmom_rhs(state, out, cell, aux, params, config, work):
     if n > 0 and config[P.BREAKAGE] == 1:
         _breakage(out, state, work, n_max, m, n, cell, params, config, bivariate)
     if n > 0 and config[P.DRYING] == 1:
-        _drying(out, state, work, n_max, m, n, params, config, bivariate)
+        _drying(out, state, work, n_max, m, n, cell_gas(cell, params, config), params,
+                config, bivariate)
     inj = cell[P.INJECTION] / params[P.NUMBER_SCALE]
     xd = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
     xl = droplet_liquid(params) / params[P.MASS_SCALE]
@@ -404,8 +406,8 @@ def cqmom_rhs(state, out, cell, aux, params, config, work):
             captured = _droplet_capture(out, state, work, n_max, m, n, factor, u0, params,
                                         config, bivariate)
         out[n_state - 1] += inj
-        add_droplet_class_terms(state, out, inj, captured, bd / params[P.MASS_SCALE], params,
-                                config)
+        add_droplet_class_terms(state, out, inj, captured, bd / params[P.MASS_SCALE],
+                                cell_gas(cell, params, config), params, config)
     elif inj != 0.0:
         # droplets as ordinary particles: S_kl = rate x_d^k x_l^l
         value = inj

@@ -15,6 +15,7 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.breakage import cell_selection_factor, daughter_moment_factor
+from ...physics.drying import cell_gas
 from ...physics.injection import droplet_liquid_entry
 from ...physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ...physics.properties import DIAMETER, N_PROPS
@@ -101,7 +102,8 @@ def _droplets(state, out, X, W, B, m, props, factor, u0, cell, n_size, n_max, bi
                         total *= s
             out[n_state - 1] -= captured
         out[n_state - 1] += inj
-        add_droplet_class_terms(state, out, inj, captured, xl, params, config)
+        add_droplet_class_terms(state, out, inj, captured, xl,
+                                cell_gas(cell, params, config), params, config)
     elif inj != 0.0:
         value = inj
         for k in range(n_size):
@@ -112,15 +114,15 @@ def _droplets(state, out, X, W, B, m, props, factor, u0, cell, n_size, n_max, bi
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def _drying(out, X, W, B, m, n_size, n_max, bivariate, params, config):
-    """Drying drift of the m secondary particles (docs/physics.md section 15; as QMOM's
-    nodes): M_kl gains -W e (k X^(k-1) B^l + l X^k B^(l-1)), the evaporated liquid (entry
+def _drying(out, X, W, B, m, n_size, n_max, bivariate, gas, params, config):
+    """Drying drift of the m secondary particles in the cell's ``gas``
+    (``physics.drying.cell_gas``; docs/physics.md section 15; as QMOM's nodes): M_kl gains -W e (k X^(k-1) B^l + l X^k B^(l-1)), the evaporated liquid (entry
     N_STATE - 1 - SEPARATE_DROPLETS) W e."""
     evaporated = config[P.N_STATE] - 1 - config[P.SEPARATE_DROPLETS]
     for a in range(m):
         x = X[a]
         b = min(max(B[a], 0.0), x)
-        rate = W[a] * point_drying_rate(x, b, params)
+        rate = W[a] * point_drying_rate(x, b, gas, params)
         if rate == 0.0:
             continue
         out[evaporated] += rate
@@ -171,7 +173,8 @@ def eqmom_rhs(state, out, cell, aux, params, config, work):
     if config[P.BREAKAGE] == 1:
         _breakage(out, X, W, B, m, cell, n_size, n_max, bivariate, params, config)
     if config[P.DRYING] == 1:
-        _drying(out, X, W, B, m, n_size, n_max, bivariate, params, config)
+        _drying(out, X, W, B, m, n_size, n_max, bivariate, cell_gas(cell, params, config),
+                params, config)
     _droplets(state, out, X, W, B, m, props, factor, u0, cell, n_size, n_max, bivariate,
               params, config)
 

@@ -35,7 +35,7 @@ import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
-from ...physics.drying import drying_rate
+from ...physics.drying import cell_gas, drying_rate
 from .basis import moment_index
 from .breakage import add_laguerre_breakage
 from .layout import AUX_OFF_DRYING, AUX_ORDER
@@ -130,15 +130,16 @@ def _point(q, pts):
 
 
 @nb.njit(cache=True, inline="always")
-def _point_rates(pts, scale, slip, params):
-    """e [scaled mass per s] of the four points of ``wet_points``, each times its weight (0
-    for a point of no weight or no liquid)."""
+def _point_rates(pts, scale, gas, params):
+    """e [scaled mass per s] of the four points of ``wet_points`` in ``gas``
+    (``physics.drying.cell_gas``), each times its weight (0 for a point of no weight or no
+    liquid)."""
     r0 = r1 = r2 = r3 = 0.0
     for q in range(4):
         x, b, w = _point(q, pts)
         if w == 0.0 or not b > 0.0:
             continue
-        e = w * drying_rate(x * scale, b * scale, slip, params) / scale
+        e = w * drying_rate(x * scale, b * scale, gas, params) / scale
         if q == 0:
             r0 = e
         elif q == 1:
@@ -151,11 +152,12 @@ def _point_rates(pts, scale, slip, params):
 
 
 @nb.njit(cache=True)
-def add_laguerre_drying(state, out, aux, params, config):
+def add_laguerre_drying(state, out, cell, aux, params, config):
     """Add the drying drift [scaled state units per s] of one cell to ``out``: the wet moments
     (entries 0 .. K-1) and the evaporated liquid (the last entry), evaluated on
-    ``wet_points`` at the scene's slip velocity (params[DRY_SLIP] [m/s]; masses scaled by
-    params[MASS_SCALE] [kg]). W10 and W01 take the points' drift, the other moments its
+    ``wet_points`` in the cell's gas (``physics.drying.cell_gas``: the slip velocity [m/s]
+    and gas state of the scene, or of the cell's row; masses scaled by params[MASS_SCALE]
+    [kg]). W10 and W01 take the points' drift, the other moments its
     relative rate (module docstring). Nothing without the drying marker or wet liquid."""
     if int(aux[AUX_OFF_DRYING]) <= 0:
         return
@@ -165,7 +167,7 @@ def add_laguerre_drying(state, out, aux, params, config):
     pts = wet_points(state, m)
     if pts[2] == 0.0:
         return
-    rates = _point_rates(pts, params[P.MASS_SCALE], params[P.DRY_SLIP], params)
+    rates = _point_rates(pts, params[P.MASS_SCALE], cell_gas(cell, params, config), params)
     evaporated = rates[0] + rates[1] + rates[2] + rates[3]
     if evaporated == 0.0:
         return
@@ -200,4 +202,4 @@ def add_linear_terms(state, out, cell, aux, params, config, wpos):
     if config[P.BREAKAGE] == 1:
         add_laguerre_breakage(state, out, cell, aux, params, config, wpos)
     if config[P.DRYING] == 1:
-        add_laguerre_drying(state, out, aux, params, config)
+        add_laguerre_drying(state, out, cell, aux, params, config)

@@ -20,6 +20,7 @@ import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
+from ...physics.drying import cell_gas
 from ...physics.injection import droplet_liquid, droplet_liquid_entry
 from ...physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ...physics.properties import DIAMETER, N_PROPS
@@ -232,7 +233,8 @@ def _droplet_sources(state, out, cell, params, config, nodes, weights, binder, p
                         total *= s
             out[n_state - 1] -= captured
         out[n_state - 1] += inj
-        add_droplet_class_terms(state, out, inj, captured, xl, params, config)
+        add_droplet_class_terms(state, out, inj, captured, xl,
+                                cell_gas(cell, params, config), params, config)
     elif inj != 0.0:
         value = inj
         for k in range(n_size):
@@ -289,7 +291,8 @@ def qmom_rhs(state, out, cell, aux, params, config, work):
     if config[P.BREAKAGE] == 1:
         add_qmom_breakage(out, nodes, weights, binder, n, cell, params, config)
     if config[P.DRYING] == 1:
-        add_qmom_drying(out, nodes, weights, binder, n, params, config)
+        add_qmom_drying(out, nodes, weights, binder, n, cell_gas(cell, params, config),
+                        params, config)
     _droplet_sources(state, out, cell, params, config, nodes, weights, binder, props, n, factor,
                      u0)
 

@@ -20,11 +20,12 @@ from ...physics.injection import droplet_liquid, droplet_liquid_entry
 
 
 @nb.njit(cache=True, inline="always")
-def point_drying_rate(x, b, params):
+def point_drying_rate(x, b, gas, params):
     """Evaporation rate [scaled mass per s] of a point of scaled mass x and liquid b (scaled by
-    params[MASS_SCALE] [kg]) at the scene's slip velocity (params[DRY_SLIP] [m/s])."""
+    params[MASS_SCALE] [kg]) in the cell's ``gas`` (``physics.drying.cell_gas``: slip velocity
+    [m/s] and gas state, the scene's or the CFD's)."""
     scale = params[P.MASS_SCALE]
-    return drying_rate(x * scale, b * scale, params[P.DRY_SLIP], params) / scale
+    return drying_rate(x * scale, b * scale, gas, params) / scale
 
 
 @nb.njit(cache=True, inline="always")
@@ -40,8 +41,9 @@ def drift_moment_rate(k, l, x, b, rate):
 
 
 @nb.njit(cache=True)
-def add_qmom_drying(out, nodes, weights, binder, n, params, config):
-    """Add the drying drift of the n QMOM nodes (scaled mass, weight, liquid) to ``out``: the
+def add_qmom_drying(out, nodes, weights, binder, n, gas, params, config):
+    """Add the drying drift of the n QMOM nodes (scaled mass, weight, liquid) in the cell's
+    ``gas`` (``physics.drying.cell_gas``) to ``out``: the
     size moments M_k0 (entries k < 2N), the binder moments M_k1 (entries 2N + k, k < N), and the
     evaporated liquid (entry N_STATE - 1 - SEPARATE_DROPLETS)."""
     n_max = config[P.ORDER]
@@ -50,7 +52,7 @@ def add_qmom_drying(out, nodes, weights, binder, n, params, config):
     for a in range(n):
         x = nodes[a]
         b = min(max(binder[a], 0.0), x)
-        rate = weights[a] * point_drying_rate(x, b, params)
+        rate = weights[a] * point_drying_rate(x, b, gas, params)
         if rate == 0.0:
             continue
         out[evaporated] += rate
@@ -87,10 +89,11 @@ def droplet_point(state, params, config):
 
 
 @nb.njit(cache=True)
-def add_droplet_class_terms(state, out, injection, captured, liquid, params, config):
+def add_droplet_class_terms(state, out, injection, captured, liquid, gas, params, config):
     """With a droplet-liquid entry: its injection (``injection`` scaled droplets per s, each
     with b_d), its capture (``captured`` scaled droplets per s, each with ``liquid``, scaled)
-    and its evaporation n_d e(droplet point) into ``out``, the evaporated liquid (entry
+    and its evaporation n_d e(droplet point) in the cell's ``gas`` (``physics.drying.cell_gas``)
+    into ``out``, the evaporated liquid (entry
     N_STATE - 2) gaining what evaporates. Without the entry nothing."""
     entry = droplet_liquid_entry(config)
     if entry < 0:
@@ -101,7 +104,7 @@ def add_droplet_class_terms(state, out, injection, captured, liquid, params, con
     if not nd > 0.0:
         return
     p, b = droplet_point(state, params, config)
-    rate = nd * drying_rate(p, b, params[P.DRY_SLIP], params) / scale
+    rate = nd * drying_rate(p, b, gas, params) / scale
     out[entry] -= rate
     out[config[P.N_STATE] - 2] += rate
 
