@@ -26,15 +26,17 @@ regula falsi. Fallbacks (``status``):
                (QMOM with N nodes);
 * REDUCED      m_0 .. m_(2N-1) on the boundary (a Gauss rule of n < N nodes): sigma = 0, n
                nodes (QMOM with n nodes; the carried moments beyond are the caller's to check);
-* FEWER        (``fewer``, EQMOM's own inversion) no root with N kernels: where the golden-
-               section search below finds |J| <= 1e3 ROOT_TOLERANCE that sigma is a root (FIT);
+* FEWER        (``min_shape`` >= 0, EQMOM's own inversion) no usable root with N kernels
+               (none, or one with a kernel of shape <= min_shape): where the golden-section
+               search below finds a usable |J| <= 1e3 ROOT_TOLERANCE that sigma is a root (FIT);
                else n = N - 1, N - 2, ... 1 kernels of sigma > 0 fitted to m_0 .. m_2n (the
                same search on the first 2n + 1 moments; n = 1 always fits: sigma = sigma_max),
                exact in those; m_(2n+1) .. m_2N are not reproduced (``project`` writes the
-               reconstruction's values). docs/physics.md, EQMOM;
-* CLOSEST      no sign change on [0, sigma_max] (and, with ``fewer``, no fewer-kernel fit): the
-               sigma of the scan with the smallest |J|, refined by golden-section search (m_2N
-               is not reproduced; ``project`` writes the reconstruction's value);
+               reconstruction's values). Taken unless the closest sigma below is usable and
+               misses m_2N by less than it misses those. docs/physics.md, EQMOM;
+* CLOSEST      no sign change on [0, sigma_max] (and, with ``min_shape``, no better fewer-kernel
+               fit): the sigma of the scan with the smallest |J|, refined by golden-section
+               search (m_2N is not reproduced; ``project`` writes the reconstruction's value);
 * EMPTY / FAILED  M00 = 0 / not invertible (non-finite or non-positive moments).
 
 Everything is in the method's scaled units and normalised inside by M00 and the mean. numba
@@ -287,8 +289,9 @@ def invert_normalised(u, n_max, nodes, weights, work, result, min_shape=-1.0):
     (normalised) of the kernels' centres; result[0] = sigma (normalised), result[1] = J at
     the result. ``min_shape`` >= 0 (EQMOM's own inversion): a root with a kernel of shape
     x_a / sigma <= min_shape is not used, a closest sigma of |J| <= 1e3 ROOT_TOLERANCE is a
-    root, and where there is no root to use the fewer-kernel fit (FEWER) comes before the
-    closest sigma (module docstring); < 0: neither. Returns (status, kernel count)."""
+    root, and where there is no root to use, the fewer-kernel fit (FEWER) is taken unless the
+    closest sigma is usable and misses m_2N by no more than the fewer-kernel fit misses the
+    moments it drops (module docstring); < 0: neither. Returns (status, kernel count)."""
     n = wheeler_nodes(u, n_max, nodes, weights, work)
     result[0] = 0.0
     result[1] = 0.0
@@ -308,22 +311,34 @@ def invert_normalised(u, n_max, nodes, weights, work, result, min_shape=-1.0):
     found, nj = _search(u, n_max, f0, nodes, weights, work, result)
     if found and (not fewer or _usable(nodes, nj, result[0], min_shape)):
         return FIT, nj
-    if found:                          # a root with a kernel too narrow for the sources
-        best, f_best = result[0], result[1]
-    else:
-        best, f_best = result[0], result[1]
+    best, f_best = result[0], result[1]
+    closest_miss = math.inf            # the closest sigma's miss of m_2N, where usable
+    if not found:
         nj = _closest_fit(u, n_max, best, f_best, nodes, weights, work, result)
-        if fewer and nj > 0 and abs(result[1]) <= 1.0e3 * ROOT_TOLERANCE and \
-                result[0] > 0.0 and _usable(nodes, nj, result[0], min_shape):
-            return FIT, nj
+        if fewer and nj > 0 and _usable(nodes, nj, result[0], min_shape):
+            closest_miss = abs(result[1])
+            if closest_miss <= 1.0e3 * ROOT_TOLERANCE and result[0] > 0.0:
+                return FIT, nj
     if fewer:
         nf = _fewer(u, n_max, min_shape, nodes, weights, work, result)
-        if nf > 0:
+        if nf > 0 and _miss(u, n_max, nf, nodes, weights, result[0]) < closest_miss:
             return FEWER, nf
         nj = _closest_fit(u, n_max, best, f_best, nodes, weights, work, result)
     if nj == 0:
         return FAILED, 0
     return CLOSEST, nj
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _miss(u, n_max, n, nodes, weights, sigma):
+    """Largest relative miss of u[2n + 1 .. 2 n_max] by n kernels (the moments they drop)."""
+    worst = 0.0
+    for k in range(2 * n + 1, 2 * n_max + 1):
+        pred = 0.0
+        for a in range(n):
+            pred += weights[a] * kernel_moment(nodes[a], sigma, k)
+        worst = max(worst, abs(pred - u[k]) / abs(u[k]))
+    return worst
 
 
 @nb.njit(cache=True, error_model="numpy")
