@@ -77,8 +77,8 @@ STATUS_TEXT = ("fitted", "discrete (sigma = 0, QMOM with N nodes)",
                "reduced (moments on the boundary: fewer nodes, sigma = 0)",
                "closest sigma (no root of the last moment; M_2N re-projected)",
                "empty", "not invertible (no kernels)",
-               "fewer kernels (no root with N kernels: n < N kernels of sigma > 0 fitted to "
-               "M_0 .. M_2n; the moments beyond re-projected)")
+               "fewer kernels (no usable root with N kernels: n < N kernels of sigma > 0 "
+               "fitted to M_0 .. M_2n; the moments beyond re-projected)")
 
 
 def _stirling2(n):
