@@ -227,13 +227,13 @@ class KernelMixture:
 
 def of_states(states, aux, arrays, rho, bivariate, labels=str) -> KernelMixture:
     """The KernelMixture of EQMOM's scaled states (rows: times or cells); rows whose
-    inversion took the closest-sigma fallback or failed are named (a failed row has no
+    inversion took the fewer-kernel or the closest-sigma fallback or failed are named (a failed row has no
     kernels: no granules to draw, d10/d50/d90 = 0 there)."""
     from ..methods.eqmom import entry
     from ..methods.quadrature import gamma_inversion as inversion
     kernels = [entry.kernels_si(s, aux, arrays) for s in np.atleast_2d(states)]
     return KernelMixture(kernels, rho, bivariate, inversion.STATUS_TEXT,
-                         reported=(inversion.CLOSEST, inversion.FAILED),
+                         reported=(inversion.FEWER, inversion.CLOSEST, inversion.FAILED),
                          failed=inversion.FAILED, labels=labels)
 
 

@@ -137,6 +137,9 @@ class Kernel(NamedTuple):
     uses_d43    True if cell_factor needs the cell's volume-mean diameter d43 [m]
     cell_fields what the cell must provide (for ``pbe-cfd plan`` and scene checks):
                 "solids_fraction", "granular_temperature", "d43"
+    small_size_exponent  q >= 0 with beta(x1, x2) ~ x1^(-q) as x1 -> 0 at fixed x2 [-] (0: beta
+                stays finite): a number density ~ x^(l - 1) near 0 has finite aggregation
+                sources only if l > q (EQMOM's kernels, docs/physics.md)
     """
     name: str
     code: int
@@ -146,16 +149,18 @@ class Kernel(NamedTuple):
     cell_factor: Callable = rate_constant
     uses_d43: bool = False
     cell_fields: tuple = ()
+    small_size_exponent: float = 0.0
 
 
 KERNEL_REGISTRY = (
     Kernel("constant", CONSTANT, constant_kernel, "m3/s"),
     Kernel("sum", SUM, sum_kernel, "m3/(kg s)"),
     Kernel("product", PRODUCT, product_kernel, "m3/(kg2 s)"),
-    Kernel("eke", EKE, eke_kernel, "m3/s", properties=EKE_SIZES),
+    Kernel("eke", EKE, eke_kernel, "m3/s", properties=EKE_SIZES, small_size_exponent=0.5),
     Kernel("ktgf", KTGF, ktgf_kernel, "dimensionless", properties=DIAMETERS,
            cell_factor=ktgf_cell_factor, uses_d43=True,
-           cell_fields=("solids_fraction", "granular_temperature", "d43")),
+           cell_fields=("solids_fraction", "granular_temperature", "d43"),
+           small_size_exponent=0.5),
 )
 
 #: name -> registry entry
@@ -174,6 +179,9 @@ kernel_cell_factor = cell_dispatch((k.code, k.cell_factor) for k in KERNEL_REGIS
 kernel_uses_d43 = code_lookup(((k.code, k.uses_d43) for k in KERNEL_REGISTRY), False)
 #: property groups the kernel reads: kernel_property_groups(code)
 kernel_property_groups = code_lookup(((k.code, k.properties) for k in KERNEL_REGISTRY), 0)
+#: q of beta ~ x1^(-q) for a small partner x1: kernel_small_size_exponent(code) [-]
+kernel_small_size_exponent = code_lookup(((k.code, float(k.small_size_exponent))
+                                          for k in KERNEL_REGISTRY), 0.0)
 
 
 @nb.njit(cache=True)

@@ -72,11 +72,11 @@ def fallback_counts(states, aux_, arrays):
 
 def diagnostics(states, aux_, arrays):
     """({rows per inversion branch}, warnings): a warning names how many rows (times or
-    cells) needed the closest-sigma fallback or could not be inverted."""
+    cells) needed the fewer-kernel or the closest-sigma fallback or could not be inverted."""
     counts = fallback_counts(states, aux_, arrays)
     stats = {f"eqmom_{I.STATUS_TEXT[k].split(' ')[0]}_rows": int(v) for k, v in counts.items()}
     notes = []
-    for code in (I.CLOSEST, I.FAILED):
+    for code in (I.FEWER, I.CLOSEST, I.FAILED):
         if counts.get(code):
             notes.append(f"EQMOM: {counts[code]} of {sum(counts.values())} final states: "
                          f"{I.STATUS_TEXT[code]}")

@@ -271,7 +271,7 @@ def eqmom_realizable(state, aux, params, config, work):
 @nb.njit(cache=True, error_model="numpy")
 def eqmom_project(state, aux, params, config, work):
     """Re-project an accepted state onto its reconstruction, in place: a reduced fit's
-    moments, the closest-sigma fit's M_2N, and the binder moments M_k1 (k >= 1) of the
+    moments, the closest-sigma fit's M_2N, a fewer-kernel fit's M_(2n+1) .. M_2N, and the binder moments M_k1 (k >= 1) of the
     bounded fractions. M00, M10 and M01 (conserved) are never touched."""
     n_max = config[P.ORDER]
     n_size = 2 * n_max + 1
@@ -283,7 +283,7 @@ def eqmom_project(state, aux, params, config, work):
     target = work[S.off_scratch(n_max):S.off_scratch(n_max) + n_size + n_max]
     status = int(work[S.STATUS])
     bivariate = config[P.BIVARIATE] == 1
-    if status != I.REDUCED and status != I.CLOSEST and not bivariate:
+    if status != I.REDUCED and status != I.CLOSEST and status != I.FEWER and not bivariate:
         return
     _project_into(state, target, config, work)
     if status == I.REDUCED:
@@ -291,6 +291,9 @@ def eqmom_project(state, aux, params, config, work):
             state[k] = target[k]
     elif status == I.CLOSEST:
         state[n_size - 1] = target[n_size - 1]
+    elif status == I.FEWER:            # n kernels fit M_0 .. M_2n: the moments beyond
+        for k in range(2 * n + 1, n_size):
+            state[k] = target[k]
     if bivariate:
         for k in range(1, n_max):
             state[n_size + k] = target[n_size + k]

@@ -22,6 +22,7 @@ import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
+from ...physics.kernels import kernel_small_size_exponent
 from ...physics.properties import N_PROPS
 import pbe_cfd.methods.quadrature.gamma_inversion as I
 
@@ -265,7 +266,10 @@ def invert(state, aux, config, work):
             work[STATUS] = I.FAILED
             return 0
         scale *= mean
-    status, n = I.invert_normalised(u, n_max, nodes, weights, inv_work, result)
+    # a kernel of shape below the aggregation kernel's small-size exponent has infinite
+    # sources: the inversion does not use such a fit (docs/physics.md, EQMOM)
+    min_shape = kernel_small_size_exponent(config[P.KERNEL])
+    status, n = I.invert_normalised(u, n_max, nodes, weights, inv_work, result, min_shape)
     work[STATUS] = status
     if n == 0:
         return 0

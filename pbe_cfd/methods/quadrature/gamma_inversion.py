@@ -26,9 +26,17 @@ regula falsi. Fallbacks (``status``):
                (QMOM with N nodes);
 * REDUCED      m_0 .. m_(2N-1) on the boundary (a Gauss rule of n < N nodes): sigma = 0, n
                nodes (QMOM with n nodes; the carried moments beyond are the caller's to check);
-* CLOSEST      no sign change on [0, sigma_max]: the sigma of the scan with the smallest |J|,
-               refined by golden-section search (m_2N is not reproduced; ``project`` writes the
-               reconstruction's value);
+* FEWER        (``min_shape`` >= 0, EQMOM's own inversion) no usable root with N kernels
+               (none, or one with a kernel of shape <= min_shape): where the golden-section
+               search below finds a usable |J| <= 1e3 ROOT_TOLERANCE that sigma is a root (FIT);
+               else n = N - 1, N - 2, ... 1 kernels of sigma > 0 fitted to m_0 .. m_2n (the
+               same search on the first 2n + 1 moments; n = 1 always fits: sigma = sigma_max),
+               exact in those; m_(2n+1) .. m_2N are not reproduced (``project`` writes the
+               reconstruction's values). Taken unless the closest sigma below is usable and
+               misses m_2N by less than it misses those. docs/physics.md, EQMOM;
+* CLOSEST      no sign change on [0, sigma_max] (and, with ``min_shape``, no better fewer-kernel
+               fit): the sigma of the scan with the smallest |J|, refined by golden-section
+               search (m_2N is not reproduced; ``project`` writes the reconstruction's value);
 * EMPTY / FAILED  M00 = 0 / not invertible (non-finite or non-positive moments).
 
 Everything is in the method's scaled units and normalised inside by M00 and the mean. numba
@@ -64,10 +72,13 @@ REDUCED = 2
 CLOSEST = 3
 EMPTY = 4
 FAILED = 5
+FEWER = 6
 STATUS_TEXT = ("fitted", "discrete (sigma = 0, QMOM with N nodes)",
                "reduced (moments on the boundary: fewer nodes, sigma = 0)",
                "closest sigma (no root of the last moment; M_2N re-projected)",
-               "empty", "not invertible (no kernels)")
+               "empty", "not invertible (no kernels)",
+               "fewer kernels (no usable root with N kernels: n < N kernels of sigma > 0 "
+               "fitted to M_0 .. M_2n; the moments beyond re-projected)")
 
 
 def _stirling2(n):
@@ -194,10 +205,93 @@ def _root(u, lo, f_lo, hi, f_hi, n_max, nodes, weights, work):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def invert_normalised(u, n_max, nodes, weights, work, result):
+def _search(u, n_max, f0, nodes, weights, work, result):
+    """Root of J (n_max kernels, J(0) = f0 > 0) on (0, sigma_max]: the scan and the Illinois
+    refinement. Found: result = (sigma, J), returns (True, node count); not found: result =
+    (the scan's sigma of smallest |J|, that J), returns (False, 0)."""
+    sigma_max = u[2] - 1.0
+    lo, f_lo = 0.0, f0
+    best, f_best = 0.0, f0
+    for j in range(1, SCAN_POINTS + 1):
+        s = sigma_max * j / SCAN_POINTS
+        f, nj = _target(u, s, n_max, nodes, weights, work)
+        if not math.isfinite(f):
+            continue
+        if abs(f) <= ROOT_TOLERANCE:
+            result[0] = s
+            result[1] = f
+            return True, nj
+        if abs(f) < abs(f_best):
+            best, f_best = s, f
+        if f < 0.0:
+            s = _root(u, lo, f_lo, s, f, n_max, nodes, weights, work)
+            f, nj = _target(u, s, n_max, nodes, weights, work)
+            if abs(f) <= 1.0e3 * ROOT_TOLERANCE:
+                result[0] = s
+                result[1] = f
+                return True, nj
+            break                      # a jump of J, not a root: the closest sigma below
+        lo, f_lo = s, f
+    result[0] = best
+    result[1] = f_best
+    return False, 0
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _closest_fit(u, n_max, best, f_best, nodes, weights, work, result):
+    """The closest-sigma fit around the scan's best sigma (``_closest``) into nodes, weights,
+    result = (sigma, J); returns its node count."""
+    sigma_max = u[2] - 1.0
+    h = sigma_max / SCAN_POINTS
+    s = _closest(u, max(best - h, 0.0), min(best + h, sigma_max), n_max, nodes, weights, work)
+    f, nj = _target(u, s, n_max, nodes, weights, work)
+    if not (abs(f) <= abs(f_best)):
+        s = best
+        f, nj = _target(u, s, n_max, nodes, weights, work)
+    result[0] = s
+    result[1] = f
+    return nj
+
+
+@nb.njit(cache=True, inline="always")
+def _usable(nodes, n, sigma, min_shape):
+    """True if every kernel's shape x_a / sigma exceeds min_shape (sigma > 0)."""
+    for a in range(n):
+        if not (nodes[a] > min_shape * sigma):
+            return False
+    return True
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _fewer(u, n_max, min_shape, nodes, weights, work, result):
+    """The fewer-kernel fallback: the first n = n_max - 1, n_max - 2, ... 1 for which the
+    n-kernel J of u[0 .. 2n] has a root sigma > 0 (J(0) > ROOT_TOLERANCE; the same search as
+    n_max kernels, the golden-section search's result accepted where |J| <= 1e3
+    ROOT_TOLERANCE) with every shape above min_shape (n = 1: any shape; it always has the
+    root sigma = sigma_max). Returns the node count of that fit (0: none)."""
+    for n in range(n_max - 1, 0, -1):
+        f0, n0 = _target(u, 0.0, n, nodes, weights, work)
+        if not (f0 > ROOT_TOLERANCE) or n0 < n:
+            continue
+        found, nj = _search(u, n, f0, nodes, weights, work, result)
+        if not found:
+            nj = _closest_fit(u, n, result[0], result[1], nodes, weights, work, result)
+            found = abs(result[1]) <= 1.0e3 * ROOT_TOLERANCE
+        if found and nj > 0 and result[0] > 0.0 and \
+                (n == 1 or _usable(nodes, nj, result[0], min_shape)):
+            return nj
+    return 0
+
+
+@nb.njit(cache=True, error_model="numpy")
+def invert_normalised(u, n_max, nodes, weights, work, result, min_shape=-1.0):
     """Gamma-EQMOM of normalised moments u[0 .. 2 n_max] (u_0 = u_1 = 1): nodes, weights
     (normalised) of the kernels' centres; result[0] = sigma (normalised), result[1] = J at
-    the result. Returns (status, kernel count)."""
+    the result. ``min_shape`` >= 0 (EQMOM's own inversion): a root with a kernel of shape
+    x_a / sigma <= min_shape is not used, a closest sigma of |J| <= 1e3 ROOT_TOLERANCE is a
+    root, and where there is no root to use, the fewer-kernel fit (FEWER) is taken unless the
+    closest sigma is usable and misses m_2N by no more than the fewer-kernel fit misses the
+    moments it drops (module docstring); < 0: neither. Returns (status, kernel count)."""
     n = wheeler_nodes(u, n_max, nodes, weights, work)
     result[0] = 0.0
     result[1] = 0.0
@@ -213,40 +307,38 @@ def invert_normalised(u, n_max, nodes, weights, work, result):
         return DISCRETE, n
     if f0 < 0.0:                       # m_2N below the Gauss rule's: not realizable
         return FAILED, 0
-    sigma_max = u[2] - 1.0
-    lo, f_lo = 0.0, f0
-    best, f_best = 0.0, f0
-    for j in range(1, SCAN_POINTS + 1):
-        s = sigma_max * j / SCAN_POINTS
-        f, nj = _target(u, s, n_max, nodes, weights, work)
-        if not math.isfinite(f):
-            continue
-        if abs(f) <= ROOT_TOLERANCE:
-            result[0] = s
-            result[1] = f
-            return FIT, nj
-        if abs(f) < abs(f_best):
-            best, f_best = s, f
-        if f < 0.0:
-            s = _root(u, lo, f_lo, s, f, n_max, nodes, weights, work)
-            f, nj = _target(u, s, n_max, nodes, weights, work)
-            if abs(f) <= 1.0e3 * ROOT_TOLERANCE:
-                result[0] = s
-                result[1] = f
+    fewer = min_shape >= 0.0
+    found, nj = _search(u, n_max, f0, nodes, weights, work, result)
+    if found and (not fewer or _usable(nodes, nj, result[0], min_shape)):
+        return FIT, nj
+    best, f_best = result[0], result[1]
+    closest_miss = math.inf            # the closest sigma's miss of m_2N, where usable
+    if not found:
+        nj = _closest_fit(u, n_max, best, f_best, nodes, weights, work, result)
+        if fewer and nj > 0 and _usable(nodes, nj, result[0], min_shape):
+            closest_miss = abs(result[1])
+            if closest_miss <= 1.0e3 * ROOT_TOLERANCE and result[0] > 0.0:
                 return FIT, nj
-            break                      # a jump of J, not a root: the closest sigma below
-        lo, f_lo = s, f
-    h = sigma_max / SCAN_POINTS
-    s = _closest(u, max(best - h, 0.0), min(best + h, sigma_max), n_max, nodes, weights, work)
-    f, nj = _target(u, s, n_max, nodes, weights, work)
-    if not (abs(f) <= abs(f_best)):
-        s = best
-        f, nj = _target(u, s, n_max, nodes, weights, work)
-    result[0] = s
-    result[1] = f
+    if fewer:
+        nf = _fewer(u, n_max, min_shape, nodes, weights, work, result)
+        if nf > 0 and _miss(u, n_max, nf, nodes, weights, result[0]) < closest_miss:
+            return FEWER, nf
+        nj = _closest_fit(u, n_max, best, f_best, nodes, weights, work, result)
     if nj == 0:
         return FAILED, 0
     return CLOSEST, nj
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _miss(u, n_max, n, nodes, weights, sigma):
+    """Largest relative miss of u[2n + 1 .. 2 n_max] by n kernels (the moments they drop)."""
+    worst = 0.0
+    for k in range(2 * n + 1, 2 * n_max + 1):
+        pred = 0.0
+        for a in range(n):
+            pred += weights[a] * kernel_moment(nodes[a], sigma, k)
+        worst = max(worst, abs(pred - u[k]) / abs(u[k]))
+    return worst
 
 
 @nb.njit(cache=True, error_model="numpy")

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 from scipy import integrate, stats
-from scipy.special import gammaln
+from scipy.special import gammaln, poch
 
 from pbe_cfd.runs import model
 from pbe_cfd.distribution import tables
@@ -176,3 +176,103 @@ def test_projection_keeps_number_and_mass_and_puts_a_reduced_set_on_its_fit():
     eqmom_project(state, aux, arrays.params, arrays.config, work)
     assert state[0] == before[0] and state[1] == before[1]
     assert state[6] == pytest.approx(x ** 6, rel=1e-9, abs=0)
+
+
+# ---- the fewer-kernel fallback --------------------------------------------------------------
+#: a fewer-kernel fit reproduces the moments it fits: m_0 .. m_(2n-1) by its Gauss rule (round-off
+#: amplified by at most ~1e4 here, 1e-12), m_2n to the root acceptance 1e3 ROOT_TOLERANCE
+FIT_TOLERANCE = 1.0e3 * I.ROOT_TOLERANCE
+
+
+def gamma_mixture_moments(w, x, sigma, count):
+    """Closed-form moments of a gamma mixture: sum_a w_a sigma^k Gamma(l_a + k) / Gamma(l_a),
+    l_a = x_a / sigma (scipy's Pochhammer symbol)."""
+    return np.array([sum(wa * sigma ** k * poch(xa / sigma, k) for wa, xa in zip(w, x))
+                     for k in range(count)])
+
+
+def _normalised(m):
+    mean = m[1] / m[0]
+    return m / (m[0] * mean ** np.arange(m.size)), mean
+
+
+def _invert(u, n, min_shape):
+    nodes, weights, res, work = np.zeros(n), np.zeros(n), np.zeros(2), np.zeros(400)
+    status, count = I.invert_normalised(u, n, nodes, weights, work, res, min_shape)
+    return status, res[0], nodes[:count], weights[:count]
+
+
+def _fit_moments(sigma, nodes, weights, count):
+    return np.array([np.sum(weights * np.array([I.kernel_moment(x, sigma, k) for x in nodes]))
+                     for k in range(count)])
+
+
+def test_no_three_kernel_root_falls_back_to_two_kernels_of_sigma_above_zero():
+    """Two gamma kernels with M50 lowered 1%: the three-kernel J has no root on the range
+    where the star moments have a three-node rule; the closest sigma misses M60 by 3.6%. The
+    fallback is two kernels of sigma > 0 fitted to M00 .. M40: the two kernels themselves
+    (their M00 .. M40 determine them), M00 .. M40 reproduced, positive weights; they miss the
+    moments they drop (M50 by 1%) by less than the closest sigma misses M60. Without the
+    fallback: the closest sigma."""
+    w, x, sigma = [0.3, 0.7], [1.0, 4.0], 0.3
+    m = gamma_mixture_moments(w, x, sigma, 7)
+    m[5] *= 0.99
+    u, mean = _normalised(m)
+    status, s, nodes, weights = _invert(u, 3, 0.0)
+    assert status == I.FEWER and nodes.size == 2
+    assert s > 0.0 and np.all(weights > 0.0) and np.all(nodes > 0.0)
+    assert s * mean == pytest.approx(sigma, rel=1e-8, abs=0)
+    assert np.sort(nodes) * mean == pytest.approx(x, rel=1e-8, abs=0)
+    fit = _fit_moments(s, nodes, weights, 7)
+    assert fit[:5] == pytest.approx(u[:5], rel=FIT_TOLERANCE, abs=0)
+    fewer_miss = np.max(np.abs(fit[5:] / u[5:] - 1.0))
+    res = np.zeros(2)
+    assert I.invert_normalised(u, 3, np.zeros(3), np.zeros(3), np.zeros(400), res)[0] \
+        == I.CLOSEST
+    assert fewer_miss == pytest.approx(1.0 / 0.99 - 1.0, rel=1e-6, abs=0)
+    assert fewer_miss < abs(res[1])
+
+
+def test_a_kernel_narrower_than_the_aggregation_kernel_allows_is_not_used():
+    """Three kernels, one of shape l = 0.2: fitted as they are for a kernel finite at small
+    partners (min_shape 0); for EKE (beta ~ x^(-1/2): infinite M00 sources for l <= 1/2) the
+    three-kernel root is refused and two kernels of shape > 1/2 fit M00 .. M40."""
+    w, x, sigma = [0.2, 0.5, 0.3], [0.06, 2.0, 6.0], 0.3
+    u, mean = _normalised(gamma_mixture_moments(w, x, sigma, 7))
+    status, s, nodes, weights = _invert(u, 3, 0.0)
+    assert status == I.FIT and s * mean == pytest.approx(sigma, rel=1e-8, abs=0)
+    assert np.sort(nodes) * mean == pytest.approx(x, rel=1e-8, abs=0)
+    status, s, nodes, weights = _invert(u, 3, 0.5)
+    assert status == I.FEWER and nodes.size == 2
+    assert s > 0.0 and np.all(weights > 0.0) and np.all(nodes / s > 0.5)
+    assert _fit_moments(s, nodes, weights, 5) == pytest.approx(u[:5], rel=FIT_TOLERANCE, abs=0)
+
+
+def test_eke_state_takes_the_fewer_kernel_fit_projects_the_rest_and_names_it():
+    """The narrow three-kernel state of an EKE scene: the inversion takes two kernels, the
+    state is realizable, the projection keeps M00 .. M40 and writes M50, M60 of the two
+    kernels (rising factorials, closed form), and the diagnostics name the fallback."""
+    scene = make_scene(initial={"distribution": "exponential", "number_density": 1e10,
+                                "mean_mass": 1e-9},
+                       aggregation={"kernel": "eke", "rate": 1.77e-11,
+                                    "reference_diameter": 1.24e-4},
+                       method={"_replace": True, "name": "eqmom", "nodes": 3})
+    arrays = model.pack(scene)
+    aux = entry.aux(scene, arrays)
+    w, x, sigma = [2e9, 5e9, 3e9], [0.06e-9, 2e-9, 6e-9], 0.3e-9
+    state = gamma_mixture_moments(w, x, sigma, 7) / (arrays.number_scale
+                                                      * arrays.mass_scale ** np.arange(7))
+    sig, xs, ws, _, status = entry.kernels_si(state, aux, arrays)
+    assert status == I.FEWER and xs.size == 2 and sig > 0.0 and np.all(ws > 0.0)
+    assert np.all(xs / sig > 0.5)
+    work = np.zeros(S.work_size(3, state.size))
+    assert eqmom_realizable(state, aux, arrays.params, arrays.config, work)
+    before = state.copy()
+    eqmom_project(state, aux, arrays.params, arrays.config, work)
+    assert state[:5] == pytest.approx(before[:5], rel=FIT_TOLERANCE, abs=0)
+    want = gamma_mixture_moments(ws, xs, sig, 7)[5:] / (
+        arrays.number_scale * arrays.mass_scale ** np.arange(5, 7))
+    assert state[5:] == pytest.approx(want, rel=1e-10, abs=0)
+    assert abs(state[6] / before[6] - 1.0) > 1e-3          # M60 was not the fit's
+    _, notes = entry.diagnostics(np.vstack([before, before]), aux, arrays)
+    assert any("2 of 2" in n and "fewer kernels" in n for n in notes), notes
