@@ -22,6 +22,7 @@ __version__ = "0.1.0"
 #: the modules of other folders that hold numba functions or that compiled code imports.
 COMPILED = ("__init__.py", "physics/", "methods/", "integrate/", "distribution/", "transport/",
             "scene/", "io/", "util/", "runs/__init__.py", "runs/model.py", "runs/domain.py",
+            "runs/cell_gas.py",
             "bench/breakdown.py", "bench/sweeps.py")
 
 
