@@ -24,8 +24,9 @@ TEMPERATURE_RANGE = (250.0, 450.0)
 
 @dataclass(frozen=True)
 class CellInput:
-    """One per-cell drying input read from the case: ``what`` it is, the ``fields`` read, and
-    its ``values`` per mesh cell (SI: m/s or K)."""
+    """One per-cell drying input read from the case: the [drying] ``key`` that asks for it,
+    ``what`` it is, the ``fields`` read, and its ``values`` per mesh cell (SI: m/s or K)."""
+    key: str
     what: str
     fields: tuple
     values: np.ndarray
@@ -85,31 +86,32 @@ def cell_inputs(scene, cells) -> list[CellInput]:
     dry = scene.drying
     gas = gas_phase(scene, cells)
     solids = scene.domain.phase
-    out = []
-    if dry.slip_velocity_source == "cfd":
-        key = "drying.slip_velocity_source"
-        need = "slip_velocity_source = \"cfd\" reads the gas and solids velocities"
+
+    def gas_phase_for(key, need):
         if gas is None:
             raise SceneError(scene.source, key, f"{need}, but the gas phase of {_where(cells)} "
                                                 "could not be resolved (no phaseProperties, "
                                                 "and not one U.<phase> besides the solids')")
-        g_name, u_gas = _field(scene, cells, "U", gas, key, need)
+        return gas
+
+    out = []
+    if dry.slip_velocity_source == "cfd":
+        key = "drying.slip_velocity_source"
+        need = "slip_velocity_source = \"cfd\" reads the gas and solids velocities"
+        g_name, u_gas = _field(scene, cells, "U", gas_phase_for(key, need), key, need)
         s_name, u_solids = _field(scene, cells, "U", solids, key, need)
-        out.append(CellInput("slip velocity [m/s]", (g_name, s_name),
+        out.append(CellInput("slip_velocity_source", "slip velocity [m/s]", (g_name, s_name),
                              np.linalg.norm(u_gas - u_solids, axis=1)))
     if dry.air_temperature_source == "cfd":
         key = "drying.air_temperature_source"
         need = "air_temperature_source = \"cfd\" reads the gas temperature"
-        if gas is None:
-            raise SceneError(scene.source, key, f"{need}, but the gas phase of {_where(cells)} "
-                                                "could not be resolved")
-        name, temp = _field(scene, cells, "T", gas, key, need)
+        name, temp = _field(scene, cells, "T", gas_phase_for(key, need), key, need)
         lo, hi = TEMPERATURE_RANGE
         if not (temp.min() >= lo and temp.max() <= hi):
             raise SceneError(scene.source, key,
                              f"field {name} of {_where(cells)} spans {temp.min():.4g}.."
                              f"{temp.max():.4g} K: expected {lo:g}..{hi:g} K")
-        out.append(CellInput("gas temperature [K]", (name,), temp))
+        out.append(CellInput("air_temperature_source", "gas temperature [K]", (name,), temp))
     return out
 
 
@@ -120,7 +122,7 @@ def fill_gas_rows(scene, cells, rows: np.ndarray) -> list[CellInput]:
     inputs = cell_inputs(scene, cells)
     dry = scene.drying
     for item in inputs:
-        if item.what.startswith("slip"):
+        if item.key == "slip_velocity_source":
             rows[:, P.SLIP_VELOCITY] = item.values
         else:
             driving, reynolds, schmidt = gas_state_cells(item.values, dry.air_humidity,
@@ -135,13 +137,13 @@ def source_lines(scene, cells, active) -> list[str]:
     """The plan's lines on where each per-cell drying input comes from: the scene's value, or
     the CFD's fields with their range over the ``active`` cells (mask)."""
     dry = scene.drying
-    inputs = {item.what: item for item in cell_inputs(scene, cells)} if cells is not None \
+    inputs = {item.key: item for item in cell_inputs(scene, cells)} if cells is not None \
         else {}
     out = []
     for what, scene_value, key in (
             ("slip velocity [m/s]", dry.slip_velocity, "slip_velocity_source"),
             ("gas temperature [K]", dry.air_temperature, "air_temperature_source")):
-        item = inputs.get(what)
+        item = inputs.get(key)
         if item is None:
             out.append(f"    {what}: the scene's {scene_value:g}, in every cell (per cell from "
                        f"the case with [drying] {key} = \"cfd\")")
