@@ -86,6 +86,9 @@ def _scaled_axis(ax, unit: str):
     ax.set_ylabel(f"[1e{exp} {unit}]" if unit != "-" else f"[1e{exp}]", fontsize=9)
 
 
+#: line styles of the curves of one panel, in drawing order
+_LINE_STYLES = ("-", "--", ":", "-.")
+
 #: Drawing cost of bed_moments.png in the units of the field pictures' tasks (``render``: 0.4
 #: + 0.6 per picture): measured warm on the bundled fluid bed, 1.0 s of CPU for its seven
 #: panels against 0.17 s for a field's two pictures (1.6 units)
@@ -132,9 +135,12 @@ def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
     _fixed_margins(fig, width, height, nrow, ncol)
     for ax, (name, cols, unit) in zip(axes.ravel(), panels):
         factor, unit = PICTURE_UNITS.get(unit, (1.0, unit))     # diameters in um
-        for c in cols:
+        for k, c in enumerate(cols):
             y = col[c] * factor
-            ax.plot(t, y, lw=1.6, label=_LABELS.get(c, (c,))[0] if c.endswith("_m") else c)
+            # each later curve dashed over the one before: curves that coincide (d10 = d50
+            # while the primaries carry most of the mass) stay visible, not hidden
+            ax.plot(t, y, lw=1.6, ls=_LINE_STYLES[k % len(_LINE_STYLES)],
+                    label=_LABELS.get(c, (c,))[0] if c.endswith("_m") else c)
         ys = np.concatenate([col[c] * factor for c in cols])
         pos = ys[np.isfinite(ys) & (ys > 0)]
         log = pos.size > 1 and pos.max() / pos.min() > 100 and np.all(ys[np.isfinite(ys)] >= 0)

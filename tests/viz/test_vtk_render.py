@@ -244,6 +244,24 @@ def test_plot_bed_moments(tmp_path):
         plot_bed_moments(bad, tmp_path / "x.png")
 
 
+def test_curves_that_coincide_stay_visible(tmp_path):
+    """d10 = d50 for a whole run (the primaries carry over half the mass, as in the bundled
+    bed's first minute): every curve of a panel gets its own line style, so the later one is
+    drawn dashed over the earlier and neither hides the other."""
+    from pbe_cfd.viz.render import bed_moments_figure
+    t = np.linspace(0, 60, 13)
+    d = np.full_like(t, 100.4e-6)
+    cols = {"time_s": t, "d10_m": d, "d50_m": d, "d90_m": d * (1 + t / 200)}
+    csv = tmp_path / "bed_moments.csv"
+    csv.write_text(",".join(cols) + "\n" + "\n".join(
+        ",".join(repr(float(cols[k][i])) for k in cols) for i in range(len(t))) + "\n")
+    fig = bed_moments_figure(csv, title="my-bed")
+    lines = [ln for ax in fig.axes for ln in ax.get_lines()]
+    assert [ln.get_label() for ln in lines] == ["d10", "d50", "d90"]
+    styles = [ln.get_linestyle() for ln in lines]
+    assert len(set(styles)) == 3, styles
+
+
 def test_a_truncated_vtu_is_one_error_and_nothing_printed(tmp_path, capfd):
     """A VTU cut short (a killed writer): reading its section raises one ValueError naming the
     file, and neither meshio (which prints, then calls sys.exit) nor VTK's reader (a page of
