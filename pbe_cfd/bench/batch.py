@@ -1,10 +1,10 @@
 """The batch study (``pbe-cfd bench batch``): what a whole batch costs and what its lag does.
 
 In one process, after a warm-up run of each scene's first output interval (the kernels compile
-or load; both scenes run the same QMOM kernel), interleaved over ``repeats`` rounds:
-``fluid-bed-transport`` and ``fluid-bed-batch`` to the same process time (the batch's), and
-the batch at half its ``air_interval`` (the lag of the bed's humidity, docs/physics.md
-section 15). Per run: the run's wall time (``run_coupled``'s, without the compile), its solve
+or load; the QMOM scenes run the same kernel), interleaved over ``repeats`` rounds:
+``fluid-bed-transport`` and ``fluid-bed-batch`` to the same process time (the batch's), the
+batch at half its ``air_interval`` (the lag of the bed's humidity, docs/physics.md
+section 15), and the batch with CQMOM 2 x 2 in place of QMOM N = 2. Per run: the run's wall time (``run_coupled``'s, without the compile), its solve
 phase, accepted cell-steps per second of wall time, RHS calls; per batch run its end-of-spray
 and end moisture and d50. The ratio to fluid-bed-transport is of the medians of the same round
 set.
@@ -21,15 +21,19 @@ import numpy as np
 from ..scene.scene import load_scene
 from .common import _git_describe, _machine_line, _say, _write_simple, machine_info
 
-#: the variants: (label, scene name, air_interval factor or None)
-VARIANTS = (("fluid-bed-transport", "fluid-bed-transport", None),
-            ("fluid-bed-batch", "fluid-bed-batch", 1.0),
-            ("fluid-bed-batch, air_interval / 2", "fluid-bed-batch", 0.5))
+#: the variants: (label, scene name, air_interval factor or None, [method] keys replaced)
+VARIANTS = (("fluid-bed-transport", "fluid-bed-transport", None, {}),
+            ("fluid-bed-batch", "fluid-bed-batch", 1.0, {}),
+            ("fluid-bed-batch, air_interval / 2", "fluid-bed-batch", 0.5, {}),
+            ("fluid-bed-batch, CQMOM 2 x 2", "fluid-bed-batch", 1.0,
+             {"name": "cqmom", "nodes": 2, "binder_nodes": 2}))
 
 
-def _scene(name, factor, end, interval):
+def _scene(name, factor, end, interval, method=None):
     scene = load_scene(name)
     scene = dataclasses.replace(scene, end_time=end, output_interval=interval)
+    if method:
+        scene = scene.with_method(**method)
     if factor is not None and factor != 1.0:
         scene = dataclasses.replace(scene, drying=dataclasses.replace(
             scene.drying, air_interval=scene.drying.air_interval * factor))
@@ -53,8 +57,8 @@ def batch_rows(quick=False, repeats=1, quiet=False) -> tuple[list, dict]:
     if quick:
         stop = 12.0
     scenes = {}
-    for label, name, factor in VARIANTS:
-        sc = _scene(name, factor, end, interval)
+    for label, name, factor, method in VARIANTS:
+        sc = _scene(name, factor, end, interval, method)
         if quick and sc.drying is not None:
             inj = sc.binder_injection
             sc = dataclasses.replace(sc, binder_injection=dataclasses.replace(
