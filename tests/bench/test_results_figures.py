@@ -181,6 +181,9 @@ def variant_for(method, knob):
         n1, n2 = (int(x) for x in re.search(r"=\s*(\d+)\s*x\s*(\d+)", knob).groups())
         return [V("cqmom", f"N1={n1} N2={n2}", {"name": "cqmom", "nodes": n1,
                                                 "binder_nodes": n2})]
+    if method == "EQMOM":
+        n = int(knob.split("=")[1])
+        return [V("eqmom", f"N={n}", {"name": "eqmom", "nodes": n})]
     if method == "cNMC":
         particles, replicas = (float(x) for x in knob.split("x"))
         return [V("cnmc", knob, {"name": "cnmc", "particles": int(particles),
