@@ -123,8 +123,9 @@ def test_the_hard_case_finishes_by_default_across_the_switches():
 
 
 # Theta [m2/s2] and width of the variants (alpha 1e-4 or 1e-5 below packing is the same cell
-# here: g0 is evaluated at the friction cap 0.5). Theta 10 runs out of its step budget at 3.5 s
-# with the sharp and the smooth switch alike (stiff, not the step): not among them.
+# here: g0 is evaluated at the friction cap 0.5). Theta 10 with the default sharp step: its own
+# test below; with a smooth switch of width 0.005 it runs out of its step budget at 5.04 s
+# (stiff, not the step): not among them.
 VARIANTS = [(1e-6, 0.0), (1e-6, 0.005), (1e-2, 0.0), (1.0, 0.0), (2.0, 0.01)]
 
 
@@ -137,3 +138,18 @@ def test_variants_finish_with_finite_realizable_moments(theta, width):
     assert_finite_realizable_exact(res.columns)
     if width > 0.0:
         assert res.stats["smooth_stokes_cells"] == 0
+
+
+@pytest.mark.slow
+def test_theta_10_finishes_sharp_all_through():
+    """Theta 10 m2/s2 under the friction cap, the default sharp step (it once ran out of its
+    step budget at 3.5 s): the 20 s finish, finite, realizable, M10 and M01 exact, across the
+    switches without the smooth fallback (319,239 steps, docs/results/hard-cases.md). With the
+    sliding rule off (integrate.switches.N_SLIDE = 0) the run stalls at 0.72 s, falls back to
+    the smooth switch and takes 781,311 steps: this test goes red."""
+    res = run_well_mixed(hard_scene(theta=10.0))
+    c = res.columns
+    assert c["time_s"][-1] == pytest.approx(20.0, rel=1e-12, abs=0)
+    assert_finite_realizable_exact(c)
+    assert res.stats["stokes_switch_steps"] > 0          # it does cross the switch
+    assert res.stats["smooth_stokes_cells"] == 0
