@@ -148,6 +148,23 @@ def mixed_index(n, k, l):
     return 2 * n + (l - 1) * n + k
 
 
+@nb.njit(cache=True, inline="always")
+def _sort_points(ys, rs, cnt):
+    """Order the conditional points of one size node by binder fraction (insertion sort of
+    ys with their weights rs): a point keeps its place, and its row, however the conditional
+    inversion lists them (interior and boundary points come in either order)."""
+    for i in range(1, cnt):
+        y = ys[i]
+        r = rs[i]
+        j = i - 1
+        while j >= 0 and ys[j] > y:
+            ys[j + 1] = ys[j]
+            rs[j + 1] = rs[j]
+            j -= 1
+        ys[j + 1] = y
+        rs[j + 1] = r
+
+
 @nb.njit(cache=True, error_model="numpy")
 def _points_of_nodes(n_max, m, n, work, bivariate):
     """Points of the n size nodes from their conditional fraction moments (scaled units)."""
@@ -177,6 +194,7 @@ def _points_of_nodes(n_max, m, n, work, bivariate):
             rs[0] = 1.0
         else:
             cnt = gauss_unit_interval(work[oc + a * 2 * m:oc + (a + 1) * 2 * m], m, ys, rs, gw)
+            _sort_points(ys, rs, cnt)
         counts[a] = cnt
         for b in range(cnt):
             px[base + b] = x[a]
