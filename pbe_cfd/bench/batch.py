@@ -4,10 +4,10 @@ In one process, after a warm-up run of each scene's first output interval (the k
 or load; the QMOM scenes run the same kernel), interleaved over ``repeats`` rounds:
 ``fluid-bed-transport`` and ``fluid-bed-batch`` to the same process time (the batch's), the
 batch at half its ``air_interval`` (the lag of the bed's humidity, docs/physics.md
-section 15), and the batch with CQMOM 2 x 2 in place of QMOM N = 2. Per run: the run's wall time (``run_coupled``'s, without the compile), its solve
-phase, accepted cell-steps per second of wall time, RHS calls; per batch run its end-of-spray
-and end moisture and d50. The ratio to fluid-bed-transport is of the medians of the same round
-set.
+section 15), and the batch with CQMOM 2 x 2 in place of QMOM N = 2. Per run: the run's wall
+time (``run_coupled``'s, without the compile), its solve phase, accepted cell-steps per second
+of wall time, RHS calls; per batch run its end-of-spray and end moisture and d50. The ratio
+to fluid-bed-transport is of the medians of the same round set.
 """
 from __future__ import annotations
 
