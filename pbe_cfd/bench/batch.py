@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..methods.cqmom import ENTRY as CQMOM
 from ..scene.scene import load_scene
 from .common import _git_describe, _machine_line, _say, _write_simple, machine_info
 
@@ -26,7 +27,7 @@ VARIANTS = (("fluid-bed-transport", "fluid-bed-transport", None, {}),
             ("fluid-bed-batch", "fluid-bed-batch", 1.0, {}),
             ("fluid-bed-batch, air_interval / 2", "fluid-bed-batch", 0.5, {}),
             ("fluid-bed-batch, CQMOM 2 x 2", "fluid-bed-batch", 1.0,
-             {"name": "cqmom", "nodes": 2, "binder_nodes": 2}))
+             {"name": CQMOM.name, "nodes": 2, "binder_nodes": 2}))
 
 
 def _scene(name, factor, end, interval, method=None):
