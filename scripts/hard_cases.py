@@ -56,11 +56,15 @@ def main(argv=None) -> int:
     ap.add_argument("--width", type=float, default=0.0)
     ap.add_argument("--rtol", type=float, default=1e-8)
     ap.add_argument("--end", type=float, default=20.0, help="end time [s] (outputs: 10)")
+    ap.add_argument("--outputs", type=int, default=10, help="number of output intervals")
+    ap.add_argument("--series", action="store_true",
+                    help="also print time_s, M00 [1/m3] and d43 [m] at every output "
+                         "(series_*)")
     ap.add_argument("--particles", type=int, default=2000)
     ap.add_argument("--replicas", type=int, default=4)
     a = ap.parse_args(argv)
     scene = hard_scene(a.method, a.theta, a.alpha, a.width, a.rtol, a.particles, a.replicas)
-    scene = dataclasses.replace(scene, end_time=a.end, output_interval=a.end / 10)
+    scene = dataclasses.replace(scene, end_time=a.end, output_interval=a.end / a.outputs)
     row = {"method": a.method, "theta": a.theta, "alpha": a.alpha, "width": a.width,
            "rtol": a.rtol}
     start = time.perf_counter()
@@ -82,6 +86,9 @@ def main(argv=None) -> int:
                    accepted_steps=int(res.stats.get("accepted_steps", 0)),
                    stokes_switch_steps=int(res.stats.get("stokes_switch_steps", 0)),
                    warnings=[w[:160] for w in res.warnings])
+        if a.series:
+            row.update({"series_" + k: [float(v) for v in c[k]]
+                        for k in ("time_s", "M00", "d43_m")})
     print(json.dumps(row), flush=True)
     return 0
 

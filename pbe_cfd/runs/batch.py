@@ -24,9 +24,11 @@ from ..scene.scene import SceneError
 from ..util.progress import compile_text, notice_if_slow, record_compile_s
 
 #: relative width w of the smooth viscous Stokes switch, 0.5 (1 - tanh((St - St*)/(w St*))),
-#: a cell continues with when its step controller stalls under the sharp step (docs/results/
-#: hard-cases.md: how much the width moves the result)
-STOKES_FALLBACK_WIDTH = 0.005
+#: a cell continues with when its step controller stalls under the sharp step. Ours: the
+#: widest that stays on the sharp solution of the hard cell at Theta 10 m2/s2 (M00 -0.35% at
+#: 6 s; w = 0.005 leaves it at 1 s for an aggregation runaway the cNMC does not show:
+#: docs/results/hard-cases.md, "The smooth switch's width at Theta 10")
+STOKES_FALLBACK_WIDTH = 0.001
 
 
 class SimulationError(RuntimeError):
