@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from pbe_cfd import integrate
+from pbe_cfd.integrate import cell as cell_integrator
 from pbe_cfd.runs import model
 from pbe_cfd.runs.batch import CellBatch
 from pbe_cfd.integrate import codes
@@ -402,3 +403,31 @@ print(json.dumps({"laguerre": len(laguerre.laguerre_rhs.signatures),
     assert seen["laguerre"] == 0 and seen["rodas3"] == 0 and seen["jacobian"] == 0
     assert seen["exponential"] == 0
     assert seen["kernels"] == ["Literal[int](0) Literal[int](0)"]
+
+
+def test_the_droplets_liquid_counts_with_the_droplets_in_the_capture_test():
+    """With [drying] the droplets carry their liquid L_d (an entry of its own). The capture
+    column moves it with n_d, so what is left of its rate after the capture is the sprayed
+    droplets' liquid R b_d: relative to L_d = n_d b_d that is R / n_d, at least the capture
+    rate kappa wherever n_d is at or below its steady R / kappa. Counted among the other
+    entries it made the test ``rate_d > CAPTURE_DOMINANCE rate_g`` fail in every droplet
+    transient of a sprayed cell (the spray cells of fluid-bed-batch took 1 exponential step
+    per cell in 60 s, against 633 without the entry). A state in a transient: droplets at a
+    tenth of steady, granules changing at 1e-3 kappa; the droplets' relative rate 9 kappa
+    passes against the granules' (it is the droplet population's own transient) and fails
+    against R / n_d = 10 kappa."""
+    kappa, R, bd = 100.0, 1e8, 0.5              # 1/s, droplets/(m3 s), liquid per droplet
+    nd = 0.1 * R / kappa
+    # entries: two granule moments, the droplets' liquid, the evaporated liquid, n_d
+    state = np.array([1.0, 2.0, nd * bd, 0.0, nd])
+    g = np.array([0.0, 0.0, -kappa * bd, 0.0, -kappa])        # d f / d n_d (capture)
+    f0 = np.array([-1e-3 * kappa, 2e-3 * kappa, R * bd - kappa * nd * bd, 0.0, R - kappa * nd])
+    d, liquid, n = 4, 2, 5
+    rate_d, rate_g = cell_integrator._droplet_rates(state, f0, g, d, liquid, n, 1e-8, 1e-20)
+    assert rate_d == pytest.approx(9.0 * kappa, rel=1e-12, abs=0)
+    assert rate_g == pytest.approx(1e-3 * kappa, rel=1e-12, abs=0)
+    assert cell_integrator._capture_pays(state, f0, g, d, liquid, n, 1e-8, 1e-20)
+    # the liquid counted as another entry (no liquid entry named): R / n_d = 10 kappa
+    _, counted = cell_integrator._droplet_rates(state, f0, g, d, -1, n, 1e-8, 1e-20)
+    assert counted == pytest.approx(10.0 * kappa, rel=1e-12, abs=0)
+    assert not cell_integrator._capture_pays(state, f0, g, d, -1, n, 1e-8, 1e-20)
