@@ -17,7 +17,16 @@ reconstruction:
 - the liquid at each mass node: its conditional mean and second moment from W01, W11 and
   W02, W12 (the 2 x 2 Vandermonde system of the nodes, as CQMOM's conditional moments), two
   points mean -+ sigma of half the node's weight; each clipped into 0 <= b <= p keeping W01
-  (then the balances stay exact).
+  (then the balances stay exact);
+- a node whose liquid variance v is below H^2, H = CONTINUE_SPREAD times its mean liquid c:
+  the pair c -+ H with the weight t w and the point c with (1 - t) w, t = v / H^2 for v >= 0
+  and tanh(v / H^2) for v < 0 (where the carried moments lie outside the realizable set:
+  a negative weight on the pair, at most w). Every sum over the points is then the pair's
+  continued linearly in v from v = 0 to v = H^2, matching the carried conditional second
+  moment there, and smoothly (twice differentiable) held below: the RHS has no kink on the
+  realizability boundary
+  W00 W02 = W01^2 (a monodisperse class), where an integrator's stages go both ways (one
+  liquid point, as before, put the Hankel gap into the relative rate on one side only).
 
 The drift of W10 and W01 is that measure's -sum w e, exactly minus the evaporation, so M10 + E,
 M01 + E and the binder solids M10 - M01 are invariants of the term. Every other moment W_a
@@ -48,6 +57,12 @@ WET_LIQUID = moment_index(2).index((0, 1))
 #: whose square root would otherwise split one node in two by ~1e-6 and amplify that noise
 #: through the conditional means' 1 / (x2 - x1)
 SINGLE_NODE_VARIANCE = 1e-8
+#: half-width of a node's liquid pair, as a share of its mean liquid, below which the pair's
+#: sums are continued linearly in the variance (module docstring), ours: wide enough that
+#: the difference of the pair's and the centre's sums keeps 10 digits (the pair's sums differ
+#: from the centre's by ~(H / c)^2 = 1e-6 relative), narrow against any spread a population
+#: carries
+CONTINUE_SPREAD = 1e-3
 
 
 def drying_on(config) -> bool:
@@ -84,31 +99,41 @@ def _clip_means(x1, x2, w1, w2, liquid, c1, c2):
 
 
 @nb.njit(cache=True, inline="always")
-def _spread(x, c, second):
-    """Half-width of a node's two liquid points: sqrt(second - c^2), within [0, x] about c (0
-    below SINGLE_NODE_VARIANCE)."""
+def _node_points(x, c, second, w):
+    """A mass node's liquid points (module docstring) [scaled]: (half-width h, weight of the
+    centre point c, weight of the pair c -+ h together). x the node's mass, c its mean liquid
+    (in [0, x]), second its conditional second moment, w its weight."""
+    reach = min(c, x - c)                   # the points stay in 0 <= b <= x
+    if not (w > 0.0 and reach > 0.0):
+        return 0.0, w, 0.0
     var = second - c * c
-    if not var > SINGLE_NODE_VARIANCE * c * c:
-        return 0.0
-    return min(math.sqrt(var), c, x - c)
+    h0 = min(CONTINUE_SPREAD * c, reach)
+    if var >= h0 * h0:
+        return min(math.sqrt(var), reach), 0.0, w
+    t = var / (h0 * h0)
+    if t < 0.0:                 # outside: continued as far as -h0^2, then held at t = -1
+        t = math.tanh(t)
+    return h0, (1.0 - t) * w, t * w
 
 
 @nb.njit(cache=True)
 def wet_points(state, m):
-    """The positive point measure of the wet class (module docstring) [scaled]: (x1, x2, w1,
-    w2, c1, c2, h1, h2): mass nodes x, weights w, liquid means c and half-widths h; node a's
-    points are (x_a, c_a -+ h_a), each of weight w_a / 2. w1 = 0 where there is no wet class."""
+    """The point measure of the wet class (module docstring) [scaled]: (x1, x2, c1, c2, h1,
+    h2, a1, a2, b1, b2): mass nodes x, liquid means c, half-widths h, the centre points'
+    weights a and the pairs' weights b (each of a pair's two points b / 2). Node a's points
+    are (x_a, c_a) and (x_a, c_a -+ h_a). a1 + b1 = 0 where there is no wet class."""
     w00 = state[0]
     w10 = state[m]
     if not (w00 > 0.0 and w10 > 0.0):
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     w01 = min(max(state[1], 0.0), w10)
     mu = w10 / w00
     var = state[2 * m] / w00 - mu * mu if m >= 3 else 0.0
     if not var > SINGLE_NODE_VARIANCE * mu * mu:
         c = w01 / w00
-        h = _spread(mu, c, state[2] / w00) if m >= 3 else 0.0
-        return mu, mu, w00, 0.0, c, c, h, 0.0
+        second = state[2] / w00 if m >= 3 else c * c
+        h, a, b = _node_points(mu, c, second, w00)
+        return mu, mu, c, c, h, 0.0, a, 0.0, b, 0.0
     k = mu * mu / var
     theta = var / mu
     s = math.sqrt(k + 1.0)
@@ -117,38 +142,42 @@ def wet_points(state, m):
     c1, c2 = _conditional(x1, x2, w1, w2, w01, state[m + 1])
     c1, c2 = _clip_means(x1, x2, w1, w2, w01, c1, c2)
     q1, q2 = _conditional(x1, x2, w1, w2, state[2], state[m + 2])
-    return x1, x2, w1, w2, c1, c2, _spread(x1, c1, q1), _spread(x2, c2, q2)
+    h1, a1, b1 = _node_points(x1, c1, q1, w1)
+    h2, a2, b2 = _node_points(x2, c2, q2, w2)
+    return x1, x2, c1, c2, h1, h2, a1, a2, b1, b2
+
+
+N_POINTS = 6                                    # per wet class: 3 per mass node
 
 
 @nb.njit(cache=True, inline="always")
 def _point(q, pts):
-    """(x, b, w) of point q < 4 of ``wet_points``."""
-    x1, x2, w1, w2, c1, c2, h1, h2 = pts
-    if q < 2:
-        return x1, c1 - h1 if q == 0 else c1 + h1, 0.5 * w1
-    return x2, c2 - h2 if q == 2 else c2 + h2, 0.5 * w2
+    """(x, b, w) of point q < N_POINTS of ``wet_points``: per node the centre, then the pair."""
+    x1, x2, c1, c2, h1, h2, a1, a2, b1, b2 = pts
+    x, c, h, a, b = (x1, c1, h1, a1, b1) if q < 3 else (x2, c2, h2, a2, b2)
+    r = q % 3
+    if r == 0:
+        return x, c, a
+    return x, c - h if r == 1 else c + h, 0.5 * b
+
+
+@nb.njit(cache=True, inline="always")
+def _point_rate(q, pts, scale, gas, params):
+    """e [scaled mass per s] of point q of ``wet_points`` in ``gas``
+    (``physics.drying.cell_gas``) times its weight (0 for a point of no weight or no
+    liquid)."""
+    x, b, w = _point(q, pts)
+    if w == 0.0 or not b > 0.0:
+        return 0.0
+    return w * drying_rate(x * scale, b * scale, gas, params) / scale
 
 
 @nb.njit(cache=True, inline="always")
 def _point_rates(pts, scale, gas, params):
-    """e [scaled mass per s] of the four points of ``wet_points`` in ``gas``
-    (``physics.drying.cell_gas``), each times its weight (0 for a point of no weight or no
-    liquid)."""
-    r0 = r1 = r2 = r3 = 0.0
-    for q in range(4):
-        x, b, w = _point(q, pts)
-        if w == 0.0 or not b > 0.0:
-            continue
-        e = w * drying_rate(x * scale, b * scale, gas, params) / scale
-        if q == 0:
-            r0 = e
-        elif q == 1:
-            r1 = e
-        elif q == 2:
-            r2 = e
-        else:
-            r3 = e
-    return r0, r1, r2, r3
+    """The N_POINTS weighted rates of ``_point_rate`` (a tuple: the RHS allocates nothing)."""
+    return (_point_rate(0, pts, scale, gas, params), _point_rate(1, pts, scale, gas, params),
+            _point_rate(2, pts, scale, gas, params), _point_rate(3, pts, scale, gas, params),
+            _point_rate(4, pts, scale, gas, params), _point_rate(5, pts, scale, gas, params))
 
 
 @nb.njit(cache=True)
@@ -165,10 +194,12 @@ def add_laguerre_drying(state, out, cell, aux, params, config):
     if not state[WET_LIQUID] > 0.0:
         return
     pts = wet_points(state, m)
-    if pts[2] == 0.0:
+    if pts[6] + pts[8] == 0.0:
         return
     rates = _point_rates(pts, params[P.MASS_SCALE], cell_gas(cell, params, config), params)
-    evaporated = rates[0] + rates[1] + rates[2] + rates[3]
+    evaporated = 0.0
+    for q in range(N_POINTS):
+        evaporated += rates[q]
     if evaporated == 0.0:
         return
     for i in range(m):
@@ -177,7 +208,7 @@ def add_laguerre_drying(state, out, cell, aux, params, config):
                 continue
             drift = 0.0
             carried = 0.0                       # the points' own W_ij
-            for q in range(4):
+            for q in range(N_POINTS):
                 x, b, w = _point(q, pts)
                 if w == 0.0:
                     continue
