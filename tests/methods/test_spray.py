@@ -73,7 +73,8 @@ def _scene(method, **injection):
 
 METHODS = {"qmom": {"name": "qmom", "nodes": 3},
            "cqmom": {"name": "cqmom", "nodes": 2, "binder_nodes": 2},
-           "laguerre": {"name": "laguerre", "order": 3}}
+           "laguerre": {"name": "laguerre", "order": 3},
+           "eqmom": {"name": "eqmom", "nodes": 2}}
 SCHEDULES = {"start-stop": {"rate": RATE, "start": 2.25, "stop": 6.5},
              "segments": {"schedule": [[1.0, RATE], [3.75, 0.25 * RATE], [5.0, 0.0],
                                        [7.0, RATE]]}}
@@ -129,11 +130,11 @@ def test_the_cnmc_refuses_a_schedule_it_cannot_run():
     assert err.value.key == "binder_injection.schedule"
 
 
-@pytest.mark.parametrize("method", ["qmom", "cqmom", "laguerre"])
+@pytest.mark.parametrize("method", ["qmom", "cqmom", "laguerre", "eqmom"])
 def test_only_a_method_whose_own_droplets_hold_solids_takes_a_solution(method):
-    """Droplets of their own ([aggregation] droplet_factor) with binder solids: the Laguerre
-    ROM's capture tensors hold pure-liquid droplets (b = p_d) and refuse; pure liquid, and the
-    quadratures, are accepted."""
+    """Droplets of their own ([aggregation] droplet_factor) with binder solids: EQMOM's
+    droplets hold pure liquid and refuse; pure liquid, the other quadratures and the Laguerre
+    ROM (its capture tensors at the droplet's (p_d, b_d)) are accepted."""
     def scene(solids):
         return make_scene(scene={"end_time": END, "output_interval": 0.5},
                           initial={"mean_mass": P0, "number_density": N0},
@@ -142,7 +143,7 @@ def test_only_a_method_whose_own_droplets_hold_solids_takes_a_solution(method):
                                             "solids_fraction": solids},
                           method={"_replace": True, **METHODS[method]})
     assert scene(0.0).separate_droplets
-    if method == "laguerre":
+    if method == "eqmom":
         with pytest.raises(SceneError) as err:
             scene(SOLIDS)
         assert err.value.key == "binder_injection.solids_fraction"
@@ -186,3 +187,58 @@ droplet_diameter = 60e-6
 [method]
 name = "qmom"
 """
+
+
+def _captured_hierarchy(factor, y0, times):
+    """The constant kernel's closed moment hierarchy with droplets of their own (mass p_d,
+    liquid b_d = (1 - s) p_d) sprayed at RATE and captured at factor k0 per granule, from an
+    exponential start of binder fraction y0: granule M00, M10, M01, M20, M11, M02 and n_d at
+    ``times`` (solve_ivp, rtol 1e-13; an independent reference: only the hierarchy)."""
+    from scipy.integrate import solve_ivp
+    pd = model.droplet_mass(D_DROP, 1000.0)
+    bd = (1.0 - SOLIDS) * pd
+    kc = factor * K0
+
+    def rates(t, y):
+        n, m10, m01, m20, m11, m02, nd = y
+        c = kc * nd
+        return [-0.5 * K0 * n * n, c * pd * n, c * bd * n,
+                K0 * m10 * m10 + c * (2 * pd * m10 + pd * pd * n),
+                K0 * m10 * m01 + c * (pd * m01 + bd * m10 + pd * bd * n),
+                K0 * m01 * m01 + c * (2 * bd * m01 + bd * bd * n),
+                RATE - c * n]
+    y0v = [N0, N0 * P0, y0 * N0 * P0, 2 * N0 * P0 ** 2, 2 * y0 * N0 * P0 ** 2,
+           2 * y0 ** 2 * N0 * P0 ** 2, 0.0]
+    scale = N0 * np.array([1.0, P0, P0, P0 ** 2, P0 ** 2, P0 ** 2, 1.0])
+    sol = solve_ivp(rates, (0.0, times[-1]), y0v, t_eval=times, rtol=1e-13,
+                    atol=1e-16 * scale, method="DOP853")
+    assert sol.success, sol.message
+    return sol.y, pd, bd
+
+
+@pytest.mark.parametrize("y0", [0.1, 0.0], ids=["wet-start", "dry-start"])
+def test_laguerre_captures_solution_droplets_of_their_own_exactly(y0):
+    """The Laguerre ROM with droplets of their own carrying binder solids (s = SOLIDS):
+    granules aggregate (constant kernel) and capture droplets at 2 k0 each, every carried
+    moment of the population (free droplets at (p_d, b_d) included, as the output columns)
+    and n_d follow the closed hierarchy to TOL, from a wet start (the wet class's capture
+    tensors) and a dry one (the dry class's, its captures handed to the wet class). With the
+    capture at b_d = p_d (pure liquid) M01 fails."""
+    factor = 2.0
+    scene = make_scene(scene={"end_time": END, "output_interval": 0.5},
+                       initial={"mean_mass": P0, "number_density": N0, "binder_fraction": y0,
+                                "distribution": "exponential"},
+                       aggregation={"kernel": "constant", "rate": K0, "droplet_factor": factor},
+                       binder_injection={"droplet_diameter": D_DROP, "rate": RATE,
+                                         "solids_fraction": SOLIDS},
+                       method={"_replace": True, "rtol": 1e-11, "atol": 1e-16,
+                               **METHODS["laguerre"]})
+    c = run_well_mixed(scene).columns
+    t = np.asarray(c["time_s"])
+    (n, m10, m01, m20, m11, m02, nd), pd, bd = _captured_hierarchy(factor, y0, t)
+    assert np.allclose(c["droplet_number_density"], nd, rtol=TOL, atol=TOL * nd.max())
+    for name, granule, (i, j) in (("M00", n, (0, 0)), ("M10", m10, (1, 0)),
+                                  ("M01", m01, (0, 1)), ("M20", m20, (2, 0)),
+                                  ("M11", m11, (1, 1)), ("M02", m02, (0, 2))):
+        expected = granule + nd * pd ** i * bd ** j
+        assert np.allclose(c[name], expected, rtol=TOL, atol=0.0), name

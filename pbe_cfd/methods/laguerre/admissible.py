@@ -10,6 +10,7 @@ import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
+from ...physics.injection import droplet_liquid
 from .layout import AUX_CHECK_LEVEL
 
 __all__ = ["laguerre_realizable", "laguerre_project", "laguerre_conserved",
@@ -156,12 +157,14 @@ def laguerre_conserved(config, params, pivots, coefs):
     """Linear invariants of the ROM state for the time integrator: rows c of ``coefs``
     (n_inv, N_STATE) with c . d(state)/dt independent of the state (the injection only):
     granule mass M10 = W10 + D1 (wet and dry classes) and binder mass M01 = W01 (the dry
-    class holds none), each plus the droplets' x_d n_d (x_d = p_d / p_ref) and drying's E.
+    class holds none), each plus the droplets' x_d n_d and x_l n_d (x_d = p_d / p_ref, x_l =
+    b_d / p_ref their liquid) and drying's E.
     ``pivots[r]`` is the entry with coefficient 1 (W10, W01). Returns the count."""
     m = config[P.ORDER]
     n = config[P.N_STATE]
     K = m * m
     xd = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
+    xl = droplet_liquid(params) / params[P.MASS_SCALE]
     for r in range(2):
         for k in range(n):
             coefs[r, k] = 0.0
@@ -170,7 +173,7 @@ def laguerre_conserved(config, params, pivots, coefs):
         if r == 0:
             coefs[r, K + 1] = 1.0               # dry D1
         if config[P.SEPARATE_DROPLETS] == 1 and n > K + m:
-            coefs[r, K + m] = xd
+            coefs[r, K + m] = xd if r == 0 else xl
         coefs[r, n - 1] += config[P.DRYING]     # E, the last entry, with drying
     return 2
 

@@ -26,6 +26,7 @@ import os
 import numpy as np
 
 from ...physics import parameters as P
+from ...physics.injection import droplet_liquid
 from ...physics.efficiency import uses_collision_velocity
 from .basis import GRADED, SPACINGS
 from .breakage import breakage_blocks
@@ -321,7 +322,7 @@ def _slice_grids(grid, pairs, spec):
     return out
 
 
-def _slice_tensors(t, s, bases, grids, dry, k, shared, u0, kargs, m, pd, p_ref):
+def _slice_tensors(t, s, bases, grids, dry, k, shared, u0, kargs, m, pd, p_ref, bd):
     """Fill the blocks of collision-velocity slice s: k the kernel data on the first basis's
     nodes; with per-slice nodes (not shared) the wet and cross kernels are evaluated per
     weight slice."""
@@ -337,7 +338,7 @@ def _slice_tensors(t, s, bases, grids, dry, k, shared, u0, kargs, m, pd, p_ref):
                 known[id(grids[w])] = (B, kd, Bdw)
             B, kd, Bdw = known[id(grids[w])]
         t["Q"][w, s], t["Cd"][w, s], t["Cd0"][w, s] = wet_tensors(basis, B, kd, m, pd,
-                                                                 separate)
+                                                                 separate, bd)
         t["X"][w, s], t["XL"][w, s] = cross_tensors(dry, basis, Bdw, m, p_ref)
 
 
@@ -349,9 +350,10 @@ def _tables(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
              for (c, d, lam), g in zip(pairs, grids)]
     shared = grids[0] is grids[-1]
     pd = float(params[P.DROPLET_MASS])
+    bd = float(droplet_liquid(params))          # the droplet's liquid [kg]
     separate = int(config[P.SEPARATE_DROPLETS]) == 1 and params[P.DROPLET_FACTOR] > 0
     dry = dry_class(m, weights["c_dry"], weights["lam_dry"], grid["p_max"], grid["n_dry"],
-                    consistent, p_ref, pd)
+                    consistent, p_ref, pd, bd)
     uparams, ucfg = unit_params(params), np.asarray(config, dtype=np.int64)
     slices = [float("nan")] if u0_grid is None else list(u0_grid)
 
@@ -374,7 +376,7 @@ def _tables(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
     for s, u0 in enumerate(slices):
         k = first if s == 0 else (last if s == nS - 1 else kernels(u0))
         _slice_tensors(t, s, bases, grids, dry, k, shared, u0_of(u0),
-                       (uparams, ucfg, separate), m, pd, p_ref)
+                       (uparams, ucfg, separate), m, pd, p_ref, bd)
     logu = np.log(np.array([x if np.isfinite(x) else 1.0 for x in slices]))
     t.update(logu=logu, logw=np.concatenate([lnc, lnd, lnl]), nwc=len(lnc), nwd=len(lnd),
              nwl=max(1, len(lnl)),

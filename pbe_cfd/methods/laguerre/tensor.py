@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from ...physics import parameters as P
+from ...physics.injection import droplet_liquid, droplet_moment
 from .basis import (GRADED, SPACINGS, basis_values, gamma_weight, mass_nodes,  # noqa: F401
                     fraction_basis_values, moment_index, projection_matrix,
                     quadrature, univariate_values)
@@ -38,7 +39,7 @@ def initial_state(moments, params, config, n_droplets=0.0, dry=False):
     are 0. dry: the granules carry no binder (b = 0 exactly): their moments M_k0 go into the
     dry class, binder moments must be 0. n_droplets: free droplets [1/m3], a population of
     their own if config[SEPARATE_DROPLETS] == 1, else ordinary (wet) particles of mass
-    p_d = params[DROPLET_MASS] and binder p_d. For a monodisperse start (N0 particles of mass
+    p_d = params[DROPLET_MASS] and liquid binder b_d (physics.injection.droplet_liquid). For a monodisperse start (N0 particles of mass
     p0 and binder b0) pass ``lambda i, j: N0 * p0**i * b0**j``: the ROM needs only the moments
     of the delta.
     """
@@ -48,6 +49,7 @@ def initial_state(moments, params, config, n_droplets=0.0, dry=False):
     nref = params[P.NUMBER_SCALE]
     pref = params[P.MASS_SCALE]
     pd = params[P.DROPLET_MASS]
+    bd = droplet_liquid(params)
     out = np.zeros(state_size(m, sep, int(config[P.DRYING]) == 1))
     for i in range(m):
         for j in range(m):
@@ -59,7 +61,7 @@ def initial_state(moments, params, config, n_droplets=0.0, dry=False):
             elif not dry:
                 out[i * m + j] = val / (nref * pref ** (i + j))
             if not sep and n_droplets > 0.0:
-                out[i * m + j] += n_droplets * pd ** (i + j) / (nref * pref ** (i + j))
+                out[i * m + j] += n_droplets * droplet_moment(pd, bd, i, j) / (nref * pref ** (i + j))
     if sep:
         out[K + m] = n_droplets / nref
     return out
@@ -421,14 +423,15 @@ def scene_keys(t, defaults):
 def plan_columns(plan, arrays, states, aux, populations=None):
     """SI output columns of a run's scaled states (``output_columns``; plan: the run's
     ``methods.entry.MethodPlan``, its bivariate flag and density [kg/m3]); with drying also the
-    liquid inventory [kg/m3] (evaporated: the last state entry; held by free droplets, pure
-    liquid; held by granules) and the moisture content M01 / (M10 - M01) [-], as the other
+    liquid inventory [kg/m3] (evaporated: the last state entry; held by free droplets, n_d b_d;
+    held by granules) and the moisture content M01 / (M10 - M01) [-], as the other
     methods' (docs/physics.md section 15)."""
     out = output_columns(states, aux, arrays, plan.bivariate, plan.density,
                          populations)
     if int(arrays.config[P.DRYING]) == 1:
         states = np.atleast_2d(states)
-        droplets = out.get("droplet_number_density", 0.0 * out["M01"]) * arrays.droplet_mass
+        droplets = (out.get("droplet_number_density", 0.0 * out["M01"])
+                    * droplet_liquid(arrays.params))
         out["liquid_evaporated"] = states[:, -1] * arrays.number_scale * arrays.mass_scale
         out["liquid_droplets"] = droplets
         out["liquid_granules"] = out["M01"] - droplets
@@ -457,6 +460,7 @@ def output_columns(states, aux, arrays, bivariate, density, populations=None):
              + [f"dry_M{k}0" for k in range(m)] + ["dry_mass_fraction"])
     out = {c: np.zeros(len(states)) for c in cols + extra + list(DERIVED)}
     pd, n_ref, p_ref = arrays.droplet_mass, arrays.number_scale, arrays.mass_scale
+    bd = droplet_liquid(arrays.params)
     for r, state in enumerate(states):
         w, p, b = population_for_output(state, aux, arrays)
         if populations is not None:
@@ -470,7 +474,7 @@ def output_columns(states, aux, arrays, bivariate, density, populations=None):
                 value *= n_ref * p_ref ** (i + j)
             else:
                 value = estimated[c]
-            out[c][r] = value + nd * pd ** (i + j)
+            out[c][r] = value + nd * droplet_moment(pd, bd, i, j)
         if separate:
             out["droplet_number_density"][r] = nd
         for k in range(m):

@@ -10,7 +10,8 @@ Z = Psi^T B Psi and
 
     T[a, k, l] = 1/2 sum_e C(a, e) Z[(e, k), (a - e, l)],   symmetric in (k, l).
 
-Droplets as a population of their own (density n_d, mass p_d, b = p_d):
+Droplets as a population of their own (density n_d, mass p_d, liquid b_d: p_d for pure
+binder, (1 - s) p_d for a solution, physics.injection):
 dM_a/dt += n_d int_S k_d(r) [A_a(r + r_d) - A_a(r)] n(r),  dn_d/dt -= n_d int_S k_d(r) n(r),
 k_d = droplet_capture_rate. Both are linear in M: matrices Cd[a, k] and Cd0[k].
 
@@ -130,9 +131,10 @@ def wet_kernels(p, b, u0, uparams, ucfg, separate):
     return B, kd
 
 
-def wet_tensors(basis, B, kd, m, pd, separate):
+def wet_tensors(basis, B, kd, m, pd, separate, bd=None):
     """(Q[pair, a], Cd[k, a], Cd0[k]) in state units for one weight's basis and one slice's
-    kernel data (module doc); pd the droplet mass [kg]."""
+    kernel data (module doc); pd the droplet mass [kg], bd its liquid binder [kg] (pd: pure
+    binder; (1 - s) pd for a solution of solids fraction s)."""
     K = m * m
     u, v, W, PhiC, r = basis["u"], basis["v"], basis["W"], basis["PhiC"], basis["r"]
     iu = np.triu_indices(K)
@@ -144,7 +146,8 @@ def wet_tensors(basis, B, kd, m, pd, separate):
     Cd = np.zeros((K, K))
     Cd0 = np.zeros(K)
     if separate:
-        cd, cd0 = _capture_matrices(kd, u, v, W, PhiC, m, pd / basis["c"], pd / basis["d"])
+        bd = pd if bd is None else bd
+        cd, cd0 = _capture_matrices(kd, u, v, W, PhiC, m, pd / basis["c"], bd / basis["d"])
         Cd = (cd * r[None, :] / r[:, None]).T                        # [k, a]
         Cd0 = cd0 * r
     return Q, Cd, Cd0
