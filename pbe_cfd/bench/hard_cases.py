@@ -6,8 +6,9 @@ The cell (docs/results/hard-cases.md): a well-mixed ktgf cell (``study-ktgf``: e
 the geometric and physical efficiency, friction cap alpha_min_friction = 0.5, packing
 alpha_max = 0.62) at alpha = alpha_max - gap, granular temperature Theta [m2/s2], k0 = 1e-3,
 binder droplets injected at 1e4 x the seed rate (``SEED_RATE``), the viscous Stokes criterion
-sharp (width 0, the default) or smooth of the width ``SMOOTH_WIDTH`` (0.005, wider than the fallback
-width of ``runs.batch``). Each method runs with the [method] table of its bundled scene (``METHODS``).
+sharp (width 0, the default) or smooth of the width ``SMOOTH_WIDTH`` (0.005, wider than the
+fallback width of ``runs.batch``). Each method runs with the [method] table of its bundled scene
+(``METHODS``).
 
 A variant at the default rtol 1e-8 is compared with the same variant at ``REFERENCE_RTOL``
 (atol scaled alike): the largest relative difference over the output times of M00, M20 and d43.

@@ -17,9 +17,10 @@ moment-consistent map G_dry^-1 on [0, p_max] or the seed's plain projection). Pr
     dry + droplet -> wet  L_e = n_d int k_d(p, 0) p^e n_dry,  dD_e/dt -= L_e,  dn_d/dt -= L_0,
                           dW_ij/dt += sum_{e<=i} C(i, e) p_d^(i-e) b_d^j L_e   ((p+p_d)^i b_d^j)
 
-(b_d the droplet's liquid: p_d for pure binder, (1 - s) p_d for a solution.) The droplet gain of
-the wet class is written through the dry loss L_e (binomial map CAPMAP), so that granule mass
-W_10 + D_1 + p_d n_d and binder W_01 + b_d n_d are conserved to round-off by construction; the cross loss of D_1 is the negated cross gain of W_10, entry by entry.
+(b_d the droplet's liquid: p_d for pure binder, (1 - s) p_d for a solution.) The droplet gain
+of the wet class is written through the dry loss L_e (binomial map CAPMAP), so that granule
+mass W_10 + D_1 + p_d n_d and binder W_01 + b_d n_d are conserved to round-off by
+construction; the cross loss of D_1 is the negated cross gain of W_10, entry by entry.
 
 Tensors (internal units u = p / c; state units applied by the caller):
 Psi_d[r, (e, k)] = w_r u_r^e psi~_k(u_r) on the dry nodes, Psi_w[s, (f, l)] = W_s A_f phi~_l on
@@ -31,6 +32,7 @@ from math import comb
 import numba as nb
 import numpy as np
 
+from ...physics.injection import droplet_moment
 from ...physics.rates import aggregation_rate
 from .basis import (consistent_inverse, mass_nodes, moment_index, projection_matrix,
                     univariate_values)
@@ -110,19 +112,18 @@ def dry_capture_matrix(kd, x, w, psi, m):
     return ((x[:, None] ** np.arange(m)[None, :]) * (w * kd)[:, None]).T @ psi
 
 
-def capture_map(m, xd, xl=None):
+def capture_map(m, xd, xl):
     """CAPMAP[e, a] = C(i, e) xd^(i - e) xl^j for e <= i, a = (i, j): the wet moments a dry
     granule's loss moments L_e become once it has captured one droplet (xd = p_d / p_ref,
     xl = b_d / p_ref its liquid, xd for pure binder)."""
-    xl = xd if xl is None else xl
     out = np.zeros((m, m * m))
     for a, (i, j) in enumerate(moment_index(m)):
         for e in range(i + 1):
-            out[e, a] = comb(i, e) * (xd ** (i - e + j) if xl == xd else xd ** (i - e) * xl ** j)
+            out[e, a] = comb(i, e) * droplet_moment(xd, xl, i - e, j)
     return out
 
 
-def dry_class(m, c_dry, lam_dry, p_max, n_dry, consistent, p_ref, pd, bd=None):
+def dry_class(m, c_dry, lam_dry, p_max, n_dry, consistent, p_ref, pd, bd):
     """The dry class's basis and its weight-independent blocks: a dict with the nodes x
     (p / p_ref), weights w, state-unit basis psi, the functionals f43 (m), the CAPMAP
     (m, K), the reconstruction block ``basis`` (n_dry, c_dry, lam_dry, Ginv, r_dry, support
@@ -131,7 +132,7 @@ def dry_class(m, c_dry, lam_dry, p_max, n_dry, consistent, p_ref, pd, bd=None):
     support = np.concatenate([w @ psi, (x * w) @ psi])
     basis = np.concatenate([[float(n_dry), c_dry, lam_dry], Ginv.ravel(), rd, support])
     return dict(x=x, w=w, psi=psi, p=x * p_ref, f43=(x ** (4.0 / 3.0) * w) @ psi,
-                capmap=capture_map(m, pd / p_ref, (pd if bd is None else bd) / p_ref),
+                capmap=capture_map(m, pd / p_ref, bd / p_ref),
                 basis=basis, cond=cond)
 
 

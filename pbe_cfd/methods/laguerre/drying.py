@@ -194,7 +194,8 @@ def add_laguerre_drying(state, out, cell, aux, params, config):
     if not state[WET_LIQUID] > 0.0:
         return
     pts = wet_points(state, m)
-    if pts[6] + pts[8] == 0.0:
+    _, _, _, _, _, _, centre1, _, pair1, _ = pts
+    if centre1 + pair1 == 0.0:                  # the first node's weight: no wet class
         return
     rates = _point_rates(pts, params[P.MASS_SCALE], cell_gas(cell, params, config), params)
     evaporated = 0.0

@@ -39,9 +39,9 @@ def initial_state(moments, params, config, n_droplets=0.0, dry=False):
     are 0. dry: the granules carry no binder (b = 0 exactly): their moments M_k0 go into the
     dry class, binder moments must be 0. n_droplets: free droplets [1/m3], a population of
     their own if config[SEPARATE_DROPLETS] == 1, else ordinary (wet) particles of mass
-    p_d = params[DROPLET_MASS] and liquid binder b_d (physics.injection.droplet_liquid). For a monodisperse start (N0 particles of mass
-    p0 and binder b0) pass ``lambda i, j: N0 * p0**i * b0**j``: the ROM needs only the moments
-    of the delta.
+    p_d = params[DROPLET_MASS] and liquid binder b_d (physics.injection.droplet_liquid). For
+    a monodisperse start (N0 particles of mass p0 and binder b0) pass ``lambda i, j: N0 *
+    p0**i * b0**j``: the ROM needs only the moments of the delta.
     """
     m = int(config[P.ORDER])
     K = m * m
@@ -61,7 +61,8 @@ def initial_state(moments, params, config, n_droplets=0.0, dry=False):
             elif not dry:
                 out[i * m + j] = val / (nref * pref ** (i + j))
             if not sep and n_droplets > 0.0:
-                out[i * m + j] += n_droplets * droplet_moment(pd, bd, i, j) / (nref * pref ** (i + j))
+                out[i * m + j] += (n_droplets * droplet_moment(pd, bd, i, j)
+                                   / (nref * pref ** (i + j)))
     if sep:
         out[K + m] = n_droplets / nref
     return out

@@ -131,7 +131,7 @@ def wet_kernels(p, b, u0, uparams, ucfg, separate):
     return B, kd
 
 
-def wet_tensors(basis, B, kd, m, pd, separate, bd=None):
+def wet_tensors(basis, B, kd, m, pd, separate, bd):
     """(Q[pair, a], Cd[k, a], Cd0[k]) in state units for one weight's basis and one slice's
     kernel data (module doc); pd the droplet mass [kg], bd its liquid binder [kg] (pd: pure
     binder; (1 - s) pd for a solution of solids fraction s)."""
@@ -146,7 +146,6 @@ def wet_tensors(basis, B, kd, m, pd, separate, bd=None):
     Cd = np.zeros((K, K))
     Cd0 = np.zeros(K)
     if separate:
-        bd = pd if bd is None else bd
         cd, cd0 = _capture_matrices(kd, u, v, W, PhiC, m, pd / basis["c"], bd / basis["d"])
         Cd = (cd * r[None, :] / r[:, None]).T                        # [k, a]
         Cd0 = cd0 * r
