@@ -1,6 +1,6 @@
 """Free droplets of their own evaporate with [drying] (docs/physics.md section 15, "Free
-droplets' evaporation") in every method that carries them: QMOM, CQMOM, EQMOM and the cNMC
-(whose droplets are particles: its own tests below).
+droplets' evaporation") in every method that carries them: QMOM, CQMOM, EQMOM, the Laguerre
+ROM and the cNMC (whose droplets are particles: its own tests below).
 
 Closed forms: an initial charge of N_d free droplets, no capture (droplet_factor = 0), dry
 granules (nothing else dries), slip 0 (Sh = 2). All droplets have the same age, so the
@@ -37,6 +37,7 @@ METHODS = {
     "qmom": {"name": "qmom", "nodes": 2},
     "cqmom": {"name": "cqmom", "nodes": 2, "binder_nodes": 2},
     "eqmom": {"name": "eqmom", "nodes": 2},
+    "laguerre": {"name": "laguerre", "order": 3},
 }
 
 
@@ -112,7 +113,7 @@ def test_pure_liquid_droplets_evaporate_by_the_d2_law_to_zero_mass(method):
     assert np.allclose(c["liquid_evaporated"][after], ND * b0, rtol=1e-12, atol=0.0)
 
 
-@pytest.mark.parametrize("method", ["qmom", "cqmom"])
+@pytest.mark.parametrize("method", ["qmom", "cqmom", "laguerre"])
 def test_solution_droplets_shrink_then_dry_on_their_skeleton(method):
     s, x_cr = 0.1, 0.5
     _, t1, t2 = _solution(1e9, s, x_cr)
@@ -175,13 +176,19 @@ def test_cnmc_solution_droplets_shrink_then_dry_on_their_skeleton():
     assert (t < t1).sum() >= 5 and ((t > t1) & (t < t2)).sum() >= 2 and (t > t2).sum() >= 5
 
 
-@pytest.mark.parametrize("method", [{"name": "laguerre", "order": 3}])
-def test_methods_whose_droplets_do_not_evaporate_refuse_drying_with_free_droplets(method):
-    from pbe_cfd.scene.scene import SceneError
-    with pytest.raises(SceneError) as err:
-        _scene(0.0, 1.0, 0.05, method, tolerances=False)
-    assert err.value.key == "aggregation.droplet_factor"
-    assert "do not evaporate" in str(err.value)
+def test_a_method_whose_droplets_do_not_evaporate_is_refused_with_drying_and_free_droplets():
+    """Every registered method evaporates its free droplets; the scene's check still refuses a
+    method that would not (here the Laguerre ROM's entry with the flag cleared), naming the
+    key and the methods that do."""
+    from pbe_cfd.methods import registry
+    from pbe_cfd.scene.drying import drying_refusals
+    scene = _scene(0.0, 1.0, 0.05, METHODS["laguerre"], tolerances=False)
+    assert drying_refusals(scene, registry.METHOD_REGISTRY) == []
+    methods = [m._replace(evaporates_droplets=False) if m.name == "laguerre" else m
+               for m in registry.METHOD_REGISTRY]
+    (key, text), = drying_refusals(scene, methods)
+    assert key == "aggregation.droplet_factor"
+    assert "laguerre method's free droplets do not evaporate" in text and "'qmom'" in text
 
 
 def _steady_share(eps):
@@ -207,7 +214,8 @@ def _age_share(eps, n=200000):
     return 1.0 - np.sum(np.exp(-s / eps) * (1.0 - s) ** 1.5) / (n * eps)
 
 
-def test_sprayed_droplets_evaporate_the_closure_share_before_capture():
+@pytest.mark.parametrize("method", ["qmom", "laguerre"])
+def test_sprayed_droplets_evaporate_the_closure_share_before_capture(method):
     """A constant spray of pure-liquid droplets captured at a constant rate kappa (constant
     kernel, no efficiency, granules that hardly aggregate among themselves and hardly dry:
     X_cr = 1e9 puts them deep in the falling-rate period): at steady state the droplets
@@ -224,7 +232,7 @@ def test_sprayed_droplets_evaporate_the_closure_share_before_capture():
                        aggregation={"kernel": "constant", "rate": k0, "droplet_factor": factor},
                        binder_injection={"rate": rate, "droplet_diameter": D0},
                        drying={**AIR, "critical_moisture": 1.0e9},
-                       method={"_replace": True, "name": "qmom", "nodes": 2, "rtol": 1e-11,
+                       method={"_replace": True, **METHODS[method], "rtol": 1e-11,
                                "atol": 1e-16})
     c = run_well_mixed(scene).columns
     t = c["time_s"]

@@ -11,7 +11,8 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.injection import droplet_liquid
-from .layout import AUX_CHECK_LEVEL
+from ..quadrature.drying_sources import set_droplet_invariants
+from .layout import AUX_CHECK_LEVEL, droplet_number_entry, evaporated_entry
 
 __all__ = ["laguerre_realizable", "laguerre_project", "laguerre_conserved",
            "strictly_realizable", "DRY_MERGE_SHARE"]
@@ -158,7 +159,8 @@ def laguerre_conserved(config, params, pivots, coefs):
     (n_inv, N_STATE) with c . d(state)/dt independent of the state (the injection only):
     granule mass M10 = W10 + D1 (wet and dry classes) and binder mass M01 = W01 (the dry
     class holds none), each plus the droplets' x_d n_d and x_l n_d (x_d = p_d / p_ref, x_l =
-    b_d / p_ref their liquid) and drying's E.
+    b_d / p_ref their liquid; with evaporating droplets their solids x_d - x_l and liquid L_d)
+    and drying's E.
     ``pivots[r]`` is the entry with coefficient 1 (W10, W01). Returns the count."""
     m = config[P.ORDER]
     n = config[P.N_STATE]
@@ -172,9 +174,11 @@ def laguerre_conserved(config, params, pivots, coefs):
         coefs[r, pivots[r]] = 1.0
         if r == 0:
             coefs[r, K + 1] = 1.0               # dry D1
-        if config[P.SEPARATE_DROPLETS] == 1 and n > K + m:
-            coefs[r, K + m] = xd if r == 0 else xl
-        coefs[r, n - 1] += config[P.DRYING]     # E, the last entry, with drying
+        if not set_droplet_invariants(coefs, r, params, config):
+            if config[P.SEPARATE_DROPLETS] == 1 and n > K + m:
+                coefs[r, droplet_number_entry(config)] = xd if r == 0 else xl
+        if config[P.DRYING] == 1:
+            coefs[r, evaporated_entry(config)] = 1.0
     return 2
 
 
@@ -190,8 +194,9 @@ def laguerre_project(state, aux, params, config, work=None):
     m = config[P.ORDER]
     K = m * m
     if config[P.SEPARATE_DROPLETS] == 1 and config[P.N_STATE] > K + m:
-        if state[K + m] < 0.0:
-            state[K + m] = 0.0
+        d = droplet_number_entry(config)
+        if state[d] < 0.0:
+            state[d] = 0.0
     d0 = state[K]
     if d0 != 0.0 and abs(d0) <= DRY_MERGE_SHARE * (state[0] + abs(d0)):
         for k in range(m):

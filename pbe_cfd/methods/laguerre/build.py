@@ -32,8 +32,8 @@ from .basis import GRADED, SPACINGS
 from .breakage import breakage_blocks
 from .drying import drying_blocks
 from .dry import cross_tensors, dry_class, dry_kernels, dry_tensors
-from .layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_COND_DRY, AUX_COND_G,
-                     AUX_CONSISTENT, AUX_DROPLET_MASS, AUX_FOLLOWING, AUX_HEADER,
+from .layout import (AUX_B_MAX, AUX_CAPTURE_MOMENTS, AUX_CHECK_LEVEL, AUX_COND_DRY,
+                     AUX_COND_G, AUX_CONSISTENT, AUX_DROPLET_MASS, AUX_FOLLOWING, AUX_HEADER,
                      AUX_LAYOUT_VERSION,
                      AUX_MASS_SCALE, AUX_N_B, AUX_N_DRY, AUX_N_NODES, AUX_N_P,
                      AUX_NMOM, AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_NWL, AUX_OFF_BASIS,
@@ -106,7 +106,8 @@ def _cache_key(params, config, order, weights, support, consistent, u0_grid, ada
     # every switch the tensors depend on: kernel, droplets, breakage and the whole efficiency
     # block (a factor added to the registry changes the key without an edit here)
     cfg = [int(config[s]) for s in (P.KERNEL, P.SEPARATE_DROPLETS, P.BREAKAGE,
-                                    P.BREAKAGE_SELECTION, P.BREAKAGE_DAUGHTERS)]
+                                    P.BREAKAGE_SELECTION, P.BREAKAGE_DAUGHTERS,
+                                    P.DROPLET_LIQUID)]
     cfg += [int(x) for x in config[P.EFFICIENCY_SWITCHES:]]
     blob = json.dumps(dict(tag=_ALGO_TAG, src=_source_digest(), params=q.tolist(), config=cfg,
                            order=int(order),
@@ -337,8 +338,8 @@ def _slice_tensors(t, s, bases, grids, dry, k, shared, u0, kargs, m, pd, p_ref, 
                 _, Bdw, _ = dry_kernels(dry, basis["p"], basis["b"], u0, *kargs)
                 known[id(grids[w])] = (B, kd, Bdw)
             B, kd, Bdw = known[id(grids[w])]
-        t["Q"][w, s], t["Cd"][w, s], t["Cd0"][w, s] = wet_tensors(basis, B, kd, m, pd,
-                                                                 separate, bd)
+        t["Q"][w, s], t["Cd"][w, s], t["Cd0"][w, s] = wet_tensors(
+            basis, B, kd, m, pd, separate, bd, t["capture_moments"])
         t["X"][w, s], t["XL"][w, s] = cross_tensors(dry, basis, Bdw, m, p_ref)
 
 
@@ -372,7 +373,8 @@ def _tables(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
     t = dict(Q=np.zeros((nW, nS, K * (K + 1) // 2, K)), Cd=np.zeros((nW, nS, K, K)),
              Cd0=np.zeros((nW, nS, K)), X=np.zeros((nW, nS, m, K, K)),
              XL=np.zeros((nW, nS, m, K, m)), Qdd=np.zeros((nS, m * (m + 1) // 2, m)),
-             Cdd=np.zeros((nS, m, m)))
+             Cdd=np.zeros((nS, m, m)),
+             capture_moments=int(config[P.DROPLET_LIQUID]) == 1)
     for s, u0 in enumerate(slices):
         k = first if s == 0 else (last if s == nS - 1 else kernels(u0))
         _slice_tensors(t, s, bases, grids, dry, k, shared, u0_of(u0),
@@ -426,6 +428,7 @@ def _build(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
               AUX_COND_G: t["cond"], AUX_COND_DRY: dry["cond"], AUX_N_DRY: grid["n_dry"],
               AUX_NWC: t["nwc"], AUX_NWD: t["nwd"], AUX_NWL: t["nwl"],
               AUX_FOLLOWING: 1.0 if t["following"] else 0.0,
+              AUX_CAPTURE_MOMENTS: 1.0 if (t["separate"] and t["capture_moments"]) else 0.0,
               AUX_U0_FIXED: (slices[0] if (len(slices) == 1 and np.isfinite(slices[0])
                                            and not t["collapsed"]) else 0.0)}
     for slot, value in header.items():

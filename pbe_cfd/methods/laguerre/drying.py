@@ -36,7 +36,8 @@ the measure's own drift D_a; where they do not, the carried moment keeps its sig
 rates lie in [-(i + j) r, 0], r the points' largest e / b, because b <= p at every point: the
 drift is no stiffer than the fastest particle of the measure. The dry class (b = 0) does not
 dry, and the falling rate keeps b > 0, so no granule moves between the classes. Free droplets
-of their own do not dry here (methods with a droplet-liquid entry carry that).
+of their own evaporate in the RHS's droplet class (``quadrature.drying_sources``), as in the
+other moment methods.
 """
 import math
 
@@ -47,7 +48,7 @@ from ...physics import parameters as P
 from ...physics.drying import cell_gas, drying_rate
 from .basis import moment_index
 from .breakage import add_laguerre_breakage
-from .layout import AUX_OFF_DRYING, AUX_ORDER
+from .layout import AUX_OFF_DRYING, AUX_ORDER, evaporated_entry
 
 #: state entry of the wet liquid M~01: (i, j) = (0, 1) in ``moment_index`` order (order >= 2)
 WET_LIQUID = moment_index(2).index((0, 1))
@@ -183,7 +184,7 @@ def _point_rates(pts, scale, gas, params):
 @nb.njit(cache=True)
 def add_laguerre_drying(state, out, cell, aux, params, config):
     """Add the drying drift [scaled state units per s] of one cell to ``out``: the wet moments
-    (entries 0 .. K-1) and the evaporated liquid (the last entry), evaluated on
+    (entries 0 .. K-1) and the evaporated liquid (``evaporated_entry``), evaluated on
     ``wet_points`` in the cell's gas (``physics.drying.cell_gas``: the slip velocity [m/s]
     and gas state of the scene, or of the cell's row; masses scaled by params[MASS_SCALE]
     [kg]). W10 and W01 take the points' drift, the other moments its
@@ -224,7 +225,7 @@ def add_laguerre_drying(state, out, cell, aux, params, config):
                 out[i * m + j] += drift
             elif carried > 0.0:
                 out[i * m + j] += drift * (state[i * m + j] / carried)
-    out[config[P.N_STATE] - 1] += evaporated
+    out[evaporated_entry(config)] += evaporated
 
 
 @nb.njit(cache=True)

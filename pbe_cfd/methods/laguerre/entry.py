@@ -123,5 +123,5 @@ ENTRY = MethodEntry(
                       "size class",
     moments_text="integral of the Laguerre density over its support",
     accuracy_knobs=_accuracy_knobs, table_build=_table_build_seconds,
-    solute_droplets=True, dries=True, output_check=output_check,
+    solute_droplets=True, dries=True, evaporates_droplets=True, output_check=output_check,
     output_watch=output_watch)

@@ -71,7 +71,8 @@ def aggregation_number_rates(state, aux):
     for sl in range(max(1, int(aux[AUX_NSLICE]))):
         out[:] = 0.0
         if wet or dry:
-            _aggregation_and_capture(s, out, aux, m, 1.0, 0.0, wet, dry, wpos, sl, 0.0)
+            _aggregation_and_capture(s, out, aux, m, 1.0, 0.0, wet, dry, wpos, sl, 0.0, 0.0,
+                                     0.0)
         rates.append(out[0] + out[K])
     return np.array(rates)
 

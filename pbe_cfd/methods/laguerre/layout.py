@@ -1,8 +1,9 @@
 """Laguerre ROM: the state layout and the layout of the flat ``aux`` array.
 
 State of one cell (scaled by N_ref [1/m3] and p_ref [kg]):
-``[W_ij (i, j < m, i-major), D_k (k < m), n_d (if droplets are separate)]`` -- the wet
-granules' mixed moments, the dry granules' moments in p, free droplets.
+``[W_ij (i, j < m, i-major), D_k (k < m), L_d (drying with separate droplets), E (drying),
+n_d (if droplets are separate)]`` -- the wet granules' mixed moments, the dry granules' moments
+in p, the free droplets' liquid, the evaporated liquid, the free droplets' number.
 
 The aux array is a float64 header (slots below) followed by blocks at the offsets the header
 holds. Tensors depend on the collision velocity u0 (``slice`` s, NSLICE values of ln u0) and,
@@ -14,7 +15,10 @@ section 9.2);
 the dry-only blocks depend on the slice alone. Block shapes:
 
     Q[w, s, pair(k <= l < K), a < K]     wet + wet -> wet
-    Cd[w, s, k, a], Cd0[w, s, k]         droplets captured by wet granules
+    Cd[w, s, k, a], Cd0[w, s, k]         droplets captured by wet granules (with
+                                         CAPTURE_MOMENTS: Cd[w, s, k, f] the captured
+                                         granules' moments, a the droplet's point mapped in
+                                         at the RHS)
     X[w, s, k < m, l < K, a < K]         dry k + wet l -> wet moment a
     XL[w, s, k < m, l < K, e < m]        the same pair's loss of dry moment e
     Qdd[s, pair(k <= l < m), a < m]      dry + dry -> dry
@@ -30,6 +34,7 @@ import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
+from ...physics.injection import droplet_liquid
 from ...physics.parameters import numbered
 
 #: the header's slots in order (each name's value is its index)
@@ -79,36 +84,79 @@ HEADER = (
     ("AUX_NWL", "gamma shapes lambda in p on the following grid (1: a fixed shape); the "
                 "weight index is w = (il * NWC + ic) * NWD + jd"),
     ("AUX_OFF_DRYING", "offset of the drying block (laguerre_drying; 0: no drying)"),
+    ("AUX_CAPTURE_MOMENTS", "1: Cd holds int k_d A_f phi~_k, the moments of the granules that "
+                            "capture, mapped at the RHS's droplet point (evaporating droplets); "
+                            "0: the wet gain at the sprayed droplet (p_d, b_d)"),
 )
 AUX_HEADER = numbered(HEADER, globals())
-AUX_LAYOUT_VERSION = 7.0
+AUX_LAYOUT_VERSION = 8.0
 
 TABLE_III = dict(weights=dict(c=1e-9, d=1e-9, lam=1.0, gam=0.2),
                  support=dict(p_max=1e-8, b_max=4e-9, n_p=20, n_b=20))
 
 
 def state_offsets(m):
-    """(first dry entry, droplet entry) of the state of order m: K = m*m and K + m."""
+    """(first dry entry, droplet entry without a droplet-liquid entry) of the state of order m:
+    K = m*m and K + m."""
     return m * m, m * m + m
+
+
+@nb.njit(cache=True, inline="always")
+def droplet_number_entry(config):
+    """State entry of the free droplets' number n_d: the last (config[SEPARATE_DROPLETS] =
+    1), -1 without droplets of their own."""
+    return config[P.N_STATE] - 1 if config[P.SEPARATE_DROPLETS] == 1 else -1
+
+
+@nb.njit(cache=True, inline="always")
+def evaporated_entry(config):
+    """State entry of the evaporated liquid E (with drying): the last, or the one before the
+    droplet number."""
+    return config[P.N_STATE] - 1 - config[P.SEPARATE_DROPLETS]
+
+
+def free_droplets(rows, params, config):
+    """(n_d [1/m3], mass [kg], liquid [kg]) of the free droplets of each row of scaled states
+    (arrays of the rows' length; n_d 0 without droplets of their own): one droplet is (p_d,
+    b_d), or with a droplet-liquid entry the class's mean point (s p_d + l, l), l = L_d / n_d
+    (b_d where there are none), as the RHS takes it (``quadrature.drying_sources``)."""
+    rows = np.atleast_2d(np.asarray(rows, dtype=float))
+    count = len(rows)
+    pd = float(params[P.DROPLET_MASS])
+    bd = float(droplet_liquid(params))
+    mass, liquid = np.full(count, pd), np.full(count, bd)
+    if int(config[P.SEPARATE_DROPLETS]) != 1 or rows.shape[1] < int(config[P.N_STATE]):
+        return np.zeros(count), mass, liquid
+    nd = rows[:, -1]
+    if int(config[P.DROPLET_LIQUID]) == 1:
+        held = rows[:, -3]
+        has = nd > 0.0
+        liquid = np.where(has, np.maximum(held, 0.0) / np.where(has, nd, 1.0)
+                          * float(params[P.MASS_SCALE]), bd)
+        mass = (pd - bd) + liquid
+    return nd * float(params[P.NUMBER_SCALE]), mass, liquid
 
 
 def state_size(order, separate_droplets, drying=False):
     """Length of one cell's state: m*m wet moments, m dry moments (+1 for free droplets, +1
-    for the evaporated liquid with drying)."""
-    return order * order + order + (1 if separate_droplets else 0) + (1 if drying else 0)
+    for the evaporated liquid with drying, +1 for the free droplets' liquid with both)."""
+    return len(state_names(order, separate_droplets, drying))
 
 
 def state_names(order, separate_droplets, drying=False):
     """Names of the state entries: wet granules' M_ij ("wet_M{i}{j}", i-major, i, j < order),
-    dry granules' M_k0 ("dry_M{k}0"), "droplet_number_density" if droplets are separate, then
-    "evaporated_liquid" with drying (the liquid evaporated so far, scaled as a mass moment;
-    the last entry)."""
+    dry granules' M_k0 ("dry_M{k}0"), then with drying and droplets of their own the
+    droplets' liquid "droplet_liquid" (they evaporate), with drying "evaporated_liquid" (the
+    liquid evaporated so far; both scaled as mass moments), and "droplet_number_density" last
+    if droplets are separate (the tail of every method: ``physics.injection``)."""
     names = [f"wet_M{i}{j}" for i in range(order) for j in range(order)]
     names += [f"dry_M{k}0" for k in range(order)]
-    if separate_droplets:
-        names.append("droplet_number_density")
+    if drying and separate_droplets:
+        names.append("droplet_liquid")
     if drying:
         names.append("evaporated_liquid")
+    if separate_droplets:
+        names.append("droplet_number_density")
     return names
 
 

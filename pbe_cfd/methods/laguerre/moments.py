@@ -3,15 +3,20 @@
 import numpy as np
 
 from ...physics import parameters as P
-from ...physics.injection import droplet_liquid, droplet_moment
-from .layout import (AUX_FOLLOWING, AUX_OFF_SUPPORT, AUX_ORDER, AUX_P_MAX, weight_corners,
-                     wet_support)
+from ...physics.injection import droplet_moment
+from .layout import (AUX_FOLLOWING, AUX_OFF_SUPPORT, AUX_ORDER, AUX_P_MAX, free_droplets,
+                     weight_corners, wet_support)
 from .tensor import (basis_values, dry_particles, dry_support_functionals,
                      fraction_basis_values, projection_matrix, univariate_values, unpack_basis,
                      wet_particles)
 
 __all__ = ["moments_from_state", "reconstruct", "reconstruct_dry", "reconstructed_moment",
            "support_share"]
+
+
+def _droplet_moments(pd, bd, i, j):
+    """p^i b^j [kg^(i+j)] of one droplet per row (arrays of masses and liquids [kg])."""
+    return np.array([droplet_moment(p, b, i, j) for p, b in zip(pd, bd)])
 
 
 def moments_from_state(state_rows, params, config, m, aux=None):
@@ -31,9 +36,7 @@ def moments_from_state(state_rows, params, config, m, aux=None):
     nref = params[P.NUMBER_SCALE]
     pref = params[P.MASS_SCALE]
     sep = int(config[P.SEPARATE_DROPLETS]) == 1 and rows.shape[1] > K + m
-    nd = rows[:, K + m] * nref if sep else np.zeros(rows.shape[0])
-    pd = params[P.DROPLET_MASS]
-    bd = droplet_liquid(params)          # the free droplets' liquid [kg]
+    nd, pd, bd = free_droplets(rows, params, config)     # [1/m3], one droplet [kg]
     out = {}
     for i in range(m):
         out[f"dry_M{i}0"] = rows[:, K + i] * nref * pref ** i
@@ -42,14 +45,14 @@ def moments_from_state(state_rows, params, config, m, aux=None):
             out[f"wet_M{i}{j}"] = w
             g = w + out[f"dry_M{i}0"] if j == 0 else w
             out[f"granule_M{i}{j}"] = g
-            out[f"M{i}{j}"] = g + nd * droplet_moment(pd, bd, i, j)
+            out[f"M{i}{j}"] = g + nd * _droplet_moments(pd, bd, i, j)
     if sep:
         out["droplet_number_density"] = nd
     if m == 2 and aux is not None:
         for (i, j) in ((2, 0), (0, 2)):
             g = np.array([reconstructed_moment(r, aux, params, config, i, j) for r in rows])
             out[f"granule_M{i}{j}"] = g
-            out[f"M{i}{j}"] = g + nd * droplet_moment(pd, bd, i, j)
+            out[f"M{i}{j}"] = g + nd * _droplet_moments(pd, bd, i, j)
     if one:
         out = {k: float(v[0]) for k, v in out.items()}
     return out

@@ -5,16 +5,21 @@ K = m*m, N_ref = params[NUMBER_SCALE] [1/m3], p_ref = params[MASS_SCALE] [kg]:
 ``state[i*m + j] = W_ij / (N_ref p_ref^(i+j))`` for i, j < m, the mixed moments of the wet
 granules (binder b > 0; binder mass on the same scale as p);
 ``state[K + k] = D_k / (N_ref p_ref^k)`` for k < m, the moments in p of the dry granules (b = 0
-exactly: wet granulation starts dry, see ``laguerre_dry``); and, if
-config[SEPARATE_DROPLETS] == 1, ``state[K + m] = n_d / N_ref`` (free binder droplets of mass
-p_d = params[DROPLET_MASS]). The population's moments are M_ij = W_ij + D_i delta_j0 (+ free
-droplets n_d p_d^(i+j) in the output columns).
+exactly: wet granulation starts dry, see ``laguerre_dry``); with drying the evaporated liquid
+E, and, if config[SEPARATE_DROPLETS] == 1, ``state[N_STATE - 1] = n_d / N_ref`` (free binder
+droplets of mass p_d = params[DROPLET_MASS], liquid b_d; with drying they evaporate and their
+liquid L_d is the entry before E: ``laguerre_layout``). The population's moments are M_ij =
+W_ij + D_i delta_j0 (+ free droplets n_d p_d^i b_d^j in the output columns).
 
 dW~_a/dt = mult [sum_{k<=l} Q[k,l,a] W~_k W~_l + sum_{k,l} X[k,l,a] D~_k W~_l
                  + n~_d sum_k Cd[k,a] W~_k + sum_e CAPMAP[e,a] L~_e]          (+ injection),
 dD~_e/dt = mult [sum_{k<=l} Qdd[k,l,e] D~_k D~_l + sum_{k,l} XL[k,l,e] D~_k W~_l] - L~_e,
 dn~_d/dt = -mult n~_d sum_k Cd0[k] W~_k - L~_0 + INJECTION / N_ref,
 L~_e = mult n~_d sum_k Cdd[k,e] D~_k   (droplets captured by dry granules),
+
+and with evaporating droplets (drying) the droplet's point (s p_d + l, l), l = L_d / n_d, in
+the capture gains (Cd then holds the capture moments, ``capture_gain``) and the droplet
+class's liquid balance (``quadrature.drying_sources.add_droplet_class_terms``),
 
 mult = k0 N_ref F_cell, F_cell = g0(alpha) sqrt(Theta) d43^(3/2) for the ktgf kernel (1
 otherwise); d43 [m] from the reconstruction: d43 = (6 / (pi rho_s))^(1/3) int p^(4/3) n /
@@ -34,13 +39,16 @@ the blend. Formulas: ``laguerre_wet``, ``laguerre_dry``; the aux layout: ``lague
 import numba as nb
 
 from ...physics import parameters as P
+from ...physics.drying import cell_gas
 from ...physics.kernels import KTGF, kernel_cell_factor
+from ..quadrature.drying_sources import add_droplet_class_terms, droplet_point
 from .admissible import (DRY_MERGE_SHARE, laguerre_conserved, laguerre_project,  # noqa: F401
                          laguerre_realizable, strictly_realizable)
 from .drying import add_linear_terms
-from .layout import (AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_OFF_CAPMAP, AUX_OFF_CD,
-                     AUX_OFF_CD0, AUX_OFF_CDD, AUX_OFF_Q, AUX_OFF_QDD, AUX_OFF_X, AUX_OFF_XL,
-                     AUX_ORDER, AUX_SEPARATE, _corner, state_names, state_size,  # noqa: F401
+from .layout import (AUX_CAPTURE_MOMENTS, AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NWD,
+                     AUX_OFF_CAPMAP, AUX_OFF_CD, AUX_OFF_CD0, AUX_OFF_CDD, AUX_OFF_Q,
+                     AUX_OFF_QDD, AUX_OFF_X, AUX_OFF_XL, AUX_ORDER, AUX_SEPARATE, _corner,
+                     droplet_number_entry, state_names, state_size,  # noqa: F401
                      N_CORNERS, weight_corner)
 from .moments import (moments_from_state, reconstruct, reconstruct_dry,  # noqa: F401
                       reconstructed_moment, support_share)
@@ -134,15 +142,84 @@ def _dry_capture(state, out, aux, m, c0, w):
 
 
 @nb.njit(cache=True)
-def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t):
+def _binomial(n, k):
+    """C(n, k) for small non-negative integers."""
+    out = 1.0
+    for q in range(k):
+        out = out * (n - q) / (q + 1)
+    return out
+
+
+@nb.njit(cache=True, inline="always")
+def capture_gain(out, moment, f, m, xd, xl):
+    """out[a] += C(i, e1) C(j, e2) xd^(i - e1) xl^(j - e2) moment for every a = (i, j) > f =
+    (e1, e2): the wet gain [scaled units per s] of granules of capture moment ``moment``
+    (their int k_d p^e1 b^e2 n, scaled) that each take up one droplet of scaled mass xd and
+    liquid xl; summed over f it is (p + p_d)^i (b + b_d)^j - p^i b^j expanded without
+    cancellation."""
+    e1 = f // m
+    e2 = f - e1 * m
+    for i in range(e1, m):
+        ci = _binomial(i, e1) * xd ** (i - e1) * moment
+        for j in range(e2, m):
+            if i == e1 and j == e2:
+                continue
+            out[i * m + j] += ci * _binomial(j, e2) * xl ** (j - e2)
+
+
+@nb.njit(cache=True)
+def _wet_capture_at(state, out, aux, m, c0, d0, w, xd, xl):
+    """Droplets of the point (xd, xl) (scaled) captured by wet granules, with the capture
+    moments Cd[k, f] (AUX_CAPTURE_MOMENTS): the gain ``capture_gain`` of w sum_k Cd[k, f] W_k
+    for each f; returns w sum_k Cd0[k] W_k, the droplets lost."""
+    K = m * m
+    loss = 0.0
+    for k in range(K):
+        loss += w * state[k] * aux[d0 + k]
+    for f in range(K):
+        moment = 0.0
+        for k in range(K):
+            moment += state[k] * aux[c0 + k * K + f]
+        if moment != 0.0:
+            capture_gain(out, w * moment, f, m, xd, xl)
+    return loss
+
+
+@nb.njit(cache=True)
+def _dry_capture_at(state, out, aux, m, c0, w, xd, xl):
+    """Droplets of the point (xd, xl) captured by dry granules: L_e = w sum_k Cdd[k, e] D_k
+    leaves the dry class and enters the wet one as (p + p_d)^i b_d^j (the CAPMAP at the
+    droplet's point); returns L_0, the droplets lost."""
+    K = m * m
+    loss = 0.0
+    for e in range(m):
+        acc = 0.0
+        for k in range(m):
+            acc += state[K + k] * aux[c0 + k * m + e]
+        lost = w * acc
+        out[K + e] -= lost
+        for i in range(e, m):
+            ci = _binomial(i, e) * xd ** (i - e) * lost
+            for j in range(m):
+                out[i * m + j] += ci * xl ** j
+        if e == 0:
+            loss = lost
+    return loss
+
+
+@nb.njit(cache=True)
+def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t, xd, xl):
     """Every aggregation and capture term, blended over the slice (u0) and weight corners;
-    returns the droplets captured per unit time (scaled)."""
+    returns the droplets captured per unit time (scaled). (xd, xl): the droplet's scaled
+    point where the capture tensors hold the capture moments (AUX_CAPTURE_MOMENTS); else the
+    sprayed droplet's gain is tabulated."""
     K = m * m
     ns = int(aux[AUX_NSLICE])
     nwc = int(aux[AUX_NWC])
     nwd = int(aux[AUX_NWD])
     npair = int(aux[AUX_NPAIR])
     capture = nd != 0.0 and aux[AUX_SEPARATE] == 1.0
+    at_point = aux[AUX_CAPTURE_MOMENTS] == 1.0
     loss = 0.0
     for sc in range(2):
         s, ws = _corner(sc, i0, t)
@@ -152,7 +229,10 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
             npd = m * (m + 1) // 2
             _quadratic_form(state, K, m, out, K, aux, int(aux[AUX_OFF_QDD]) + s * npd * m,
                             mult * ws)
-            if capture:
+            if capture and at_point:
+                loss += _dry_capture_at(state, out, aux, m, int(aux[AUX_OFF_CDD]) + s * m * m,
+                                        mult * ws * nd, xd, xl)
+            elif capture:
                 loss += _dry_capture(state, out, aux, m, int(aux[AUX_OFF_CDD]) + s * m * m,
                                      mult * ws * nd)
         if not wet:
@@ -169,7 +249,11 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
                 _dry_wet_aggregation(state, out, aux, m,
                                      int(aux[AUX_OFF_X]) + ws_ * m * K * K,
                                      int(aux[AUX_OFF_XL]) + ws_ * m * K * m, mult * f)
-            if capture:
+            if capture and at_point:
+                loss += _wet_capture_at(state, out, aux, m, int(aux[AUX_OFF_CD]) + ws_ * K * K,
+                                        int(aux[AUX_OFF_CD0]) + ws_ * K, mult * f * nd, xd,
+                                        xl)
+            elif capture:
                 loss += _wet_capture(state, out, aux, m, int(aux[AUX_OFF_CD]) + ws_ * K * K,
                                      int(aux[AUX_OFF_CD0]) + ws_ * K, mult * f * nd)
     return loss
@@ -195,21 +279,30 @@ def laguerre_rhs(state, out, cell, aux, params, config, work=None):
     else:
         mult = params[P.RATE] * nref
     separate = config[P.SEPARATE_DROPLETS] == 1
-    nd = state[K + m] if separate else 0.0
+    droplets = droplet_number_entry(config)
+    nd = state[droplets] if separate else 0.0
+    # one droplet now [kg]: (p_d, b_d), or the class's mean point (s p_d + l, l) with drying
+    pd, bd = droplet_point(state, params, config)
+    if not pd > 0.0:
+        nd = 0.0                        # droplets of no mass left: nothing to capture
     wet = _any_nonzero(state, 0, K)
     dry = _any_nonzero(state, K, K + m)
+    loss = 0.0
     if mult != 0.0 and (wet or dry):
         i0, t = _slice_position(cell, aux)
         loss = _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry,
-                                        _weight_position(state, aux, m), i0, t)
+                                        _weight_position(state, aux, m), i0, t,
+                                        pd / params[P.MASS_SCALE], bd / params[P.MASS_SCALE])
         if separate:
-            out[K + m] = -loss
+            out[droplets] = -loss
     if config[P.BREAKAGE] == 1 or config[P.DRYING] == 1:     # laguerre_breakage, _drying
         add_linear_terms(state, out, cell, aux, params, config,
                          _weight_position(state, aux, m))
     inj = cell[P.INJECTION]
     if separate:
-        out[K + m] += inj / nref
+        out[droplets] += inj / nref
+        add_droplet_class_terms(state, out, inj / nref, loss, bd / params[P.MASS_SCALE],
+                                cell_gas(cell, params, config), params, config)
     elif inj != 0.0:
         x = params[P.DROPLET_MASS] / params[P.MASS_SCALE]
         xl = params[P.DROPLET_MASS] * (1.0 - params[P.DROPLET_SOLIDS]) / params[P.MASS_SCALE]

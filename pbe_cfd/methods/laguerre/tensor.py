@@ -9,8 +9,10 @@ class (granules with no binder at all) and its cross terms in ``laguerre_dry``; 
 state and aux in ``laguerre_layout``.
 
 State of one cell (scaled by N_ref [1/m3] and p_ref [kg]):
-``[W_ij (i, j < m, i-major), D_k (k < m), n_d (if droplets are separate)]``: the wet
-granules' mixed moments, the dry granules' moments in p, free droplets.
+``[W_ij (i, j < m, i-major), D_k (k < m), L_d, E, n_d]`` (``laguerre_layout``: L_d with
+drying and separate droplets, E with drying, n_d with separate droplets): the wet granules'
+mixed moments, the dry granules' moments in p, the free droplets' liquid, the evaporated
+liquid, the free droplets' number.
 """
 import math
 
@@ -28,8 +30,9 @@ from .layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_COND_DRY,  # noqa: F401
                      AUX_FOLLOWING, AUX_MASS_SCALE, AUX_NWC, AUX_OFF_LOGW,
                      AUX_COND_G, AUX_N_B, AUX_N_NODES, AUX_N_P, AUX_NSLICE,
                      AUX_OFF_SUPPORT, AUX_ORDER, AUX_P_MAX, AUX_SPACING,
-                     AUX_U0_FIXED, TABLE_III, dry_support_functionals, state_names,
-                     state_size, unpack_basis, weight_corners, wet_support)
+                     AUX_U0_FIXED, TABLE_III, dry_support_functionals, evaporated_entry,
+                     free_droplets, state_names, state_size, unpack_basis, weight_corners,
+                     wet_support)
 
 
 def initial_state(moments, params, config, n_droplets=0.0, dry=False):
@@ -64,7 +67,9 @@ def initial_state(moments, params, config, n_droplets=0.0, dry=False):
                 out[i * m + j] += (n_droplets * droplet_moment(pd, bd, i, j)
                                    / (nref * pref ** (i + j)))
     if sep:
-        out[K + m] = n_droplets / nref
+        out[-1] = n_droplets / nref
+        if "droplet_liquid" in state_names(m, sep, int(config[P.DRYING]) == 1):
+            out[-3] = n_droplets * bd / (nref * pref)        # L_d, before E and n_d
     return out
 
 
@@ -424,16 +429,17 @@ def scene_keys(t, defaults):
 def plan_columns(plan, arrays, states, aux, populations=None):
     """SI output columns of a run's scaled states (``output_columns``; plan: the run's
     ``methods.entry.MethodPlan``, its bivariate flag and density [kg/m3]); with drying also the
-    liquid inventory [kg/m3] (evaporated: the last state entry; held by free droplets, n_d b_d;
-    held by granules) and the moisture content M01 / (M10 - M01) [-], as the other
+    liquid inventory [kg/m3] (evaporated: its state entry; held by free droplets, n_d b_d or
+    their carried L_d; held by granules) and the moisture content M01 / (M10 - M01) [-], as the other
     methods' (docs/physics.md section 15)."""
     out = output_columns(states, aux, arrays, plan.bivariate, plan.density,
                          populations)
     if int(arrays.config[P.DRYING]) == 1:
         states = np.atleast_2d(states)
-        droplets = (out.get("droplet_number_density", 0.0 * out["M01"])
-                    * droplet_liquid(arrays.params))
-        out["liquid_evaporated"] = states[:, -1] * arrays.number_scale * arrays.mass_scale
+        nd, _, liquid = free_droplets(states, arrays.params, arrays.config)
+        droplets = nd * liquid
+        evaporated = states[:, evaporated_entry(arrays.config)]
+        out["liquid_evaporated"] = evaporated * arrays.number_scale * arrays.mass_scale
         out["liquid_droplets"] = droplets
         out["liquid_granules"] = out["M01"] - droplets
         dry = out["M10"] - out["M01"]
@@ -460,13 +466,13 @@ def output_columns(states, aux, arrays, bivariate, density, populations=None):
     extra = ((["droplet_number_density"] if separate else [])
              + [f"dry_M{k}0" for k in range(m)] + ["dry_mass_fraction"])
     out = {c: np.zeros(len(states)) for c in cols + extra + list(DERIVED)}
-    pd, n_ref, p_ref = arrays.droplet_mass, arrays.number_scale, arrays.mass_scale
-    bd = droplet_liquid(arrays.params)
+    n_ref, p_ref = arrays.number_scale, arrays.mass_scale
+    droplets = free_droplets(states, arrays.params, arrays.config)   # [1/m3], [kg], [kg]
     for r, state in enumerate(states):
         w, p, b = population_for_output(state, aux, arrays)
         if populations is not None:
             populations.append((w, p, b))
-        nd = state[K + m] * n_ref if separate else 0.0
+        nd, pd, bd = (float(x[r]) for x in droplets)
         estimated = columns_from_particles(w, p, b, [c for c in cols if c not in carried])
         for c in cols:
             i, j = int(c[1]), int(c[2])
@@ -489,6 +495,24 @@ def output_columns(states, aux, arrays, bivariate, density, populations=None):
     return out
 
 
+def _fraction_below_grid(state, aux):
+    """'' or a sentence naming a wet class whose binder fraction W01 / W10 lies below the
+    following weight's lowest tabulated fraction (drying takes it there): the tables then
+    hold a weight far wider in b than the class, whose signed reconstruction breaks the
+    binder moments' realizability (docs/results/batch.md, "With the Laguerre ROM")."""
+    m = int(aux[AUX_ORDER])
+    if aux[AUX_FOLLOWING] != 1.0 or not (state[m] > 0.0) or not (state[1] > 0.0):
+        return ""
+    lowest = math.exp(float(aux[int(aux[AUX_OFF_LOGW]) + int(aux[AUX_NWC])]))
+    fraction = state[1] / state[m]
+    if fraction >= lowest:
+        return ""
+    return (f"; the wet class's liquid fraction W01 / W10 = {fraction:.3g} lies below the "
+            f"lowest binder fraction of the following weight's tables ({lowest:.3g}): dried "
+            "this far, the ROM's reconstruction no longer holds the class (use qmom or cqmom "
+            "for the drying's end)")
+
+
 def failure_hint(state, aux, arrays):
     """Context for a cell the integrator stopped: the share of the granule mass that had left
     the integration support (the usual reason the ROM's moments stop being realizable)."""
@@ -497,7 +521,7 @@ def failure_hint(state, aux, arrays):
     if share <= ESCAPE_WARN_SHARE:
         return (f"; the population was inside the Laguerre support {where}, {share:.1%} of "
                 "the granule mass beyond it: the support is not the cause, the stop is the "
-                "integrator's (above)")
+                "integrator's (above)" + _fraction_below_grid(np.ravel(state), aux))
     parts = escaped_mass_parts(np.ravel(state), aux, arrays.params, arrays.config)
     return (f"; {share:.1%} of the granule mass had left the Laguerre support {where}: "
             f"{support_advice(aux, parts)}")

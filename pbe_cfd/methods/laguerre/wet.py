@@ -13,7 +13,11 @@ Z = Psi^T B Psi and
 Droplets as a population of their own (density n_d, mass p_d, liquid b_d: p_d for pure
 binder, (1 - s) p_d for a solution, physics.injection):
 dM_a/dt += n_d int_S k_d(r) [A_a(r + r_d) - A_a(r)] n(r),  dn_d/dt -= n_d int_S k_d(r) n(r),
-k_d = droplet_capture_rate. Both are linear in M: matrices Cd[a, k] and Cd0[k].
+k_d = droplet_capture_rate. Both are linear in M: matrices Cd[a, k] and Cd0[k]. Droplets that
+evaporate (drying) are the class's mean point r_d = (s p_d + l, l), l = L_d / n_d, which moves:
+then Cd[f, k] = int k_d A_f phi~_k, and the RHS writes the gain sum_{f < a} C(a, f)
+r_d^(a - f) (Cd M)_f at the droplet's point (``rhs.capture_gain``); the kernel k_d stays the
+sprayed droplet's (docs/physics.md section 15).
 
 Scaling: the state holds M~_a = M_a / (N_ref p_ref^(i+j)); internal moments are
 M_int_a = M~_a r_a with r_a = p_ref^(i+j) / (c^i d^j). Tensors are returned in state units with
@@ -90,6 +94,13 @@ def _capture_matrices(kd, u, v, W, Phi, m, ud, vd):
     return Cd, Pw.sum(axis=0)
 
 
+def _capture_moment_matrix(kd, u, v, W, Phi, m):
+    """Cw[f, k] = int k_d A_f phi_k (internal units): the moments of the granules that capture,
+    from which the wet gain of a droplet (ud, vd) is the binomial map of ``capture_gain``."""
+    mon = np.stack([u ** i * v ** j for (i, j) in moment_index(m)], axis=1)   # (N, K)
+    return mon.T @ (Phi * (W * kd)[:, None])
+
+
 def wet_basis(m, weights, grid, consistent, p_ref):
     """The wet class's quadrature and corrected basis for one weight (c [kg], d [kg], lambda,
     gamma); grid: dict(p_max, b_max [kg], n_p, n_b, spacing[, fraction_basis]: the basis in
@@ -131,10 +142,12 @@ def wet_kernels(p, b, u0, uparams, ucfg, separate):
     return B, kd
 
 
-def wet_tensors(basis, B, kd, m, pd, separate, bd):
+def wet_tensors(basis, B, kd, m, pd, separate, bd, capture_moments):
     """(Q[pair, a], Cd[k, a], Cd0[k]) in state units for one weight's basis and one slice's
     kernel data (module doc); pd the droplet mass [kg], bd its liquid binder [kg] (pd: pure
-    binder; (1 - s) pd for a solution of solids fraction s)."""
+    binder; (1 - s) pd for a solution of solids fraction s). capture_moments: Cd[k, f] holds
+    the capturing granules' moments int k_d A_f phi~_k instead (droplets whose point changes
+    as they evaporate; the RHS maps the gain at their point)."""
     K = m * m
     u, v, W, PhiC, r = basis["u"], basis["v"], basis["W"], basis["PhiC"], basis["r"]
     iu = np.triu_indices(K)
@@ -147,6 +160,8 @@ def wet_tensors(basis, B, kd, m, pd, separate, bd):
     Cd0 = np.zeros(K)
     if separate:
         cd, cd0 = _capture_matrices(kd, u, v, W, PhiC, m, pd / basis["c"], bd / basis["d"])
-        Cd = (cd * r[None, :] / r[:, None]).T                        # [k, a]
+        if capture_moments:
+            cd = _capture_moment_matrix(kd, u, v, W, PhiC, m)
+        Cd = (cd * r[None, :] / r[:, None]).T                        # [k, a] or [k, f]
         Cd0 = cd0 * r
     return Q, Cd, Cd0
