@@ -162,6 +162,30 @@ def gamma_state(sc, arrays, c_m, shape, number=N0):
     return LT.scene_initial_state(sc, arrays, mom)   # binder in every granule: no dry class
 
 
+def test_a_stop_below_the_grids_lowest_binder_fraction_says_so():
+    """A wet class dried below the following weight's lowest tabulated binder fraction (the
+    drying's end of fluid-bed-batch: the tables' weight is then far wider in b than the class)
+    is named in the stop's hint with its fraction and the grid's; at the lowest fraction and
+    above, nothing is added."""
+    sc = scene(True)
+    arrays = model.pack(sc)
+    aux = LT.aux_for_scene(sc, arrays)
+    o, nwc = int(aux[LT.AUX_OFF_LOGW]), int(aux[LT.AUX_NWC])
+    lowest = math.exp(aux[o + nwc])
+    c_m = math.exp(aux[o + 1])
+    state = gamma_state(sc, arrays, c_m, 1.0)
+    for scale, named in ((1.0, False), (0.9 * lowest / Y0, True), (1.1 * lowest / Y0, False)):
+        dried = state.copy()
+        m = 3
+        for i in range(m):
+            for j in range(1, m):
+                dried[i * m + j] *= scale ** j          # b = scale Y0 p
+        hint = LT.failure_hint(dried, aux, arrays)
+        assert ("lies below the lowest binder fraction" in hint) == named, (scale, hint)
+        if named:
+            assert f"W01 / W10 = {0.9 * lowest:.3g}" in hint and f"({lowest:.3g})" in hint
+
+
 @pytest.mark.slow
 def test_mass_beyond_the_span_inside_the_range_is_not_blamed_on_following_growth():
     """A broad wet population (gamma shape 0.02) whose c_m lies inside the following grid,
