@@ -159,9 +159,12 @@ def wet_tensors(basis, B, kd, m, pd, separate, bd, capture_moments):
     Cd = np.zeros((K, K))
     Cd0 = np.zeros(K)
     if separate:
-        cd, cd0 = _capture_matrices(kd, u, v, W, PhiC, m, pd / basis["c"], bd / basis["d"])
         if capture_moments:
             cd = _capture_moment_matrix(kd, u, v, W, PhiC, m)
+            cd0 = (PhiC * (W * kd)[:, None]).sum(axis=0)
+        else:
+            cd, cd0 = _capture_matrices(kd, u, v, W, PhiC, m, pd / basis["c"],
+                                        bd / basis["d"])
         Cd = (cd * r[None, :] / r[:, None]).T                        # [k, a] or [k, f]
         Cd0 = cd0 * r
     return Q, Cd, Cd0
