@@ -34,8 +34,8 @@ import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
-from ...physics.injection import droplet_liquid
 from ...physics.parameters import numbered
+from ..quadrature.drying_sources import droplet_point
 
 #: the header's slots in order (each name's value is its index)
 HEADER = (
@@ -117,24 +117,19 @@ def evaporated_entry(config):
 
 def free_droplets(rows, params, config):
     """(n_d [1/m3], mass [kg], liquid [kg]) of the free droplets of each row of scaled states
-    (arrays of the rows' length; n_d 0 without droplets of their own): one droplet is (p_d,
-    b_d), or with a droplet-liquid entry the class's mean point (s p_d + l, l), l = L_d / n_d
-    (b_d where there are none), as the RHS takes it (``quadrature.drying_sources``)."""
+    (arrays of the rows' length; n_d 0 without droplets of their own): one droplet of each row
+    as the RHS takes it (``quadrature.drying_sources.droplet_point``: (p_d, b_d), or with a
+    droplet-liquid entry the class's mean point (s p_d + l, l))."""
     rows = np.atleast_2d(np.asarray(rows, dtype=float))
-    count = len(rows)
-    pd = float(params[P.DROPLET_MASS])
-    bd = float(droplet_liquid(params))
-    mass, liquid = np.full(count, pd), np.full(count, bd)
+    params = np.asarray(params, dtype=np.float64)
+    config = np.asarray(config, dtype=np.int64)
+    points = np.empty((len(rows), 2))
     if int(config[P.SEPARATE_DROPLETS]) != 1 or rows.shape[1] < int(config[P.N_STATE]):
-        return np.zeros(count), mass, liquid
-    nd = rows[:, -1]
-    if int(config[P.DROPLET_LIQUID]) == 1:
-        held = rows[:, -3]
-        has = nd > 0.0
-        liquid = np.where(has, np.maximum(held, 0.0) / np.where(has, nd, 1.0)
-                          * float(params[P.MASS_SCALE]), bd)
-        mass = (pd - bd) + liquid
-    return nd * float(params[P.NUMBER_SCALE]), mass, liquid
+        points[:] = droplet_point(np.zeros(int(config[P.N_STATE])), params, config)
+        return np.zeros(len(rows)), points[:, 0], points[:, 1]
+    for r, row in enumerate(rows):
+        points[r] = droplet_point(np.ascontiguousarray(row), params, config)
+    return rows[:, -1] * float(params[P.NUMBER_SCALE]), points[:, 0], points[:, 1]
 
 
 def state_size(order, separate_droplets, drying=False):

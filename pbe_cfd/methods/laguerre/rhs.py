@@ -122,26 +122,6 @@ def _wet_capture(state, out, aux, m, c0, d0, w):
 
 
 @nb.njit(cache=True)
-def _dry_capture(state, out, aux, m, c0, w):
-    """Droplets captured by dry granules: L_e = w sum_k Cdd[k, e] D_k leaves the dry class
-    and enters the wet one through CAPMAP; returns L_0, the droplets lost."""
-    K = m * m
-    cap = int(aux[AUX_OFF_CAPMAP])
-    loss = 0.0
-    for e in range(m):
-        acc = 0.0
-        for k in range(m):
-            acc += state[K + k] * aux[c0 + k * m + e]
-        lost = w * acc
-        out[K + e] -= lost
-        for a in range(K):
-            out[a] += aux[cap + e * K + a] * lost
-        if e == 0:
-            loss = lost
-    return loss
-
-
-@nb.njit(cache=True)
 def _binomial(n, k):
     """C(n, k) for small non-negative integers."""
     out = 1.0
@@ -186,11 +166,13 @@ def _wet_capture_at(state, out, aux, m, c0, d0, w, xd, xl):
 
 
 @nb.njit(cache=True)
-def _dry_capture_at(state, out, aux, m, c0, w, xd, xl):
-    """Droplets of the point (xd, xl) captured by dry granules: L_e = w sum_k Cdd[k, e] D_k
-    leaves the dry class and enters the wet one as (p + p_d)^i b_d^j (the CAPMAP at the
-    droplet's point); returns L_0, the droplets lost."""
+def _dry_capture(state, out, aux, m, c0, w, at_point, xd, xl):
+    """Droplets captured by dry granules: L_e = w sum_k Cdd[k, e] D_k leaves the dry class
+    and enters the wet one as (p + p_d)^i b_d^j, through the tabulated CAPMAP of the sprayed
+    droplet, or with ``at_point`` (AUX_CAPTURE_MOMENTS) at the droplet's scaled point (xd, xl)
+    (the granule's own moment e plus ``capture_gain``); returns L_0, the droplets lost."""
     K = m * m
+    cap = int(aux[AUX_OFF_CAPMAP])
     loss = 0.0
     for e in range(m):
         acc = 0.0
@@ -198,10 +180,12 @@ def _dry_capture_at(state, out, aux, m, c0, w, xd, xl):
             acc += state[K + k] * aux[c0 + k * m + e]
         lost = w * acc
         out[K + e] -= lost
-        for i in range(e, m):
-            ci = _binomial(i, e) * xd ** (i - e) * lost
-            for j in range(m):
-                out[i * m + j] += ci * xl ** j
+        if at_point:
+            out[e * m] += lost
+            capture_gain(out, lost, e * m, m, xd, xl)
+        else:
+            for a in range(K):
+                out[a] += aux[cap + e * K + a] * lost
         if e == 0:
             loss = lost
     return loss
@@ -229,12 +213,9 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
             npd = m * (m + 1) // 2
             _quadratic_form(state, K, m, out, K, aux, int(aux[AUX_OFF_QDD]) + s * npd * m,
                             mult * ws)
-            if capture and at_point:
-                loss += _dry_capture_at(state, out, aux, m, int(aux[AUX_OFF_CDD]) + s * m * m,
-                                        mult * ws * nd, xd, xl)
-            elif capture:
+            if capture:
                 loss += _dry_capture(state, out, aux, m, int(aux[AUX_OFF_CDD]) + s * m * m,
-                                     mult * ws * nd)
+                                     mult * ws * nd, at_point, xd, xl)
         if not wet:
             continue
         for q in range(N_CORNERS):
