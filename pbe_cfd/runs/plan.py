@@ -183,11 +183,17 @@ def averaging_window(scene, cells) -> str:
     control = cells.source.get("control") or {}
     if "avgStart" in control:
         return f"{control['avgStart']:g} to {cells.time:g} s"
-    path = _case_dir(scene) / "system" / "controlDict"
+    system = _case_dir(scene) / "system"
     try:
-        text = path.read_text()
+        text = (system / "controlDict").read_text()
     except OSError:
         return "unknown (no system/controlDict to read it from)"
+    included = re.search(r'^\s*#include(?:IfPresent)?\s+"([^"]+)"', text, flags=re.M)
+    if included:                 # an included file (the template's controlDict.override) wins
+        try:
+            text = (system / included.group(1)).read_text() + "\n" + text
+        except OSError:
+            pass
     start = _control_entry(text, "timeStart")
     if start is not None and start.startswith("$"):
         start = _control_entry(text, start[1:])

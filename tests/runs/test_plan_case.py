@@ -16,6 +16,10 @@ def _plan(capsys, scene) -> str:
     return capsys.readouterr().out
 
 
+def _window(text: str) -> str:
+    return re.search(r"averaging window: (.*)$", text, flags=re.M).group(1).strip()
+
+
 def _numbers(text: str) -> dict:
     cells = re.search(r"cells: (\d+); active (\d+) \(alpha >= alpha_min = [\d.]+; (\d+) below",
                       text)
@@ -48,6 +52,14 @@ def test_plan_says_what_the_run_uses_and_writes_nothing(box, capsys):
     (case / "system" / "controlDict").write_text("startTime 0;\nfunctions\n{\n}\n")
     assert "averaging window: 0 to 1.5 s (fieldAverage has no timeStart" in _plan(
         capsys, box / "s.toml")
+    # the case template's controlDict takes avgStart from an included override (Allrun END
+    # AVG_START writes it): the window is the override's
+    (case / "system" / "controlDict").write_text(
+        'avgStart 0.5;\n#includeIfPresent "controlDict.override"\nfunctions\n{\n'
+        '  fieldAverage1\n  {\n    timeStart $avgStart;\n  }\n}\n')
+    assert _window(_plan(capsys, box / "s.toml")) == "0.5 to 1.5 s"
+    (case / "system" / "controlDict.override").write_text("avgStart 1;\n")
+    assert _window(_plan(capsys, box / "s.toml")) == "1 to 1.5 s"
 
 
 def test_plan_of_an_unconverted_case_says_so_and_writes_nothing(box, capsys):
