@@ -175,6 +175,31 @@ def spray_zone(scene, cells) -> np.ndarray:
     return inside & window
 
 
+def spray_zone_volume(scene, cells) -> float:
+    """Volume [m3] of the spray zone's cells that hold granules (alpha >= alpha_min)."""
+    sprayed = spray_zone(scene, cells) & (np.asarray(cells.alpha) >= scene.domain.alpha_min)
+    return float(np.sum(np.asarray(cells.cell_volume, dtype=float)[sprayed]))
+
+
+def with_spray_per_volume(scene, cells):
+    """The scene with its ``[binder_injection]`` rates in droplets/(m3 s) of spray-zone cell:
+    a nozzle's mass flow [kg/s] (``rate_unit = "kg/s"``) spread evenly over the zone's cells
+    of ``cells`` (``scene.spray.per_volume``); a scene without one unchanged. Raises
+    SceneError when the zone holds no cell with granules."""
+    from ..physics.injection import droplet_mass
+    from ..scene import spray
+    inj = scene.binder_injection
+    if inj is None or inj.rate_unit != spray.MASS_FLOW:
+        return scene
+    try:
+        converted = spray.per_volume(inj, spray_zone_volume(scene, cells),
+                                     droplet_mass(inj.droplet_diameter,
+                                                  scene.material.binder_density))
+    except ValueError as exc:
+        raise SceneError(scene.source, "binder_injection.rate", str(exc)) from None
+    return dataclasses.replace(scene, binder_injection=converted)
+
+
 def spray_zone_cut(zone, alpha_min: float, cells, active) -> str:
     """Which criterion of the spray zone ``zone`` (``[binder_injection] zone``: box_min,
     box_max [m], alpha_low, alpha_high [-]; None: no zone) removed the cells of its box: counts

@@ -17,6 +17,7 @@ from ..scene import spray
 from ..physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
 from ..physics.efficiency import EFFICIENCY_BY_NAME
 from ..physics.kernels import KERNEL_BY_NAME
+from ..scene.scene import SceneError
 
 
 def describe_plan(scene) -> str:
@@ -61,7 +62,8 @@ def describe_plan(scene) -> str:
         left_out.append("binder injection (no [binder_injection] table)")
     else:
         where = "spray-zone cells" if inj.zone is not None else "every cell"
-        lines.append(f"  binder injection: {inj.rate:g} droplets/(m3 s) of "
+        flow = " of solution over the spray zone" if inj.rate_unit == spray.MASS_FLOW else ""
+        lines.append(f"  binder injection: {inj.rate:g} {inj.rate_unit}{flow}, droplets of "
                      f"{inj.droplet_diameter * 1e6:g} um into {where}")
         lines.extend(_spray_lines(scene, inj))
     brk = scene.breakage
@@ -271,8 +273,23 @@ def _spray_lines(scene, inj) -> list[str]:
     if inj.schedule:
         parts = [f"{t0:g}-{t1:g} s: {rate:g}"
                  for t0, t1, rate in spray.segments(inj, scene.end_time)]
-        out.append(f"    spray schedule (droplets/(m3 s)): {'; '.join(parts)}")
+        out.append(f"    spray schedule ({inj.rate_unit}): {'; '.join(parts)}")
     return out
+
+
+def _spray_flow_line(scene, cells) -> str:
+    """The peak flow the spray zone of ``cells`` receives, in both units."""
+    from ..physics.injection import droplet_mass
+    from .domain import spray_zone_volume, with_spray_per_volume
+    volume = spray_zone_volume(scene, cells)
+    try:
+        per = with_spray_per_volume(scene, cells).binder_injection
+    except SceneError as exc:
+        return f"    sprayed: nothing: {exc.expected}"
+    mass = droplet_mass(per.droplet_diameter, scene.material.binder_density)
+    return (f"    sprayed at the peak: {per.rate * mass * volume:.4g} kg/s of solution = "
+            f"{per.rate:.4g} droplets/(m3 s) over the {volume:.4g} m3 of spray-zone cells "
+            "holding granules")
 
 
 def spray_lines(scene, cells, active: np.ndarray) -> list[str]:
@@ -281,7 +298,8 @@ def spray_lines(scene, cells, active: np.ndarray) -> list[str]:
     if inj is None:
         return []
     if inj.zone is None:
-        return [f"  spray zone: every active cell ({int(active.sum())})"]
+        return [f"  spray zone: every active cell ({int(active.sum())})",
+                _spray_flow_line(scene, cells)]
     z = inj.zone
     centre = np.asarray(cells.cell_centre)
     alpha = np.asarray(cells.alpha)
@@ -292,7 +310,7 @@ def spray_lines(scene, cells, active: np.ndarray) -> list[str]:
             f"removed {int((active & ~inside).sum())} outside the box, "
             f"{int((active & inside & (alpha > z.alpha_high)).sum())} above alpha_high = "
             f"{z.alpha_high:g}, {int((active & inside & (alpha < z.alpha_low)).sum())} below "
-            f"alpha_low = {z.alpha_low:g}"]
+            f"alpha_low = {z.alpha_low:g}", _spray_flow_line(scene, cells)]
 
 
 def case_lines(scene) -> list[str]:

@@ -32,7 +32,8 @@ import numpy as np
 from . import model
 from .air import AirPlan, air_plan, coupled_air_plan
 from .batch import SimulationError, check_physics, output_times
-from .domain import build_cells, coupled_scales, initial_states, theta_grid
+from .domain import (build_cells, coupled_scales, initial_states, theta_grid,
+                     with_spray_per_volume)
 from ..distribution.tables import DistributionPlan, distribution_plan
 from ..methods.entry import MethodEntry, MethodPlan
 from ..methods.registry import method_of, method_plan
@@ -175,6 +176,8 @@ def problem_of(scene, domain=None, scales=None) -> Problem:
         from ..methods import registry
         raise SceneError(scene.source, "method.name", "a coupled run needs a moment method: "
                          f"expected {' or '.join(registry.MOMENT_METHODS)}")
+    if domain is not None:             # a nozzle's mass flow over this bed's spray zone
+        scene = with_spray_per_volume(scene, domain.cells)
     times = output_times(scene)
     common = dict(method=method, times=times, rtol=scene.method.rtol,
                   atol=scene.method.atol,

@@ -6,7 +6,14 @@ the table's ``rate`` all the time (docs/physics.md section 7). The per-cell inte
 segment with the cell rows' injection scaled by rate / peak rate (``runs.batch.CellBatch``).
 """
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+
+#: units of ``[binder_injection] rate`` and the schedule's rates (``rate_unit``): droplets per
+#: m3 of spray-zone cell and s (the default), or the nozzle's mass flow of sprayed solution
+#: [kg/s] over the whole spray zone (an OpenFOAM domain; ``per_volume`` converts it)
+PER_VOLUME = "droplets/(m3 s)"
+MASS_FLOW = "kg/s"
+RATE_UNITS = (PER_VOLUME, MASS_FLOW)
 
 
 @dataclass(frozen=True)
@@ -23,12 +30,30 @@ class Zone:
 class BinderInjection:
     """Binder droplets: rate [droplets/(m3 s)] (a schedule's peak rate), droplet_diameter [m],
     zone (OpenFOAM only), solids_fraction [-] (dissolved binder solids per sprayed mass,
-    docs/physics.md section 7), schedule ((t_start [s], rate), ...) (empty: ``rate`` always)."""
+    docs/physics.md section 7), schedule ((t_start [s], rate), ...) (empty: ``rate`` always),
+    rate_unit: "droplets/(m3 s)", or "kg/s" (OpenFOAM only) for rate and the schedule's
+    rates as the nozzle's flow of solution, which each run spreads over the spray zone's
+    cells of its case (docs/physics.md section 7)."""
     rate: float
     droplet_diameter: float
     zone: Zone | None = None
     solids_fraction: float = 0.0
     schedule: tuple = ()
+    rate_unit: str = PER_VOLUME
+
+
+def per_volume(injection, zone_volume, droplet_mass):
+    """The ``BinderInjection`` in droplets/(m3 s): a MASS_FLOW table's rates [kg/s] divided by
+    the droplet's mass [kg] and the spray zone's volume [m3] (its cells holding granules); a
+    PER_VOLUME table unchanged. Raises ValueError for an empty zone."""
+    if injection.rate_unit != MASS_FLOW:
+        return injection
+    if not zone_volume > 0.0:
+        raise ValueError(f"a mass flow of {injection.rate:g} kg/s is sprayed over the spray "
+                         "zone's cells, and the zone holds no cell with granules")
+    f = 1.0 / (droplet_mass * zone_volume)
+    return replace(injection, rate=injection.rate * f, rate_unit=PER_VOLUME,
+                   schedule=tuple((t, r * f) for t, r in injection.schedule))
 
 
 def parse_injection(path, data, domain, table, vector3, error):
@@ -36,7 +61,12 @@ def parse_injection(path, data, domain, table, vector3, error):
     ``BinderInjection``; ``table``, ``vector3``, ``error``: the scene reader's ``_Table``,
     ``_vector3`` and ``SceneError``."""
     t = table(path, "binder_injection", data)
-    rate, schedule, solids = parse_spray(path, t, error)
+    unit = t.choice("rate_unit", RATE_UNITS, PER_VOLUME)
+    if unit == MASS_FLOW and domain.type != "openfoam":
+        raise error(path, "binder_injection.rate_unit",
+                    "a mass flow [kg/s] is sprayed over a spray zone's cells: expected "
+                    f"domain.type = \"openfoam\", or rate_unit = \"{PER_VOLUME}\"")
+    rate, schedule, solids = parse_spray(path, t, error, unit)
     diameter = t.number("droplet_diameter", positive=True, unit="m")
     zone = None
     if t.has("zone"):
@@ -51,25 +81,25 @@ def parse_injection(path, data, domain, table, vector3, error):
         z.finish()
     t.finish()
     return BinderInjection(rate=rate, droplet_diameter=diameter, zone=zone,
-                           solids_fraction=solids, schedule=schedule)
+                           solids_fraction=solids, schedule=schedule, rate_unit=unit)
 
 
-def parse_spray(path, t, error):
-    """(peak rate [droplets/(m3 s)], schedule, solids_fraction [-]) of the [binder_injection]
-    table reader ``t`` (``scene._Table``); ``error(path, key, text)`` is raised on bad input."""
+def parse_spray(path, t, error, unit=PER_VOLUME):
+    """(peak rate [``unit``], schedule, solids_fraction [-]) of the [binder_injection] table
+    reader ``t`` (``scene._Table``); ``error(path, key, text)`` is raised on bad input."""
     solids = t.number("solids_fraction", 0.0, non_negative=True)
     if not solids < 1.0:
         raise error(path, "binder_injection.solids_fraction",
                     f"expected a mass fraction in [0, 1) (dissolved solids per sprayed mass), "
                     f"got {solids}")
-    return _schedule(path, t, error) + (solids,)
+    return _schedule(path, t, error, unit) + (solids,)
 
 
-def _schedule(path, t, error):
-    """(peak rate [droplets/(m3 s)], schedule): ``rate`` with optional ``start``/``stop``
-    [s], or ``schedule = [[t, rate], ...]``."""
+def _schedule(path, t, error, unit=PER_VOLUME):
+    """(peak rate [``unit``], schedule): ``rate`` with optional ``start``/``stop`` [s], or
+    ``schedule = [[t, rate], ...]``."""
     if not t.has("schedule"):
-        rate = t.number("rate", non_negative=True, unit="droplets/(m3 s)")
+        rate = t.number("rate", non_negative=True, unit=unit)
         start = t.number("start", None, non_negative=True, unit="s")
         stop = t.number("stop", None, positive=True, unit="s")
         if start is None and stop is None:
@@ -86,7 +116,7 @@ def _schedule(path, t, error):
     raw = t.raw("schedule")
     key = "binder_injection.schedule"
     if not isinstance(raw, list) or not raw:
-        raise error(path, key, f"expected a list of [time (s), rate (droplets/(m3 s))] "
+        raise error(path, key, f"expected a list of [time (s), rate ({unit})] "
                                f"pairs, got {raw!r}")
     out = []
     for k, seg in enumerate(raw):
@@ -94,7 +124,7 @@ def _schedule(path, t, error):
                 or any(isinstance(v, bool) or not isinstance(v, (int, float))
                        or not math.isfinite(v) for v in seg)):
             raise error(path, key, f"entry {k}: expected [time (s), rate "
-                                   f"(droplets/(m3 s))], got {seg!r}")
+                                   f"({unit})], got {seg!r}")
         start, rate = float(seg[0]), float(seg[1])
         if start < 0.0 or rate < 0.0:
             raise error(path, key, f"entry {k}: expected a non-negative time and rate, "

@@ -151,6 +151,36 @@ def test_only_a_method_whose_own_droplets_hold_solids_takes_a_solution(method):
         assert scene(SOLIDS).binder_injection.solids_fraction == SOLIDS
 
 
+def test_a_mass_flow_needs_the_cells_of_a_spray_zone():
+    """rate_unit = "kg/s" is a nozzle's flow over a spray zone's cells: a well-mixed scene
+    refuses it naming the key; a bad unit is refused naming the choices."""
+    for unit, key in (("kg/s", "binder_injection.rate_unit"),
+                      ("g/min", "binder_injection.rate_unit")):
+        with pytest.raises(SceneError) as err:
+            make_scene(binder_injection={"droplet_diameter": D_DROP, "rate": 1e-4,
+                                         "rate_unit": unit})
+        assert err.value.key == key, err.value
+        assert ("openfoam" in str(err.value)) == (unit == "kg/s"), err.value
+
+
+def test_a_mass_flow_is_spread_over_the_zone_volume():
+    """per_volume: F [kg/s] over V [m3] of droplets of mass p_d is F / (p_d V) droplets per m3
+    and s, the schedule's rates alike; the zone then receives F p_d V / p_d V = F."""
+    from pbe_cfd.scene import spray
+    inj = spray.BinderInjection(rate=2e-4, droplet_diameter=D_DROP, rate_unit=spray.MASS_FLOW,
+                                schedule=((0.0, 2e-4), (5.0, 1e-4), (8.0, 0.0)))
+    pd, volume = 1.2e-10, 3.5e-4
+    per = spray.per_volume(inj, volume, pd)
+    assert per.rate_unit == spray.PER_VOLUME
+    assert per.rate * pd * volume == pytest.approx(2e-4, rel=1e-15, abs=0.0)
+    assert [t for t, _ in per.schedule] == [0.0, 5.0, 8.0]
+    assert [r * pd * volume for _, r in per.schedule] == pytest.approx([2e-4, 1e-4, 0.0],
+                                                                        rel=1e-15, abs=0.0)
+    assert spray.per_volume(per, volume, pd) is per          # already per volume
+    with pytest.raises(ValueError, match="holds no cell"):
+        spray.per_volume(inj, 0.0, pd)
+
+
 @pytest.mark.slow
 def test_plan_lists_the_schedule_and_exit_2_names_the_key(tmp_path):
     good = tmp_path / "spray.toml"

@@ -58,6 +58,12 @@ def test_sprayed_liquid_is_held_or_evaporated(batch):
     assert np.allclose(sprayed[t >= SPRAY_STOP], sprayed[-1], rtol=1e-15, atol=0.0)
     on = t <= SPRAY_STOP
     assert np.allclose(sprayed[on], sprayed[-1] * t[on] / SPRAY_STOP, rtol=1e-12, atol=0.0)
+    # the scene's nozzle flow F [kg/s] of solution (rate_unit = "kg/s"), spread over the
+    # spray zone's cells, reaches the bed whole: liquid (1 - s) F t
+    inj = load_scene("fluid-bed-batch").binder_injection
+    assert inj.rate_unit == "kg/s"
+    assert sprayed[-1] == pytest.approx((1.0 - inj.solids_fraction) * inj.rate * SPRAY_STOP,
+                                        rel=1e-12, abs=0.0)
 
 
 @pytest.mark.slow

@@ -76,3 +76,17 @@ def test_plan_of_the_bundled_snapshot_names_its_window(capsys):
     text = _plan(capsys, "fluid-bed")
     assert "averaging window: 0.5 to 1.5 s" in text and "bundled snapshot" in text
     _numbers(text)
+
+
+def test_plan_states_the_sprayed_flow_in_both_units(capsys):
+    """fluid-bed-batch gives the nozzle's flow (kg/s): the plan states it and the droplets per
+    m3 and s its 97 spray cells receive; fluid-bed gives droplets/(m3 s) and the plan states
+    the flow that makes."""
+    flow = re.compile(r"sprayed at the peak: ([\d.e+-]+) kg/s of solution = ([\d.e+-]+) "
+                      r"droplets/\(m3 s\) over the ([\d.e+-]+) m3")
+    batch = flow.search(_plan(capsys, "fluid-bed-batch"))
+    assert batch, "no flow line"
+    assert float(batch.group(1)) == 1.053e-4                # the scene's 1.05261e-4, 4 digits
+    assert float(batch.group(2)) == 4.75e9                  # the rate it replaced, 4 digits
+    bed = flow.search(_plan(capsys, "fluid-bed"))
+    assert bed and float(bed.group(3)) == float(batch.group(3))     # the same zone
