@@ -2,7 +2,8 @@
 
 State layout: ``rhs`` (module doc). ``laguerre_realizable`` accepts RK stages,
 ``laguerre_conserved`` gives the integrator the invariants M10 and M01, ``laguerre_project``
-clips the free droplets and merges a vanishing dry class into the wet one.
+clips the free droplets, merges a vanishing dry class into the wet one and spreads a dried
+class's last liquid over its mass.
 """
 import math
 
@@ -12,7 +13,8 @@ import numpy as np
 from ...physics import parameters as P
 from ...physics.injection import droplet_liquid
 from ..quadrature.drying_sources import set_droplet_invariants
-from .layout import AUX_CHECK_LEVEL, droplet_number_entry, evaporated_entry
+from .layout import AUX_CHECK_LEVEL, AUX_FOLLOWING, droplet_number_entry, evaporated_entry
+from .position import LIQUID_FLOOR, mass_moment
 
 __all__ = ["laguerre_realizable", "laguerre_project", "laguerre_conserved",
            "strictly_realizable", "DRY_MERGE_SHARE"]
@@ -183,10 +185,30 @@ def laguerre_conserved(config, params, pivots, coefs):
 
 
 @nb.njit(cache=True)
+def spread_dried_liquid(state, m):
+    """Set the wet class's liquid moments W_ij (j >= 1, W01 kept) to those of its liquid
+    fraction y = W01 / W10 in every granule, y^j M_(i+j) (``position.mass_moment``): the
+    post-step fix of a class dried below LIQUID_FLOOR. Invariants (W10, W01) and the mass
+    moments kept."""
+    y = state[1] / state[m]
+    for i in range(m):
+        f = 1.0
+        for j in range(1, m):
+            f *= y
+            if i == 0 and j == 1:
+                continue
+            state[i * m + j] = f * mass_moment(state, m, i + j)
+
+
+@nb.njit(cache=True)
 def laguerre_project(state, aux, params, config, work=None):
-    """In-place fix after an accepted step: clips a negative free-droplet density to 0, and
+    """In-place fix after an accepted step: clips a negative free-droplet density to 0,
     merges a dry class holding less than DRY_MERGE_SHARE of the granules into the wet class
-    (W_k0 += D_k, D = 0: mass and number conserved, the dry tensors no longer evaluated).
+    (W_k0 += D_k, D = 0: mass and number conserved, the dry tensors no longer evaluated), and
+    with the following support spreads the liquid of a wet class dried below LIQUID_FLOOR in
+    proportion to the mass (``spread_dried_liquid``; W01 and the mass moments kept; a W01 the
+    falling rate's last step left a round-off below 0 is returned from the evaporated liquid
+    E, so M01 + E is unchanged, and the class holds none).
 
     The moments themselves are otherwise left untouched (the ROM has no cheaper admissible
     neighbour).
@@ -202,3 +224,11 @@ def laguerre_project(state, aux, params, config, work=None):
         for k in range(m):
             state[k * m] += state[K + k]
             state[K + k] = 0.0
+    if (aux[AUX_FOLLOWING] == 1.0 and state[0] > 0.0 and state[m] > 0.0
+            and state[1] < LIQUID_FLOOR * state[m]):       # the following support: m >= 3
+        if state[1] < 0.0 and config[P.DRYING] == 1:
+            # the falling rate's last step took a round-off more liquid than there was:
+            # returned from the evaporated liquid, so M01 + E stays what it was
+            state[evaporated_entry(config)] += state[1]
+            state[1] = 0.0
+        spread_dried_liquid(state, m)

@@ -210,9 +210,9 @@ def graded_mass_nodes(c, lam, p_max, points, cells=GRADED_CELLS, levels=GRADED_L
     return u, np.where(wg > 0.0, wg / np.where(g > 0.0, g, 1.0), 0.0)
 
 
-def quadrature(c, d, lam, gam, p_max, b_max, n_p, n_b, spacing=0, points=3):
+def quadrature(c, d, lam, gam, p_max, b_max, n_p, n_b, spacing=0, points=3, y_max=1.0):
     """Nodes (u, v) [internal units, u = p/c, v = b/d] and weights [du dv] on the support
-    b <= p, p <= p_max, b <= b_max.
+    b <= p, p <= p_max, b <= b_max (and b <= y_max p in the binder fraction's spacings).
 
     spacing 0 ("uniform", seed 000 table III): cell midpoints of a uniform n_p x n_b grid in
     (p, b), kept where b <= p. spacing 1 ("fraction"): n_p uniform cells in p and, at each
@@ -221,7 +221,9 @@ def quadrature(c, d, lam, gam, p_max, b_max, n_p, n_b, spacing=0, points=3):
     dependence on y for small granules. Both use product-midpoint weights exact for the
     singular weight factors u^(lam-1) and v^(gam-1) (resp. y^(gam-1)) over each cell.
     spacing 2 (GRADED, the following support): as 1 in y, the graded Gauss rule of
-    ``points`` nodes a cell in p (``graded_mass_nodes``; n_p is not used).
+    ``points`` nodes a cell in p (``graded_mass_nodes``; n_p is not used). y_max [-]: the
+    top of the binder fraction's support in spacings 1 and 2 (the following support's slices
+    of a low mean fraction, ``laguerre_build``).
     """
     if int(spacing) == GRADED:
         um, wu = graded_mass_nodes(c, lam, p_max, points)
@@ -229,7 +231,7 @@ def quadrature(c, d, lam, gam, p_max, b_max, n_p, n_b, spacing=0, points=3):
         um, wu = mass_nodes(c, lam, p_max, n_p)
     if int(spacing) in (1, GRADED):
         pj = um * c
-        ytop = np.minimum(1.0, b_max / pj)                          # (n_p,)
+        ytop = np.minimum(min(1.0, y_max), b_max / pj)              # (n_p,)
         t = np.arange(n_b + 1) / n_b
         ym, wy = _singular_midpoint_weights(ytop[:, None] * t[None, :], gam)
         U = np.broadcast_to(um[:, None], ym.shape)

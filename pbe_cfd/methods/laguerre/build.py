@@ -60,6 +60,20 @@ FOLLOWING_SPAN = 8.0
 FOLLOWING_POINTS_PER_DECADE = 3.0
 FOLLOWING_RATIO = (0.01, 1.0)
 FOLLOWING_RATIO_POINTS = 5
+#: a following slice's binder fraction lies on [0, min(1, FRACTION_SPAN y)], y its mean
+#: fraction (ours): the default grid's lowest slice (y = 0.01) keeps [0, 1], and a slice of a
+#: lower y has the same quadrature in b / y, so its basis is that slice's scaled (the
+#: fraction weight's share beyond 100 means is exp(-200) for the scenes' shape 2). On
+#: [0, 1] a slice of y = 1e-3 has a singular Gram matrix (cond 3e11; 1e-4: 3e17)
+FRACTION_SPAN = 100.0
+#: with [drying] the fraction axis gains these points below FOLLOWING_RATIO's, one per
+#: decade (ours): the falling-rate period takes the wet class's fraction towards 0, and below
+#: the lowest slice the class is evaluated at that slice's fraction (``position.binder_shift``);
+#: at 1e-4 the bundled material's geometric factor is within 0.35% and its critical Stokes
+#: number within 0.7% of their values at y = 0 (docs/physics.md section 9.2). Each such slice
+#: has nodes of its own (its fraction support is 100 y), so each costs the kernel matrices of
+#: a whole set of slices: one point per decade, not FOLLOWING_RATIO's two
+FOLLOWING_DRYING_BELOW = (1.0e-4, 1.0e-3)
 #: the gamma shapes lambda in p of the following weight, one per octave: the weight's shape
 #: follows the carried W10^2 / (W00 W20 - W10^2), so that with m = 3 the mass marginal's
 #: expansion is the gamma of the carried M0, M1, M2 itself (docs/physics.md section 9.2).
@@ -157,13 +171,17 @@ def _u0_grid(config, theta_grid, collision_velocity):
 
 def _following_spec(spec):
     """dict(following, c=[lo, hi] [kg], y=[lo, hi] [-], points_c, points_y, span [-],
-    shapes=[lo, hi] [-] or None (the fixed weight shape), points_l)."""
+    shapes=[lo, hi] [-] or None (the fixed weight shape), points_l[, y_below]: fractions
+    [-] added below y_lo)."""
     c = [float(x) for x in spec["c"]]
     if not (0.0 < c[0] < c[1]):
         raise ValueError(f"following support: need 0 < c_lo < c_hi [kg], got {c}")
     y = [float(x) for x in spec.get("y") or FOLLOWING_RATIO]
     if not (0.0 < y[0] < y[1] <= 1.0):
         raise ValueError(f"following support: need 0 < y_lo < y_hi <= 1, got {y}")
+    below = sorted(float(x) for x in spec.get("y_below") or ())
+    if below and not (0.0 < below[0] and below[-1] < y[0] and len(set(below)) == len(below)):
+        raise ValueError(f"following support: need distinct 0 < y_below < y_lo, got {below}")
     decades = math.log10(c[1] / c[0])
     n_c = int(spec.get("points_c")
               or max(2, math.ceil(decades * FOLLOWING_POINTS_PER_DECADE) + 1))
@@ -179,7 +197,8 @@ def _following_spec(spec):
             raise ValueError(f"following support: need 0 < shape_lo < shape_hi, got {shapes}")
         n_l = int(spec.get("points_l") or round(math.log2(shapes[1] / shapes[0])) + 1)
     return dict(following=True, c=c, y=y, points_c=n_c, points_y=n_y, span=span,
-                shapes=shapes or None, points_l=max(n_l, 2) if shapes else 1)
+                shapes=shapes or None, points_l=max(n_l, 2) if shapes else 1,
+                **({"y_below": below} if below else {}))
 
 
 def _adaptive_spec(adaptive, support):
@@ -278,7 +297,8 @@ def _weight_grid(weights, spec):
         # grid in the mass-weighted mean c_m = W20/W10; the gamma weight of shape lam with
         # that mass-weighted mean has the number mean c = c_m lam / (lam + 1)
         cg = np.geomspace(spec["c"][0], spec["c"][1], spec["points_c"])
-        yg = np.geomspace(spec["y"][0], spec["y"][1], spec["points_y"])
+        yg = np.concatenate([spec.get("y_below", []),
+                             np.geomspace(spec["y"][0], spec["y"][1], spec["points_y"])])
         lg = (np.geomspace(spec["shapes"][0], spec["shapes"][1], spec["points_l"])
               if spec.get("shapes") else np.array([lam]))
         return np.log(cg), np.log(yg), np.log(lg), [
@@ -303,22 +323,31 @@ def _same(a, b):
     return all(np.array_equal(x, y) for x, y in zip(a, b))
 
 
+def fraction_top(c, d):
+    """The top of a following slice's binder-fraction support [-] for its weight means c, d
+    [kg]: 1, or FRACTION_SPAN times the slice's mean fraction d / c where that is below 1."""
+    y_max = FRACTION_SPAN * d / c
+    return 1.0 if y_max >= 1.0 - 1e-9 else float("%.12e" % y_max)
+
+
 def _slice_grids(grid, pairs, spec):
     """The quadrature grid of each weight slice: the one support, or with the following
     support p_max = b_max = span c_m (c_m the weight's mass-weighted mean; b <= p bounds the
-    binder), the nodes uniform in the binder
-    fraction and the basis in it (``laguerre_basis.fraction_basis_values``), graded Gauss
+    binder; the binder fraction on [0, min(1, FRACTION_SPAN y)], y the slice's mean fraction),
+    the nodes uniform in the binder fraction and the basis in it (``laguerre_basis.fraction_basis_values``), graded Gauss
     nodes in p for the slice's gamma weight (``laguerre_basis.graded_mass_nodes``). Slices of
     the same c_m and shape share their nodes (and kernel matrices): the nodes depend on p_max
     and the shape alone."""
     if spec is None or not spec.get("following"):
         return [grid] * len(pairs)
     out, seen = [], {}
-    for c, _, lam in pairs:
+    for c, d, lam in pairs:
         top = float(spec["span"] * (1.0 + 1.0 / lam) * c)       # span c_m
-        key = (float("%.12e" % top), float("%.12e" % lam))
+        y_max = fraction_top(c, d)
+        key = (float("%.12e" % top), float("%.12e" % lam), y_max)
         if key not in seen:
-            seen[key] = dict(grid, p_max=top, b_max=top, spacing=GRADED, fraction_basis=True)
+            seen[key] = dict(grid, p_max=top, b_max=top, spacing=GRADED, fraction_basis=True,
+                             y_max=y_max)
         out.append(seen[key])
     return out
 

@@ -1,5 +1,6 @@
 """The Laguerre ROM's registry entry: its scene keys, state names, tables, populations, plan
 line and its numba functions (``methods.registry`` lists it)."""
+from ...physics import parameters as P
 from ..entry import MethodEntry
 from .guard import output_check
 from .number_watch import output_watch
@@ -85,7 +86,7 @@ def _table_build_seconds(scene, pack, cell):
     packed arrays, ``cell(scene)`` its well-mixed cell row. The tensor builder is compiled
     beforehand on a 4 x 4 grid (once per process)."""
     import time
-    from ...physics import parameters as P
+
     from .tensor import build_aux, scene_weights_support
 
     def build(sc):
@@ -113,7 +114,7 @@ ENTRY = MethodEntry(
     table_bytes=table_bytes,
     table_keys=("grid_mass", "grid_binder", "dry_grid_mass"),
     rhs=laguerre_rhs, realizable=laguerre_realizable, project=laguerre_project,
-    conserved=laguerre_conserved, work_size=lambda config: 0,
+    conserved=laguerre_conserved, work_size=lambda config: int(config[P.N_STATE]),
     bench_orders=int, bench_scene=lambda scene, order: scene.with_method(order=order),
     bench_quick=("2", "3"), bench_full=("2", "3", "4"), bench_ceiling="contraction",
     bench_breakdown="contraction",

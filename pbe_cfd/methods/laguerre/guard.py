@@ -59,12 +59,17 @@ def aggregation_number_rates(state, aux):
     any positive population every value is <= 0 (-1/2 of the double integral of beta n n
     with beta >= 0); a positive value means the signed reconstruction, as the kernel sees
     it, is not a population (docs/results/laguerre.md, the bed batch's M00)."""
-    from .position import _weight_position
+    from .position import _weight_position, binder_shift, scale_binder
     from .rhs import _aggregation_and_capture, _any_nonzero
     m = int(aux[AUX_ORDER])
     K = m * m
     s = np.ascontiguousarray(state, dtype=float)
     wet, dry = _any_nonzero(s, 0, K), _any_nonzero(s, K, K + m)
+    shift = binder_shift(s, aux, m) if wet else 0.0
+    if shift != 0.0:                # as the RHS: the number rate is that of the scaled state
+        scaled = np.empty_like(s)
+        scale_binder(s, scaled, aux, m, s.size, shift)
+        s = scaled
     wpos = _weight_position(s, aux, m)
     out = np.zeros(s.size)
     rates = []

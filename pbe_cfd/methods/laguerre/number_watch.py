@@ -26,7 +26,8 @@ from ...physics import parameters as P
 from ...physics.kernels import KTGF, kernel_cell_factor
 from .layout import (AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_OFF_Q, AUX_OFF_QDD,
                      AUX_OFF_XL, AUX_ORDER, N_CORNERS, _corner, weight_corner)
-from .position import _slice_position, _weight_position, laguerre_d43
+from .position import (_slice_position, _weight_position, binder_shift, laguerre_d43,
+                       scale_binder)
 
 #: machine epsilon of float64 [-]
 EPS = 2.0 ** -52
@@ -125,9 +126,17 @@ def number_rates(states, rows, aux, params, config):
     nc = states.shape[0]
     rel = np.zeros(nc)
     flag = np.zeros(nc, dtype=np.bool_)
-    K = int(aux[AUX_ORDER]) ** 2
+    m = int(aux[AUX_ORDER])
+    K = m * m
+    scaled = np.empty(states.shape[1])
     for c in range(nc):
-        rate, total, n = number_rate(states[c], rows[c], aux, params, config)
+        # as the RHS: a wet class below the lowest tabulated fraction at its scaled state
+        shift = binder_shift(states[c], aux, m)
+        if shift != 0.0:
+            scale_binder(states[c], scaled, aux, m, states.shape[1], shift)
+            rate, total, n = number_rate(scaled, rows[c], aux, params, config)
+        else:
+            rate, total, n = number_rate(states[c], rows[c], aux, params, config)
         m00 = states[c, 0] + states[c, K]
         if m00 > 0.0:
             rel[c] = rate / m00

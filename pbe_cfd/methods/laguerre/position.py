@@ -91,6 +91,84 @@ def _weight_position(state, aux, m):
     return ic, tc, jd, td, il, tl
 
 
+#: liquid fraction W01 / W10 of a wet class below which, with the following support, its
+#: liquid is taken as spread in proportion to the mass (``admissible.laguerre_project``) and
+#: its aggregation is that of such a class (``scale_binder``), ours: a moisture of 1e-6
+#: kg/kg, far below any a granule holds in a real bed, where W02 ~ y^2 W20 is still above the
+#: default absolute tolerance (1e-14 on the scaled state) for the beds' W20 ~ 1e-2 .. 1e2.
+#: Below it the falling rate takes the liquid on towards 1e-300 within minutes, and the
+#: moments of b^2 lie beneath any tolerance (docs/physics.md section 9.2)
+LIQUID_FLOOR = 1e-6
+
+
+@nb.njit(cache=True)
+def mass_moment(state, m, n):
+    """M_n [scaled] of the wet class in p: W_n0 where carried (n < m), beyond it the gamma of
+    the carried W00, W10, W20 (M_(k+1) = M_k theta (shape + k), the following weight's own
+    shape), or the delta at W10 / W00 where that variance is not positive (m >= 3)."""
+    if n < m:
+        return state[n * m]
+    mean = state[m] / state[0]
+    var = state[2 * m] / state[0] - mean * mean
+    out = state[(m - 1) * m]
+    if not var > 0.0:
+        for k in range(m - 1, n):
+            out *= mean
+        return out
+    theta = var / mean
+    shape = mean / theta
+    for k in range(m - 1, n):
+        out *= theta * (shape + k)
+    return out
+
+
+@nb.njit(cache=True)
+def binder_shift(state, aux, m):
+    """0.0, or ln(y_lo / y) > 0 (inf for y = 0) where the wet class's liquid fraction
+    y = W01 / W10 lies below the lowest binder fraction y_lo of the following weight's tables
+    (drying takes it there). The aggregation and capture of such a class are evaluated on its
+    state with the binder coordinate scaled up to y_lo (``scale_binder``) and scaled back
+    (``unscale_binder_rates``): the tables' quadrature is the same in b / y at every low
+    fraction (``build.FRACTION_SPAN``), so this is exact where the kernel and efficiencies do
+    not depend on the binder, and otherwise evaluates them at y_lo (docs/physics.md 9.2)."""
+    if aux[AUX_FOLLOWING] != 1.0 or not (state[0] > 0.0) or not (state[m] > 0.0):
+        return 0.0
+    if not state[1] > 0.0:
+        return math.inf
+    lowest = aux[int(aux[AUX_OFF_LOGW]) + int(aux[AUX_NWC])]       # ln y_lo
+    ly = math.log(state[1] / state[m])
+    if ly >= lowest:
+        return 0.0
+    return lowest - ly
+
+
+@nb.njit(cache=True)
+def scale_binder(state, out, aux, m, n, shift):
+    """out[:n] = state[:n] with the wet class's binder coordinate scaled by exp(shift)
+    (``binder_shift``): W_ij exp(j shift); a class below LIQUID_FLOOR (its liquid spread in
+    proportion to the mass, or none) as that class at y_lo, y_lo^j M_(i+j) (``mass_moment``),
+    which no overflow of exp(j shift) reaches."""
+    for k in range(n):
+        out[k] = state[k]
+    uniform = not (state[1] >= LIQUID_FLOOR * state[m])
+    y_lo = math.exp(aux[int(aux[AUX_OFF_LOGW]) + int(aux[AUX_NWC])])
+    for i in range(m):
+        for j in range(1, m):
+            if uniform:
+                out[i * m + j] = y_lo ** j * mass_moment(state, m, i + j)
+            else:
+                out[i * m + j] = state[i * m + j] * math.exp(j * shift)
+
+
+@nb.njit(cache=True)
+def unscale_binder_rates(out, m, shift):
+    """Rates of the scaled state back to the state's: out[i m + j] *= exp(-j shift) for the
+    wet moments (0 for shift = inf; the moments of b^0 are unchanged by the scaling)."""
+    for i in range(m):
+        for j in range(1, m):
+            out[i * m + j] = out[i * m + j] * math.exp(-j * shift)
+
+
 @nb.njit(cache=True)
 def laguerre_d43(state, aux, params, config):
     """Volume-mean diameter d43 [m] of the cell's granules, the ktgf kernel's d43 (free

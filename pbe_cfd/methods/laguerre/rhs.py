@@ -36,7 +36,10 @@ class's mean mass and binder [kg]; clamped at the grid ends). Every blend weight
 complete closure, so exactness for the constant kernel and the exact mass bookkeeping hold for
 the blend. Formulas: ``laguerre_wet``, ``laguerre_dry``; the aux layout: ``laguerre_layout``.
 """
+import math
+
 import numba as nb
+import numpy as np
 
 from ...physics import parameters as P
 from ...physics.drying import cell_gas
@@ -53,7 +56,8 @@ from .layout import (AUX_CAPTURE_MOMENTS, AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NW
 from .moments import (moments_from_state, reconstruct, reconstruct_dry,  # noqa: F401
                       reconstructed_moment, support_share)
 from .position import (_log_position, _slice_position, _weight_position,  # noqa: F401
-                       laguerre_d43)
+                       LIQUID_FLOOR, binder_shift, laguerre_d43, scale_binder,
+                       unscale_binder_rates)
 from .tensor import build_aux, escaped_mass_share, initial_state, theta_to_u0  # noqa: F401
 
 __all__ = ["laguerre_rhs", "laguerre_realizable", "laguerre_project", "laguerre_conserved",
@@ -191,18 +195,27 @@ def _dry_capture(state, out, aux, m, c0, w, at_point, xd, xl):
     return loss
 
 
+#: which terms ``_aggregation_and_capture`` adds (bit flags)
+AGGREGATION_TERMS = 1
+CAPTURE_TERMS = 2
+ALL_TERMS = AGGREGATION_TERMS | CAPTURE_TERMS
+
+
 @nb.njit(cache=True)
-def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t, xd, xl):
-    """Every aggregation and capture term, blended over the slice (u0) and weight corners;
-    returns the droplets captured per unit time (scaled). (xd, xl): the droplet's scaled
-    point where the capture tensors hold the capture moments (AUX_CAPTURE_MOMENTS); else the
-    sprayed droplet's gain is tabulated."""
+def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t, xd, xl,
+                             terms=ALL_TERMS):
+    """Every aggregation and capture term (``terms``: AGGREGATION_TERMS, CAPTURE_TERMS or
+    both), blended over the slice (u0) and weight corners; returns the droplets captured per
+    unit time (scaled). (xd, xl): the droplet's scaled point where the capture tensors hold
+    the capture moments (AUX_CAPTURE_MOMENTS); else the sprayed droplet's gain is
+    tabulated."""
     K = m * m
     ns = int(aux[AUX_NSLICE])
     nwc = int(aux[AUX_NWC])
     nwd = int(aux[AUX_NWD])
     npair = int(aux[AUX_NPAIR])
-    capture = nd != 0.0 and aux[AUX_SEPARATE] == 1.0
+    capture = nd != 0.0 and aux[AUX_SEPARATE] == 1.0 and (terms & CAPTURE_TERMS) != 0
+    aggregation = (terms & AGGREGATION_TERMS) != 0
     at_point = aux[AUX_CAPTURE_MOMENTS] == 1.0
     loss = 0.0
     for sc in range(2):
@@ -211,8 +224,9 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
             continue
         if dry:
             npd = m * (m + 1) // 2
-            _quadratic_form(state, K, m, out, K, aux, int(aux[AUX_OFF_QDD]) + s * npd * m,
-                            mult * ws)
+            if aggregation:
+                _quadratic_form(state, K, m, out, K, aux,
+                                int(aux[AUX_OFF_QDD]) + s * npd * m, mult * ws)
             if capture:
                 loss += _dry_capture(state, out, aux, m, int(aux[AUX_OFF_CDD]) + s * m * m,
                                      mult * ws * nd, at_point, xd, xl)
@@ -224,9 +238,10 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
             if f == 0.0:
                 continue
             ws_ = w * ns + s
-            _quadratic_form(state, 0, K, out, 0, aux, int(aux[AUX_OFF_Q]) + ws_ * npair * K,
-                            mult * f)
-            if dry:
+            if aggregation:
+                _quadratic_form(state, 0, K, out, 0, aux,
+                                int(aux[AUX_OFF_Q]) + ws_ * npair * K, mult * f)
+            if dry and aggregation:
                 _dry_wet_aggregation(state, out, aux, m,
                                      int(aux[AUX_OFF_X]) + ws_ * m * K * K,
                                      int(aux[AUX_OFF_XL]) + ws_ * m * K * m, mult * f)
@@ -241,12 +256,42 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
 
 
 @nb.njit(cache=True)
+def _below_lowest_fraction(state, out, aux, m, mult, nd, dry, i0, t, xd, xl, shift,
+                           scratch):
+    """The aggregation and capture terms of a wet class whose liquid fraction lies below the
+    following tables' lowest (``position.binder_shift``: shift = ln(y_lo / y) > 0): evaluated
+    on the state with the binder coordinate scaled up to y_lo in ``scratch`` (length >= K +
+    m; ``position.scale_binder``) and scaled back. The droplet's liquid xl scales with it, so
+    the capture gains at the droplet's point scale back exactly; a tabulated capture (the
+    sprayed droplet's gain, which cannot scale), and any capture below LIQUID_FLOOR, is
+    evaluated on the state itself. Returns the droplets lost."""
+    K = m * m
+    scale_binder(state, scratch, aux, m, K + m, shift)
+    # the capture at the droplet's point scales with the class above LIQUID_FLOOR (below it
+    # the class holds no liquid to speak of, and exp(shift) may overflow)
+    scaled_capture = (aux[AUX_CAPTURE_MOMENTS] == 1.0
+                      and state[1] >= LIQUID_FLOOR * state[m])
+    loss = _aggregation_and_capture(scratch, out, aux, m, mult, nd, True, dry,
+                                    _weight_position(scratch, aux, m), i0, t, xd,
+                                    xl * math.exp(shift) if scaled_capture else xl,
+                                    ALL_TERMS if scaled_capture else AGGREGATION_TERMS)
+    unscale_binder_rates(out, m, shift)
+    if not scaled_capture:
+        loss += _aggregation_and_capture(state, out, aux, m, mult, nd, True, dry,
+                                         _weight_position(state, aux, m), i0, t, xd, xl,
+                                         CAPTURE_TERMS)
+    return loss
+
+
+@nb.njit(cache=True)
 def laguerre_rhs(state, out, cell, aux, params, config, work=None):
     """d(state)/dt [scaled state units per s] of one cell; writes ``out`` (length N_STATE).
 
     state: scaled moments (module doc); cell: (ALPHA [-], THETA [m2/s2], COLLISION_VELOCITY
     [m/s], INJECTION [droplets/(m3 s)]); aux: from build_aux; params, config: physics arrays;
-    work: the integrator's scratch array (optional, unused: the RHS allocates nothing).
+    work: the integrator's scratch array (K + m entries used, only where the wet class's
+    liquid fraction lies below the following tables' lowest; without it that case allocates
+    them).
     """
     m = int(aux[AUX_ORDER])
     K = m * m
@@ -271,9 +316,18 @@ def laguerre_rhs(state, out, cell, aux, params, config, work=None):
     loss = 0.0
     if mult != 0.0 and (wet or dry):
         i0, t = _slice_position(cell, aux)
-        loss = _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry,
-                                        _weight_position(state, aux, m), i0, t,
-                                        pd / params[P.MASS_SCALE], bd / params[P.MASS_SCALE])
+        xd = pd / params[P.MASS_SCALE]
+        xl = bd / params[P.MASS_SCALE]
+        shift = binder_shift(state, aux, m) if wet else 0.0
+        if shift == 0.0:
+            loss = _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry,
+                                            _weight_position(state, aux, m), i0, t, xd, xl)
+        elif work is None:
+            loss = _below_lowest_fraction(state, out, aux, m, mult, nd, dry, i0, t, xd, xl,
+                                          shift, np.empty(K + m))
+        else:
+            loss = _below_lowest_fraction(state, out, aux, m, mult, nd, dry, i0, t, xd, xl,
+                                          shift, work)
         if separate:
             out[droplets] = -loss
     if config[P.BREAKAGE] == 1 or config[P.DRYING] == 1:     # laguerre_breakage, _drying

@@ -14,6 +14,7 @@ drying and separate droplets, E with drying, n_d with separate droplets): the we
 mixed moments, the dry granules' moments in p, the free droplets' liquid, the evaporated
 liquid, the free droplets' number.
 """
+import functools
 import math
 
 import numpy as np
@@ -23,7 +24,8 @@ from ...physics.injection import droplet_liquid, droplet_moment
 from .basis import (GRADED, SPACINGS, basis_values, gamma_weight, mass_nodes,  # noqa: F401
                     fraction_basis_values, moment_index, projection_matrix,
                     quadrature, univariate_values)
-from .build import (FOLLOWING_SHAPES, FOLLOWING_SPAN, build_aux,  # noqa: F401
+from .build import (FOLLOWING_DRYING_BELOW, FOLLOWING_SHAPES, FOLLOWING_SPAN,  # noqa: F401
+                    build_aux, fraction_top,
                     default_cache_dir,
                     spacing_code, theta_to_u0, unit_params)
 from .layout import (AUX_B_MAX, AUX_CHECK_LEVEL, AUX_COND_DRY,  # noqa: F401
@@ -75,6 +77,18 @@ def initial_state(moments, params, config, n_droplets=0.0, dry=False):
 
 
 # ---- the reconstruction as weighted particles ---------------------------------------------
+@functools.lru_cache(maxsize=4096)
+def _slice_quadrature(c, d, lam, gam, p_max, b_max, n_p, n_b, spacing, points, y_max):
+    """``basis.quadrature`` of one weight slice (the build's nodes: with the following
+    support its fraction top ``build.fraction_top``), kept per slice: an output time
+    reconstructs every cell on the same few slices."""
+    out = quadrature(c, d, lam, gam, p_max, b_max, n_p, n_b, spacing, points=points,
+                     y_max=y_max)
+    for a in out:
+        a.setflags(write=False)
+    return out
+
+
 def wet_particles(state, aux):
     """The wet reconstruction on the quadrature nodes: (w [per N_ref], p [kg], b [kg]). With
     adaptive weights the reconstructions of the neighbouring weight slices are blended as the
@@ -87,9 +101,10 @@ def wet_particles(state, aux):
         K = B["m"] ** 2
         p_max, b_max = wet_support(aux, w)
         following = aux[AUX_FOLLOWING] == 1.0
-        u, v, W = quadrature(B["c"], B["d"], B["lam"], B["gam"], p_max, b_max,
-                             int(aux[AUX_N_P]), int(aux[AUX_N_B]),
-                             GRADED if following else int(aux[AUX_SPACING]), points=B["m"])
+        u, v, W = _slice_quadrature(B["c"], B["d"], B["lam"], B["gam"], p_max, b_max,
+                                    int(aux[AUX_N_P]), int(aux[AUX_N_B]),
+                                    GRADED if following else int(aux[AUX_SPACING]), B["m"],
+                                    fraction_top(B["c"], B["d"]) if following else 1.0)
         phi = (fraction_basis_values if following else basis_values)(
             u, v, B["Cp"], B["Cb"], B["lam"], B["gam"])
         coef = B["Ginv"] @ (np.asarray(state[:K], float) * B["r"])
@@ -365,14 +380,18 @@ def following_spec(scene, arrays):
     smaller of the initial mean mass and the droplet mass up to ``following_growth`` times
     the initial mean mass [kg], and with ``following_shape`` (the default) the gamma shapes
     of ``build.FOLLOWING_SHAPES`` (docs/physics.md section 9.2; without it the fixed
-    ``weight_shape_mass``)."""
+    ``weight_shape_mass``); with [drying] the binder fractions ``build.FOLLOWING_DRYING_BELOW``
+    below ``build.FOLLOWING_RATIO``'s."""
     c0 = float(scene.initial.mean_mass)
     pd = float(arrays.params[P.DROPLET_MASS])
     low = 0.25 * (min(c0, pd) if pd > 0 else c0)
     shapes = (FOLLOWING_SHAPES if getattr(scene.method.options, "following_shape", True)
               else None)
-    return dict(following=True, c=(low, c0 * float(scene.method.options.following_growth)),
+    spec = dict(following=True, c=(low, c0 * float(scene.method.options.following_growth)),
                 shapes=shapes)
+    if getattr(scene, "drying", None) is not None:
+        spec["y_below"] = FOLLOWING_DRYING_BELOW
+    return spec
 
 
 def table_bytes(method) -> int:
@@ -495,24 +514,6 @@ def output_columns(states, aux, arrays, bivariate, density, populations=None):
     return out
 
 
-def _fraction_below_grid(state, aux):
-    """'' or a sentence naming a wet class whose binder fraction W01 / W10 lies below the
-    following weight's lowest tabulated fraction (drying takes it there): the tables then
-    hold a weight far wider in b than the class, whose signed reconstruction breaks the
-    binder moments' realizability (docs/results/batch.md, "With the Laguerre ROM")."""
-    m = int(aux[AUX_ORDER])
-    if aux[AUX_FOLLOWING] != 1.0 or not (state[m] > 0.0) or not (state[1] > 0.0):
-        return ""
-    lowest = math.exp(float(aux[int(aux[AUX_OFF_LOGW]) + int(aux[AUX_NWC])]))
-    fraction = state[1] / state[m]
-    if fraction >= lowest:
-        return ""
-    return (f"; the wet class's liquid fraction W01 / W10 = {fraction:.3g} lies below the "
-            f"lowest binder fraction of the following weight's tables ({lowest:.3g}): dried "
-            "this far, the ROM's reconstruction no longer holds the class (use qmom or cqmom "
-            "for the drying's end)")
-
-
 def failure_hint(state, aux, arrays):
     """Context for a cell the integrator stopped: the share of the granule mass that had left
     the integration support (the usual reason the ROM's moments stop being realizable)."""
@@ -521,7 +522,7 @@ def failure_hint(state, aux, arrays):
     if share <= ESCAPE_WARN_SHARE:
         return (f"; the population was inside the Laguerre support {where}, {share:.1%} of "
                 "the granule mass beyond it: the support is not the cause, the stop is the "
-                "integrator's (above)" + _fraction_below_grid(np.ravel(state), aux))
+                "integrator's (above)")
     parts = escaped_mass_parts(np.ravel(state), aux, arrays.params, arrays.config)
     return (f"; {share:.1%} of the granule mass had left the Laguerre support {where}: "
             f"{support_advice(aux, parts)}")

@@ -104,7 +104,8 @@ def _capture_moment_matrix(kd, u, v, W, Phi, m):
 def wet_basis(m, weights, grid, consistent, p_ref):
     """The wet class's quadrature and corrected basis for one weight (c [kg], d [kg], lambda,
     gamma); grid: dict(p_max, b_max [kg], n_p, n_b, spacing[, fraction_basis]: the basis in
-    the binder fraction, ``laguerre_basis.fraction_basis_values``). Returns a dict with the nodes
+    the binder fraction, ``laguerre_basis.fraction_basis_values``[, y_max]: the binder
+    fraction's top [-], default 1). Returns a dict with the nodes
     (u, v, W) in internal units, their masses p, b [kg], the corrected basis PhiC (N, K), the
     state <-> internal scaling r, the functionals f43 (K) and sup (2K) in state units, the
     reconstruction block ``basis`` (c, d, lambda, gamma, Cp, Cb, Ginv, r) and cond(G)."""
@@ -114,7 +115,7 @@ def wet_basis(m, weights, grid, consistent, p_ref):
     Cp = projection_matrix(m, lam)
     Cb = projection_matrix(m, gam)
     u, v, W = quadrature(c, d, lam, gam, grid["p_max"], grid["b_max"], grid["n_p"],
-                         grid["n_b"], grid["spacing"], points=m)
+                         grid["n_b"], grid["spacing"], points=m, y_max=grid.get("y_max", 1.0))
     values = fraction_basis_values if grid.get("fraction_basis") else basis_values
     Phi = values(u, v, Cp, Cb, lam, gam)                            # raw basis (N, K)
     mon = np.stack([u ** i * v ** j for (i, j) in idx], axis=1)     # (N, K)
