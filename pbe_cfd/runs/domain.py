@@ -238,8 +238,8 @@ def build_cells(scene, cells) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]
     rows[:, P.COLLISION_VELOCITY] = collision_velocity.py_func(theta)
     active = np.asarray(cells.alpha) >= scene.domain.alpha_min
     spray = spray_zone(scene, cells) & active
-    if scene.binder_injection is not None:
-        rows[spray, P.INJECTION] = scene.binder_injection.rate
+    if scene.binder_injection is not None:     # droplets/(m3 s), a nozzle's flow converted
+        rows[spray, P.INJECTION] = with_spray_per_volume(scene, cells).binder_injection.rate
     fill_gas_rows(scene, cells, rows)
     notes = {"cells_capped_below_alpha_max": capped}
     return rows, active, spray, notes

@@ -3,6 +3,7 @@ box's cells removed by each criterion of the alpha window, counted here independ
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from pbe_cfd.runs.domain import spray_zone_cut
 
@@ -35,3 +36,25 @@ def test_a_box_without_cells_and_a_scene_without_a_zone_say_so():
     assert spray_zone_cut(far, ALPHA_MIN, CELLS, active) == (
         "no cell centre lies inside box_min..box_max")
     assert spray_zone_cut(None, ALPHA_MIN, CELLS, active) == "no cell has alpha >= alpha_min"
+
+
+def test_a_nozzle_flow_reaches_the_bed_whole_in_every_cell_row():
+    """fluid-bed-batch gives the nozzle's flow F [kg/s] (rate_unit = "kg/s"): every caller of
+    the cell rows (``runs.domain.build_cells``: the run, transport's plan, the cluster bench)
+    gets droplets/(m3 s), the same in each spray cell, and the zone receives F:
+    sum(rate x volume) x p_d = F."""
+    from pbe_cfd.physics import parameters as P
+    from pbe_cfd.physics.injection import droplet_mass
+    from pbe_cfd.runs.domain import build_cells, load_domain
+    from pbe_cfd.scene.scene import load_scene
+    sc = load_scene("fluid-bed-batch")
+    inj = sc.binder_injection
+    assert inj.rate_unit == "kg/s"
+    cells = load_domain(sc).cells
+    rows, active, spray, _ = build_cells(sc, cells)
+    rate = rows[spray, P.INJECTION]
+    assert spray.any() and np.all(rate == rate[0]) and np.all(rows[~spray, P.INJECTION] == 0.0)
+    volume = np.asarray(cells.cell_volume, float)[spray]
+    flow = float(np.sum(rate * volume)) * droplet_mass(inj.droplet_diameter,
+                                                       sc.material.binder_density)
+    assert flow == pytest.approx(inj.rate, rel=1e-12, abs=0.0)

@@ -333,11 +333,11 @@ def fraction_top(c, d):
 def _slice_grids(grid, pairs, spec):
     """The quadrature grid of each weight slice: the one support, or with the following
     support p_max = b_max = span c_m (c_m the weight's mass-weighted mean; b <= p bounds the
-    binder; the binder fraction on [0, min(1, FRACTION_SPAN y)], y the slice's mean fraction),
-    the nodes uniform in the binder fraction and the basis in it (``laguerre_basis.fraction_basis_values``), graded Gauss
-    nodes in p for the slice's gamma weight (``laguerre_basis.graded_mass_nodes``). Slices of
-    the same c_m and shape share their nodes (and kernel matrices): the nodes depend on p_max
-    and the shape alone."""
+    binder; the binder fraction on [0, fraction_top], 1 or FRACTION_SPAN times the slice's
+    mean fraction), the nodes uniform in the binder fraction and the basis in it
+    (``laguerre_basis.fraction_basis_values``), graded Gauss nodes in p for the slice's gamma
+    weight (``laguerre_basis.graded_mass_nodes``). Slices of the same c_m, shape and fraction
+    top share their nodes (and kernel matrices): the nodes depend on those alone."""
     if spec is None or not spec.get("following"):
         return [grid] * len(pairs)
     out, seen = [], {}
