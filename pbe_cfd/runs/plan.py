@@ -17,7 +17,6 @@ from ..scene import spray
 from ..physics.breakage import DAUGHTERS_BY_NAME, SELECTION_BY_NAME
 from ..physics.efficiency import EFFICIENCY_BY_NAME
 from ..physics.kernels import KERNEL_BY_NAME
-from ..scene.scene import SceneError
 
 
 def describe_plan(scene) -> str:
@@ -280,13 +279,14 @@ def _spray_lines(scene, inj) -> list[str]:
 def _spray_flow_line(scene, cells) -> str:
     """The peak flow the spray zone of ``cells`` receives, in both units."""
     from ..physics.injection import droplet_mass
-    from .domain import spray_zone_volume, with_spray_per_volume
+    from .domain import spray_zone_volume
+    inj = scene.binder_injection
     volume = spray_zone_volume(scene, cells)
+    mass = droplet_mass(inj.droplet_diameter, scene.material.binder_density)
     try:
-        per = with_spray_per_volume(scene, cells).binder_injection
-    except SceneError as exc:
-        return f"    sprayed: nothing: {exc.expected}"
-    mass = droplet_mass(per.droplet_diameter, scene.material.binder_density)
+        per = spray.per_volume(inj, volume, mass)
+    except ValueError as exc:
+        return f"    sprayed: nothing: {exc}"
     return (f"    sprayed at the peak: {per.rate * mass * volume:.4g} kg/s of solution = "
             f"{per.rate:.4g} droplets/(m3 s) over the {volume:.4g} m3 of spray-zone cells "
             "holding granules")

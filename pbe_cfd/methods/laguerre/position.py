@@ -123,6 +123,12 @@ def mass_moment(state, m, n):
 
 
 @nb.njit(cache=True)
+def _lowest_log_fraction(aux):
+    """ln y_lo, the lowest binder fraction of the following weight's grid [-]."""
+    return aux[int(aux[AUX_OFF_LOGW]) + int(aux[AUX_NWC])]
+
+
+@nb.njit(cache=True)
 def binder_shift(state, aux, m):
     """0.0, or ln(y_lo / y) > 0 (inf for y = 0) where the wet class's liquid fraction
     y = W01 / W10 lies below the lowest binder fraction y_lo of the following weight's tables
@@ -135,7 +141,7 @@ def binder_shift(state, aux, m):
         return 0.0
     if not state[1] > 0.0:
         return math.inf
-    lowest = aux[int(aux[AUX_OFF_LOGW]) + int(aux[AUX_NWC])]       # ln y_lo
+    lowest = _lowest_log_fraction(aux)
     ly = math.log(state[1] / state[m])
     if ly >= lowest:
         return 0.0
@@ -151,7 +157,7 @@ def scale_binder(state, out, aux, m, n, shift):
     for k in range(n):
         out[k] = state[k]
     uniform = not (state[1] >= LIQUID_FLOOR * state[m])
-    y_lo = math.exp(aux[int(aux[AUX_OFF_LOGW]) + int(aux[AUX_NWC])])
+    y_lo = math.exp(_lowest_log_fraction(aux))
     for i in range(m):
         for j in range(1, m):
             if uniform:
