@@ -30,7 +30,7 @@ from numba.extending import overload
 
 from ..methods.dispatch import WORK_SIZE, conserved, project, realizable, rhs
 from ..physics import parameters as P
-from ..physics.injection import droplet_liquid, droplet_liquid_entry
+from ..physics.injection import droplet_liquid, droplet_liquid_entry, evaporated_entry
 from .codes import (ACCEPT, ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, F0, FTMP, GCOL,
                     IMPLICIT, IMPLICIT_STEPS, JACOBIANS, KC, N_BUF, NOT_FINITE, OK,
                     REJECT_ERROR, REJECT_NOT_FINITE,
@@ -385,7 +385,7 @@ def _dry_out_droplets(state, d, params, config, rtol, atol):
     held = state[liquid]
     fresh = state[d] * droplet_liquid(params) / params[P.MASS_SCALE]
     if held > 0.0 and held <= atol and held < rtol * fresh:
-        state[config[P.N_STATE] - 2] += held
+        state[evaporated_entry(config)] += held
         state[liquid] = 0.0
 
 

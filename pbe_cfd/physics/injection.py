@@ -15,6 +15,20 @@ def droplet_mass(diameter, binder_density):
 
 
 @nb.njit(cache=True, inline="always")
+def droplet_number_entry(config):
+    """State entry of the free droplets' number n_d: the last (config[SEPARATE_DROPLETS] =
+    1), -1 without droplets of their own."""
+    return config[P.N_STATE] - 1 if config[P.SEPARATE_DROPLETS] == 1 else -1
+
+
+@nb.njit(cache=True, inline="always")
+def evaporated_entry(config):
+    """State entry of the evaporated liquid E (with drying): the last, or the one before the
+    droplet number."""
+    return config[P.N_STATE] - 1 - config[P.SEPARATE_DROPLETS]
+
+
+@nb.njit(cache=True, inline="always")
 def droplet_liquid_entry(config):
     """State entry of the free droplets' liquid L_d (config[DROPLET_LIQUID] = 1: drying with
     droplets of their own; the entries end L_d, evaporated liquid, n_d), -1 without."""

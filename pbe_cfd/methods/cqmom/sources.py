@@ -15,7 +15,7 @@ import numba as nb
 
 from ...physics import parameters as P
 from ...physics.drying import cell_gas
-from ...physics.injection import droplet_liquid, droplet_liquid_entry
+from ...physics.injection import droplet_liquid, droplet_liquid_entry, evaporated_entry
 from ...physics.breakage import daughter_moment_factor
 from ...physics.efficiency import efficiency_property_groups, pair_success_probability
 from ...physics.kernels import (kernel_cell_factor, kernel_property_groups, kernel_uses_d43,
@@ -339,7 +339,7 @@ def _drying(out, state, work, n_max, m, n, gas, params, config, bivariate):
     npt = n_max * m
     counts = off_counts(n_max, m)
     rates = off_acc(n_max, m)             # w e of each point (n m <= 12 m accumulators)
-    evaporated = config[P.N_STATE] - 1 - config[P.SEPARATE_DROPLETS]
+    evaporated = evaporated_entry(config)
     lmax = 2 * m if bivariate else 1
     for a in range(n):
         for q in range(int(work[counts + a])):

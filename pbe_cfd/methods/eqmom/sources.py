@@ -16,7 +16,7 @@ import numpy as np
 from ...physics import parameters as P
 from ...physics.breakage import cell_selection_factor, daughter_moment_factor
 from ...physics.drying import cell_gas
-from ...physics.injection import droplet_liquid_entry
+from ...physics.injection import droplet_liquid_entry, evaporated_entry
 from ...physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ...physics.properties import DIAMETER, N_PROPS
 from ...physics.rates import pair_rate, particle_properties
@@ -118,7 +118,7 @@ def _drying(out, X, W, B, m, n_size, n_max, bivariate, gas, params, config):
     """Drying drift of the m secondary particles in the cell's ``gas``
     (``physics.drying.cell_gas``; docs/physics.md section 15; as QMOM's nodes): M_kl gains -W e (k X^(k-1) B^l + l X^k B^(l-1)), the evaporated liquid (entry
     N_STATE - 1 - SEPARATE_DROPLETS) W e."""
-    evaporated = config[P.N_STATE] - 1 - config[P.SEPARATE_DROPLETS]
+    evaporated = evaporated_entry(config)
     for a in range(m):
         x = X[a]
         b = min(max(B[a], 0.0), x)

@@ -34,6 +34,7 @@ import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
+from ...physics.injection import droplet_number_entry, evaporated_entry  # noqa: F401
 from ...physics.parameters import numbered
 from ..quadrature.drying_sources import droplet_point
 
@@ -99,20 +100,6 @@ def state_offsets(m):
     """(first dry entry, droplet entry without a droplet-liquid entry) of the state of order m:
     K = m*m and K + m."""
     return m * m, m * m + m
-
-
-@nb.njit(cache=True, inline="always")
-def droplet_number_entry(config):
-    """State entry of the free droplets' number n_d: the last (config[SEPARATE_DROPLETS] =
-    1), -1 without droplets of their own."""
-    return config[P.N_STATE] - 1 if config[P.SEPARATE_DROPLETS] == 1 else -1
-
-
-@nb.njit(cache=True, inline="always")
-def evaporated_entry(config):
-    """State entry of the evaporated liquid E (with drying): the last, or the one before the
-    droplet number."""
-    return config[P.N_STATE] - 1 - config[P.SEPARATE_DROPLETS]
 
 
 def free_droplets(rows, params, config):

@@ -16,7 +16,8 @@ import numba as nb
 
 from ...physics import parameters as P
 from ...physics.drying import drying_rate
-from ...physics.injection import droplet_liquid, droplet_liquid_entry
+from ...physics.injection import (droplet_liquid, droplet_liquid_entry, droplet_number_entry,
+                                 evaporated_entry)
 
 
 @nb.njit(cache=True, inline="always")
@@ -48,7 +49,7 @@ def add_qmom_drying(out, nodes, weights, binder, n, gas, params, config):
     evaporated liquid (entry N_STATE - 1 - SEPARATE_DROPLETS)."""
     n_max = config[P.ORDER]
     n_size = 2 * n_max
-    evaporated = config[P.N_STATE] - 1 - config[P.SEPARATE_DROPLETS]
+    evaporated = evaporated_entry(config)
     for a in range(n):
         x = nodes[a]
         b = min(max(binder[a], 0.0), x)
@@ -81,7 +82,7 @@ def droplet_point(state, params, config):
     entry = droplet_liquid_entry(config)
     if entry < 0:
         return pd, bd
-    nd = state[config[P.N_STATE] - 1]
+    nd = state[droplet_number_entry(config)]
     if not nd > 0.0:
         return pd, bd
     liquid = max(state[entry] / nd, 0.0) * params[P.MASS_SCALE]
@@ -100,13 +101,13 @@ def add_droplet_class_terms(state, out, injection, captured, liquid, gas, params
         return
     scale = params[P.MASS_SCALE]
     out[entry] += injection * (droplet_liquid(params) / scale) - captured * liquid
-    nd = state[config[P.N_STATE] - 1]
+    nd = state[droplet_number_entry(config)]
     if not nd > 0.0:
         return
     p, b = droplet_point(state, params, config)
     rate = nd * drying_rate(p, b, gas, params) / scale
     out[entry] -= rate
-    out[config[P.N_STATE] - 2] += rate
+    out[evaporated_entry(config)] += rate
 
 
 @nb.njit(cache=True, inline="always")
@@ -126,7 +127,7 @@ def set_droplet_invariants(coefs, r, params, config):
     if entry < 0:
         return False
     pd = params[P.DROPLET_MASS]
-    coefs[r, config[P.N_STATE] - 1] = ((pd - droplet_liquid(params)) / params[P.MASS_SCALE]
+    coefs[r, droplet_number_entry(config)] = ((pd - droplet_liquid(params)) / params[P.MASS_SCALE]
                                        if r == 0 else 0.0)
     coefs[r, entry] = 1.0
     return True
