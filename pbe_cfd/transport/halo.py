@@ -31,6 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from .substeps import apply_substeps
+
 
 # ---------------------------------------------------------------------------- partition
 def rcb_partition(centres, n_blocks: int) -> np.ndarray:
@@ -176,7 +178,4 @@ def advance_block(ext_states: np.ndarray, local_generator: sp.csr_matrix, dt: fl
     (m, n_state) array; only the rows within depth 0 of the block are exact after k."""
     m = local_generator.shape[0]
     mat = (sp.identity(m, format="csr") + float(dt) * local_generator).tocsr()
-    work = np.ascontiguousarray(ext_states)
-    for _ in range(int(k)):
-        work = mat @ work
-    return work
+    return apply_substeps(mat, ext_states, k)

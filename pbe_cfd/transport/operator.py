@@ -53,6 +53,7 @@ from numba.core import types
 from ..methods.dispatch import project, realizable
 from .solids_flux import (ActiveFlux, circulation_time, restrict_and_correct, upwind_generator,
                           vertical_axis)
+from .substeps import apply_substeps
 
 #: Coefficient of variation of a spray-zone tracer at which the bed counts as mixed [-].
 MIX_COV = 0.05
@@ -129,11 +130,7 @@ class Transport:
         if math.isfinite(self.dt_max) and self.out_rate.size:
             c = dt * float(self.out_rate.max())
             self._count["max_courant_used"] = max(self._count["max_courant_used"], c)
-            mat = self.step_matrix(dt)
-            work = np.ascontiguousarray(states)
-            for _ in range(k):
-                work = mat @ work
-            states[...] = work
+            states[...] = apply_substeps(self.step_matrix(dt), states, k)
         if self.repair is not None:
             fixed, change = self.repair(states)
             self._count["repaired_cells"] += fixed
