@@ -357,13 +357,16 @@ class Stack:
     reconstruction with a row each."""
 
     def __init__(self, items):
-        self.items = list(items)
+        # a sequence (a list, or an ``io.spool.Spool`` read one item at a time) is kept as it is
+        self.items = items if hasattr(items, "__len__") and hasattr(items, "__getitem__") \
+            else list(items)
         self.rows = len(self.items)
-        self.mass = np.array([float(it.mass[0]) for it in self.items])
-        self.empty = ~(self.mass > 0)
-        self.notes = []
+        mass, self.notes = [], []
         for it in self.items:
+            mass.append(float(it.mass[0]))
             self.notes.extend(n for n in it.notes if n not in self.notes)
+        self.mass = np.array(mass)
+        self.empty = ~(self.mass > 0)
 
     def _each(self, fn, d):
         d = np.asarray(d, dtype=float)

@@ -8,11 +8,13 @@ file per array, written uncompressed (memory-mapped back on reading, so a read c
 pages touched). The directory is the program's own: it is removed by ``close()``, and when the
 spool is garbage-collected or the interpreter exits. Nothing in it is an output of the run.
 
-Items are either one array or a dict of name -> array (the cell fields of one output time);
-array units are those of the values put in (scaled moments per m3 of bed, SI fields).
+Items are one array, a dict of name -> array (the cell fields of one output time), or any
+other object, pickled (the bed's size-distribution mixture of one output time); array units
+are those of the values put in (scaled moments per m3 of bed, SI fields).
 """
 from __future__ import annotations
 
+import pickle
 import shutil
 import tempfile
 import weakref
@@ -22,6 +24,8 @@ import numpy as np
 
 #: Prefix of a spool's temporary directory.
 SPOOL_PREFIX = "pbe-spool-"
+#: Marks an item stored as a pickle (any object that is neither an array nor a dict).
+_PICKLED = "pickled"
 
 
 class Spool:
@@ -37,16 +41,23 @@ class Spool:
 
     # -- writing ------------------------------------------------------------------------
     def append(self, item) -> None:
-        """Write ``item`` (an array, or a dict name -> array) as output time len(self)."""
+        """Write ``item`` (an array, a dict name -> array, or another object) as output time
+        len(self)."""
         k = len(self._items)
         if isinstance(item, dict):
             names = tuple(item)
             for j, name in enumerate(names):
                 self._write(f"{k}_{j}.npy", item[name])
             self._items.append(names)
-        else:
+        elif isinstance(item, np.ndarray):
             self._write(f"{k}.npy", item)
             self._items.append(None)
+        else:
+            path = self.path / f"{k}.pkl"
+            with open(path, "wb") as fh:
+                pickle.dump(item, fh, protocol=pickle.HIGHEST_PROTOCOL)
+            self._bytes += path.stat().st_size
+            self._items.append(_PICKLED)
 
     def _write(self, name, value):
         arr = np.ascontiguousarray(value)
@@ -65,6 +76,9 @@ class Spool:
         if not 0 <= j < n:
             raise IndexError(f"spool index {k} out of range ({n} output times)")
         names = self._items[j]
+        if names is _PICKLED:
+            with open(self.path / f"{j}.pkl", "rb") as fh:
+                return pickle.load(fh)
         if names is None:
             return self._read(f"{j}.npy")
         return {name: self._read(f"{j}_{i}.npy") for i, name in enumerate(names)}

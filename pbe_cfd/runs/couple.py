@@ -21,7 +21,7 @@ from .air import coupled_air
 from .batch import CellBatch, SimulationError  # noqa: F401 (SimulationError: API)
 from .domain import PACKING_MARGIN, Domain, spray_zone_cut
 from .executor import SerialExecutor
-from .inventory import inventory
+from .inventory import held_sums, inventory
 from .problem import OutputPlan, problem_of
 from ..util.population import mean_diameters
 from ..scene.scene import SceneError
@@ -155,7 +155,7 @@ def _cell_psd(plan, selection, times, mixtures, cell_ids, psd, labels, warnings)
         return None
     from ..distribution import cell_psd
     grid = np.unique(np.asarray(psd["d_m"], dtype=float))
-    cols, notes = cell_psd.cell_psd_columns(selection, times, [m.parts for m in mixtures],
+    cols, notes = cell_psd.cell_psd_columns(selection, times, (m.parts for m in mixtures),
                                             cell_ids, grid)
     warnings.extend(x for x in notes if x not in warnings)
     labels["cell_psd.csv"] = cell_psd.cell_psd_labels(plan.distribution, cols)
@@ -213,11 +213,12 @@ def _outputs(plan, arrays, aux, cells, active, spray, idx, times, history, warni
     columns (volume averages of the moments [per m3 of bed], d32, d43 [m] of the whole bed's
     population, binder fraction, bed mass [kg]), the cells' d10/d50/d90/span, and per output
     time the bed's size distribution (``distribution.reconstruct.Mixture``); plan: the
-    problem's ``OutputPlan``. ``per_time``
-    (a list) receives the active cells' SI columns of each output time."""
+    problem's ``OutputPlan``. ``per_time`` (a list) receives each output time's
+    ``inventory.held_sums`` (None without drying). The cell fields and the bed mixtures are
+    spooled to disk (``io.spool``), one output time in memory at a time."""
     from ..distribution.reconstruct import Mixture
     from ..io.spool import Spool
-    mixtures = []
+    mixtures = Spool()                 # one output time in memory at a time
     n = cells.n_cells
     volumes = np.asarray(cells.cell_volume, dtype=float)
     v_active = volumes[idx]
@@ -231,7 +232,7 @@ def _outputs(plan, arrays, aux, cells, active, spray, idx, times, history, warni
         cols = model.moment_outputs(plan.method_plan, arrays, states, aux,
                                     populations=populations)
         if per_time is not None:
-            per_time.append(cols)
+            per_time.append(held_sums(cols, v_active))
         fields = {"alpha": np.asarray(cells.alpha, dtype=float),
                   "Theta": np.asarray(cells.theta, dtype=float),
                   "active": active.astype(float), "spray_zone": spray.astype(float)}

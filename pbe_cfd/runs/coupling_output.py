@@ -120,7 +120,7 @@ def combined_result(run, wall_s: float) -> CoupledResult:
     the scene: its ``outputs``): cell fields and bed columns at every output time (a
     boundary's time once, from the segment that ended there), psd and labels."""
     from ..io.spool import Spool
-    times, fields, mixtures, bed, cell_ids = [], Spool(), [], {}, []
+    times, fields, mixtures, bed, cell_ids = [], Spool(), Spool(), {}, []
     plan = run.outputs
     warnings = list(run.warnings)
     first = run.segments[0]
@@ -135,8 +135,10 @@ def combined_result(run, wall_s: float) -> CoupledResult:
             fields.append(f)
         cf.close()
         times.extend(seg.times[skip:])
-        mixtures.extend(mx[skip:])
-        cell_ids.extend([seg.idx] * len(mx[skip:]))
+        for k in range(skip, len(mx)):  # likewise
+            mixtures.append(mx[k])
+        mx.close()
+        cell_ids.extend([seg.idx] * (len(mx) - skip))
         for name, values in b.items():
             bed.setdefault(name, []).extend(np.asarray(values)[skip:])
     times = np.asarray(times)

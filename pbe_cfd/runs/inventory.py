@@ -32,14 +32,30 @@ def sprayed_droplets(inj, times, rows, volumes) -> np.ndarray:
     return np.array([spray.injected(inj, float(t)) for t in times]) * share
 
 
-def inventory(injection, arrays, times, per_time_columns, rows, volumes) -> dict:
+def held_sums(cols, volumes) -> dict | None:
+    """What one output time's SI cell columns (``model.moment_outputs``) hold over the bed,
+    the inventory's input: {"dry": sum (M10 - M01) V, "liquid_granules", "liquid_droplets",
+    "liquid_evaporated": sum of each column [kg/m3] times V [kg], "droplets": sum of the
+    droplet number density [1/m3] times V (None without free droplets) [-]}; ``volumes``
+    [m3] the cells'. None where the columns of a run with drying are absent. Computed per
+    output time so that the columns need not be kept."""
+    names = ("liquid_granules", "liquid_droplets", "liquid_evaporated")
+    if not all(k in cols for k in ("M10", "M01") + names):
+        return None
+    v = volumes
+    out = {"dry": float(np.dot(cols["M10"] - cols["M01"], v))}
+    for name in names:
+        out[name] = float(np.dot(cols[name], v))
+    nd = cols.get("droplet_number_density")
+    out["droplets"] = float(np.dot(nd, v)) if nd is not None else None
+    return out
+
+
+def inventory(injection, arrays, times, held, rows, volumes) -> dict:
     """The inventory columns (``COLUMNS``) per output time of a run with drying:
     ``injection`` the scene's ``[binder_injection]`` table (None: none; the problem's
-    ``injection``),
-    ``per_time_columns`` the SI cell columns of each time (``model.moment_outputs``: M10, M01
-    [kg/m3], liquid_granules, liquid_droplets, liquid_evaporated [kg/m3],
-    droplet_number_density [1/m3]), ``rows`` the cell rows (their injection), ``volumes`` [m3]
-    the cells'."""
+    ``injection``), ``held`` the ``held_sums`` of each time, ``rows`` the cell rows (their
+    injection), ``volumes`` [m3] the cells'."""
     n = len(times)
     out = {k: np.zeros(n) for k in COLUMNS}
     p_d = arrays.droplet_mass
@@ -48,15 +64,14 @@ def inventory(injection, arrays, times, per_time_columns, rows, volumes) -> dict
     out["liquid_sprayed_kg"][:] = droplets * b_d
     out["solids_sprayed_kg"][:] = droplets * (p_d - b_d)
     dry0 = None
-    for k, cols in enumerate(per_time_columns):
-        v = volumes
-        dry = float(np.dot(cols["M10"] - cols["M01"], v))
+    for k, sums in enumerate(held):
+        dry = sums["dry"]
         dry0 = dry if dry0 is None else dry0
         out["solids_held_kg"][k] = dry - dry0
         for name in ("liquid_granules", "liquid_droplets", "liquid_evaporated"):
-            out[f"{name}_kg"][k] = float(np.dot(cols[name], v))
-        nd = cols.get("droplet_number_density")
-        droplet_solids = float(np.dot(nd, v)) * (p_d - b_d) if nd is not None else 0.0
+            out[f"{name}_kg"][k] = sums[name]
+        droplet_solids = sums["droplets"] * (p_d - b_d) if sums["droplets"] is not None \
+            else 0.0
         granule_dry = dry - droplet_solids
         out["moisture_content"][k] = (out["liquid_granules_kg"][k] / granule_dry
                                       if granule_dry > 0.0 else 0.0)
