@@ -129,6 +129,7 @@ def _run_coupled(scene, domain: Domain, progress, threads, executor) -> CoupledR
     psd, labels = _bed_distribution(plan, arrays, times, bed, mixtures, cell_fields, warnings)
     cell_psd = _cell_psd(plan, selection, times, mixtures, [idx] * len(times), psd, labels,
                          warnings)
+    mixtures.close()
     phases["assemble_s"] = _time.perf_counter() - solve_end
     return CoupledResult(times=times, cell_fields=cell_fields, bed_columns=bed, stats=run_stats,
                          wall_time_s=wall, warnings=warnings, compile_time_s=compile_s,

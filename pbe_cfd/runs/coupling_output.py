@@ -146,6 +146,7 @@ def combined_result(run, wall_s: float) -> CoupledResult:
     warnings.extend(defluidisation_warnings(run))
     psd, labels = _bed_distribution(plan, run.arrays, times, bed, mixtures, fields, warnings)
     cell_psd = _cell_psd(plan, selection, times, mixtures, cell_ids, psd, labels, warnings)
+    mixtures.close()
     stats = {"cells": int(run.segments[0].domain.cells.n_cells), "segments": len(run.segments),
              "active_cells": int(run.segments[-1].idx.size),
              "cfd_wall_s": float(sum(s.cfd_wall_s for s in run.segments)),
