@@ -69,6 +69,7 @@ RULES = (
     # transport
     ("test_transport", "transport"),
     ("test_halo", "transport"),
+    ("test_substeps", "transport"),
     # io: output guard, manifest, OpenFOAM case I/O, user cases
     ("test_openfoam", "io"),
     ("test_bed3d", "io"),
