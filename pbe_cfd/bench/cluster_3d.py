@@ -21,6 +21,9 @@ NETWORK_BYTES_PER_S = 125e6
 #: Latency of one Dask task hop assumed between machines [s] (ours: the measured local no-op
 #: round trip is of this order; a LAN adds well under a millisecond).
 TASK_HOP_S = 0.01
+#: Latency of one neighbour exchange by message passing assumed between machines [s] (ours:
+#: an order of magnitude for MPI over Ethernet; no such exchange is built here).
+MESSAGE_LATENCY_S = 5e-5
 
 
 def _child(spec: dict) -> dict:
@@ -194,14 +197,21 @@ def multi_machine_model(runs, n_cells=1e7, sim_time=1800.0, split_step=0.25,
     transport parts, each a halo hop and a block task, per exchange round). ``per_exchange``:
     substeps per halo exchange (None: one exchange per transport part); the bytes are the
     same either way (k layers of the cut per part), the rounds, and so the hops, are
-    k / per_exchange. An estimate, not a measurement."""
+    k / per_exchange. Where the serial run timed its sources and its transport apart, the
+    sources scale with the cells and divide between the machines, the transport scales with
+    the cells times the substeps and does not divide (each block advances its extended set,
+    the whole bed at these depths). ``one_layer``: the same batch with a one-layer halo
+    exchanged at every substep (``one_layer_model``). An estimate, not a measurement."""
     tr = [r for r in runs if r["transport"]]
     if not tr:
         return {}
     n_meas = max(r["active_cells"] for r in tr)
-    ser = [r for r in tr if r["workers"] == 0 and r["active_cells"] == n_meas][0]
+    ser = [r for r in tr if r["workers"] == 0 and r["active_cells"] == n_meas]
     two = [r for r in tr if r["workers"] == 2 and r["active_cells"] == n_meas
-           and r.get("balance", True)][0]
+           and r.get("balance", True)]
+    if not ser or not two:
+        return {}   # the model needs the serial and the 2-worker run of one bed
+    ser, two = ser[0], two[0]
     rate = _solve_rate(ser)
     steps_per_cell_s = ser["accepted_steps"] / ser["active_cells"] / ser["end_time"]
     scale = (n_cells / n_meas) ** (1.0 / 3.0)
@@ -214,21 +224,64 @@ def multi_machine_model(runs, n_cells=1e7, sim_time=1800.0, split_step=0.25,
     rounds = 1 if per_exchange is None else math.ceil(k_big / per_exchange)
     n_state = two["halo_bytes_per_transport_part"] / max(1, sum(two["halo_cells"])) / 8
     bytes_split = 2 * 2 * halo_one * n_state * 8   # 2 sides, 2 transport parts
-    compute = n_cells * sim_time * steps_per_cell_s / rate
     n_split = sim_time / split_step
     comm = n_split * (bytes_split / network + 4 * rounds * hop)
+    if ser.get("transport_wall_s"):
+        # as built, the sources divide between the blocks and the transport does not: each
+        # block advances its extended set (block + k layers), at these depths the whole bed
+        sources, transport_whole = _scaled_parts(ser, n_cells, sim_time, scale)
+        compute = sources + transport_whole
+    else:
+        sources, transport_whole = n_cells * sim_time * steps_per_cell_s / rate, None
+        compute = sources
     machines = None
     for m in range(1, 4097):
-        if compute / m + comm <= 3600.0:
+        if sources / m + (transport_whole or 0.0) + comm <= 3600.0:
             machines = m
             break
     return {"n_cells": n_cells, "sim_time_s": sim_time, "rate_per_machine": rate,
+            "transport_whole_bed_s": transport_whole,
+            "one_layer": [one_layer_model(ser, n_cells, sim_time, split_step, k_big, n_state,
+                                          network=net, latency=lat)
+                          for lat in (hop, MESSAGE_LATENCY_S)
+                          for net in (network, 10 * network)]
+            if ser.get("transport_wall_s") else [],
             "steps_per_cell_per_s": steps_per_cell_s, "halo_cells_per_boundary": halo_one,
             "halo_bytes_per_split_step_per_boundary": bytes_split,
             "compute_s_one_machine": compute, "comm_s": comm, "machines_for_1_h": machines,
             "network_bytes_per_s": network, "task_hop_s": hop,
             "substeps_per_part": k_big, "exchange_rounds_per_part": rounds,
             "measured_at_active_cells": n_meas}
+
+
+def _scaled_parts(ser, n_cells, sim_time, scale):
+    """(sources, transport) seconds of one machine for the bed of ``n_cells`` over
+    ``sim_time`` [s], from the serial run ``ser``: the sources scale with the cells, the
+    transport with the cells times the substeps (``scale``: the cell size ratio)."""
+    per = n_cells / ser["active_cells"] * sim_time / ser["end_time"]
+    return ser["source_wall_s"] * per, ser["transport_wall_s"] * per * scale
+
+
+def one_layer_model(ser, n_cells, sim_time, split_step, substeps, n_state,
+                    network=NETWORK_BYTES_PER_S, latency=TASK_HOP_S) -> dict:
+    """Machines for the batch if the halo were one layer exchanged at every substep (not how
+    the transport is built): cubic blocks of n/m cells, each receiving its 6 faces
+    (n/m)^(2/3) cells x ``n_state`` float64 per substep, two transport parts of ``substeps``
+    substeps per ``split_step`` [s], each exchange costing ``latency`` [s] plus its bytes at
+    ``network`` [bytes/s]; sources and transport divide between the machines. An estimate."""
+    scale = (n_cells / ser["active_cells"]) ** (1.0 / 3.0)
+    sources, transport = _scaled_parts(ser, n_cells, sim_time, scale)
+    exchanges = sim_time / split_step * 2 * substeps
+    machines, wall = None, None
+    for m in range(1, 100_001):
+        face_bytes = 6 * (n_cells / m) ** (2.0 / 3.0) * n_state * 8
+        t = (sources + transport) / m + exchanges * (latency + face_bytes / network)
+        if t <= 3600.0:
+            machines, wall = m, t
+            break
+    return {"network_bytes_per_s": network, "latency_s": latency,
+            "exchanges": exchanges, "latency_floor_s": exchanges * latency,
+            "machines_for_1_h": machines, "wall_s": wall}
 
 
 def _solve_rate(run) -> float:
@@ -251,30 +304,44 @@ def cluster_markdown(res) -> str:
              "step | client peak MiB | worker peak MiB | solve s (setup s) | same as serial |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for r in res["runs"]:
-        ser = [s for s in res["runs"] if s["transport"] == r["transport"]
-               and s["bed_cells"] == r["bed_cells"] and s["workers"] == 0][0]
+        ser = ([s for s in res["runs"] if s["transport"] == r["transport"]
+                and s["bed_cells"] == r["bed_cells"] and s["workers"] == 0] or [None])[0]
         run = "serial" if not r["workers"] else f"{r['workers']} worker(s)" + (
             "" if r.get("balance", True) or not r["transport"] else ", equal cells")
         sent = r["client_sent_bytes_per_split_step"]
-        rate, rate_ser = _solve_rate(r), _solve_rate(ser)
+        rate = _solve_rate(r)
+        ratio = "- (no serial run)" if ser is None else (
+            f"{rate / _solve_rate(ser):.2f} "
+            f"({r['cell_steps_per_s'] / ser['cell_steps_per_s']:.2f})")
         lines.append(
             f"| {r['bed_cells']} ({r['active_cells']}) | {'yes' if r['transport'] else 'no'} "
-            f"| {run} | {rate:.3g} ({r['cell_steps_per_s']:.3g}) | "
-            f"{rate / rate_ser:.2f} ({r['cell_steps_per_s'] / ser['cell_steps_per_s']:.2f}) | "
+            f"| {run} | {rate:.3g} ({r['cell_steps_per_s']:.3g}) | {ratio} | "
             f"{'-' if sent is None else f'{sent:.0f}'} | {r['client_peak_rss'] / 2**20:.0f} | "
             f"{', '.join(str(round(x / 2**20)) for x in r['worker_peak_rss']) or '-'} | "
             f"{r['phases']['solve_s']:.1f} ({r['phases']['setup_s']:.1f}) | "
-            f"{'yes' if r['final_hash'] == ser['final_hash'] else 'NO'} |")
+            f"{'-' if ser is None else 'yes' if r['final_hash'] == ser['final_hash'] else 'NO'} |")
     mod = res.get("model") or {}
     if mod:
         lines += ["", f"Model (an estimate from the measured parts): {mod['n_cells']:.0e} cells, "
                   f"{mod['sim_time_s']:g} s of process; {mod['steps_per_cell_per_s']:.3g} "
                   f"accepted steps per cell per s and {mod['rate_per_machine']:.3g} cell-steps/s "
                   f"per machine (serial, measured here under the load above) give "
-                  f"{mod['compute_s_one_machine'] / 3600:.3g} h of compute on one machine; "
+                  f"{mod['compute_s_one_machine'] / 3600:.3g} h of compute on one machine"
+                  + (f" ({mod['transport_whole_bed_s'] / 3600:.3g} h of it the transport, "
+                     f"which every block does for the whole bed)"
+                     if mod.get("transport_whole_bed_s") else "") + "; "
                   f"halo {mod['halo_cells_per_boundary']:.3g} cells per block boundary "
                   f"({mod['halo_bytes_per_split_step_per_boundary'] / 1e6:.3g} MB per split "
                   f"step at {mod['network_bytes_per_s'] / 1e6:g} MB/s) and "
                   f"{mod['task_hop_s'] * 1e3:g} ms per task hop add {mod['comm_s'] / 60:.3g} min; "
                   f"machines to finish in 1 h: {mod['machines_for_1_h']}."]
+        if mod.get("one_layer"):
+            lines.append("")
+        for o in mod.get("one_layer") or []:
+            lines.append(
+                f"- With a one-layer halo exchanged at every substep (not built; "
+                f"{o['exchanges']:.3g} exchanges) at {o['latency_s'] * 1e3:g} ms per "
+                f"exchange and {o['network_bytes_per_s'] / 1e6:g} MB/s: machines to finish "
+                f"in 1 h: {o['machines_for_1_h']} (latency alone "
+                f"{o['latency_floor_s'] / 3600:.3g} h).")
     return "\n".join(lines) + "\n"
