@@ -21,6 +21,8 @@ force dY_eff = E / K (``effective_driving``), one number for the bed.
 """
 import math
 
+import numpy as np
+
 from .drying import EPSILON, GAS_CONSTANT, MOLAR_MASS_AIR, humid_heat, latent_heat
 
 #: mixing models of the bed's gas (``[drying] air_balance``)
@@ -75,3 +77,26 @@ def outlet_air(evaporation, flow, inlet_temperature, inlet_humidity, wet_bulb):
     rise = evaporation / flow
     return (inlet_humidity + rise,
             inlet_temperature - latent_heat(wet_bulb) * rise / humid_heat(inlet_humidity))
+
+
+def cell_humidity_rise(conductances, inlet_drivings, flow):
+    """The well-mixed gas's humidity rise x = Y - Y_in [kg/kg] over cells that each have their
+    own conductance K_c [kg/s] and inlet driving force dY_in,c = Y_s(T_wb,c) - Y_in [kg/kg]
+    (the gas temperature per cell: each cell's air cools along its own adiabatic saturation
+    line, so its wet bulb stays T_wb,c): the root of G x = sum_c K_c max(0, dY_in,c - x) for
+    the dry-air flow G [kg/s] > 0. A cell with dY_in,c <= x does not dry (condensation is not
+    modelled). Exact: with the cells sorted by dY_in,c falling, sum_c K_c max(0, dY_in,c - x)
+    is the largest of its prefix sums sum_{c<=k} K_c (dY_in,c - x), so the root is the largest
+    of the prefixes' roots x_k = sum_{c<=k} K_c dY_in,c / (G + sum_{c<=k} K_c), and 0."""
+    k = np.asarray(conductances, dtype=float)
+    d = np.asarray(inlet_drivings, dtype=float)
+    keep = (k > 0.0) & (d > 0.0)
+    if not keep.any():
+        return 0.0
+    k, d = k[keep], d[keep]
+    order = np.argsort(-d, kind="stable")
+    k, d = k[order], d[order]
+    if not flow > 0.0:
+        return float(d[0])
+    roots = np.cumsum(k * d) / (flow + np.cumsum(k))
+    return max(0.0, float(roots.max()))

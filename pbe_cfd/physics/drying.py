@@ -122,6 +122,15 @@ def gas_state_cells(temperature, humidity, pressure):
     at the cells' temperature [K] (array), one humidity [kg water / kg dry air] and pressure
     [Pa]: ``gas_state`` vectorised, the wet bulb by the same bisection run on every cell at
     once to 1e-10 K."""
+    unit, driving, reynolds, schmidt = gas_parts_cells(temperature, humidity, pressure)
+    return unit * driving, reynolds, schmidt
+
+
+def gas_parts_cells(temperature, humidity, pressure):
+    """(D_v rho_g [kg/(m s)], Y_s(T_wb) - Y [kg/kg], rho_g / mu_g [s/m2], Sc [-]) per cell of
+    air at the cells' temperature [K] (array), one humidity [kg/kg dry air] and pressure [Pa]:
+    ``gas_state_cells`` with the driving force's two factors apart (the bed's air balance
+    lowers the second per cell)."""
     t = np.asarray(temperature, dtype=float)
     ps = _magnus(t)
     y_s = EPSILON * ps / (pressure - ps)
@@ -141,7 +150,7 @@ def gas_state_cells(temperature, humidity, pressure):
     rho = air_density(t, pressure)
     mu = air_viscosity(t)
     diffusivity = vapour_diffusivity(t, pressure)
-    return diffusivity * rho * driving, rho / mu, mu / (rho * diffusivity)
+    return diffusivity * rho, driving, rho / mu, mu / (rho * diffusivity)
 
 
 def _magnus(temperature):

@@ -9,6 +9,13 @@ conductance measured over the piece before (the evaporated liquid it added, exac
 piece's mean since the rate is linear in dY), and the first piece's K is probed on a copy of
 the states over 1% of it. The lag is one piece: first order in the interval (measured in
 docs/results/batch.md); a constant K (constant-rate drying of a fixed population) is exact.
+
+With the CFD's gas temperature (``[drying] air_temperature_source = "cfd"``, well-mixed gas)
+each cell has its own inlet driving force dY_in,c = Y_s(T_wb,c) - Y_in, and the cells couple
+through the bed's humidity rise x (``physics.air.cell_humidity_rise``): each piece writes every
+cell row's GAS_DRIVING = D_v,c rho_g,c max(0, dY_in,c - x) from the conductances K_c measured
+per cell over the piece before (each cell's own evaporated liquid; a cell that did not dry
+keeps its last one), and puts the rows back as they were after the call.
 """
 from __future__ import annotations
 
@@ -47,15 +54,39 @@ class BedAir:
     wet_bulb: float
     conductance: float = math.nan
     pieces: list = field(default_factory=list)
+    cell_unit: np.ndarray | None = None
+    cell_inlet_driving: np.ndarray | None = None
+    cell_temperature: np.ndarray | None = None
+    cell_conductance: np.ndarray | None = None
+    not_drying_noted: bool = False
+
+    @property
+    def per_cell(self) -> bool:
+        """True if every cell has its own gas temperature (module docstring)."""
+        return self.cell_inlet_driving is not None
 
     def evaporated(self, states) -> float:
         """Liquid evaporated so far in the whole bed [kg]."""
         return float(np.dot(self.volumes, states[:, self.evaporated_index]) * self.scale)
 
+    def cell_evaporated(self, states) -> np.ndarray:
+        """Liquid evaporated so far in each cell [kg]."""
+        return self.volumes * states[:, self.evaporated_index] * self.scale
+
     def advance(self, batch, states, t0, t1, run):
         """Run ``run(states, a, b)`` (the batch's per-cell integration) over [t0, t1] [s] in
         pieces of at most ``interval``, each at the bed's driving force (module docstring)."""
         n = max(1, math.ceil((t1 - t0) / self.interval * (1.0 - 1e-12)))
+        if self.per_cell:
+            saved = batch.rows[:, P.GAS_DRIVING].copy()
+            try:
+                for k in range(n):
+                    a = t0 + (t1 - t0) * k / n
+                    b = t1 if k == n - 1 else t0 + (t1 - t0) * (k + 1) / n
+                    self._cell_piece(batch, states, a, b, run)
+            finally:
+                batch.rows[:, P.GAS_DRIVING] = saved
+            return
         for k in range(n):
             a = t0 + (t1 - t0) * k / n
             b = t1 if k == n - 1 else t0 + (t1 - t0) * (k + 1) / n
@@ -80,13 +111,59 @@ class BedAir:
         self.conductance = ((self.evaporated(trial) - before) / (b - a) / self.inlet_driving
                             if self.inlet_driving > 0.0 else 0.0)
 
+    def _cell_piece(self, batch, states, a, b, run):
+        """One piece [a, b] [s] with a gas temperature per cell (module docstring)."""
+        if self.cell_conductance is None:
+            self._probe_cells(batch, states, a, a + PROBE_SHARE * (b - a))
+        rise = air_physics.cell_humidity_rise(self.cell_conductance, self.cell_inlet_driving,
+                                              self.flow)
+        driving = np.maximum(self.cell_inlet_driving - rise, 0.0)
+        batch.rows[:, P.GAS_DRIVING] = self.cell_unit * driving
+        before = self.cell_evaporated(states)
+        run(states, a, b)
+        rates = (self.cell_evaporated(states) - before) / (b - a)
+        drying = driving > 0.0
+        self.cell_conductance = np.where(drying, rates / np.where(drying, driving, 1.0),
+                                         self.cell_conductance)
+        conductance = float(self.cell_conductance[drying].sum())
+        rate = float(rates.sum())
+        self.conductance = float(self.cell_conductance.sum())
+        self.pieces.append((b, rate, rate / conductance if conductance > 0.0 else 0.0))
+        wet = self.cell_conductance > 0.0
+        if not self.not_drying_noted and np.any(wet & ~drying):
+            self.not_drying_noted = True
+            cold = wet & ~drying
+            temps = self.cell_temperature[cold]
+            batch.notes.append(
+                f"the bed's humidity (Y_in + {rise:.4g} kg/kg) reached the saturation at the "
+                f"wet bulb of {int(cold.sum())} of {cold.size} cells (gas {temps.min():.5g}.."
+                f"{temps.max():.5g} K from the CFD) at t = {a:.6g} s: those cells do not dry "
+                "while it stays there (condensation is not modelled; docs/physics.md section "
+                "15)")
+
+    def _probe_cells(self, batch, states, a, b):
+        """Each cell's conductance at time a [s]: a copy of the states run at each cell's
+        inlet driving force from a to b [s]."""
+        batch.rows[:, P.GAS_DRIVING] = self.cell_unit * self.cell_inlet_driving
+        trial = states.copy()
+        before = self.cell_evaporated(trial)
+        batch.probe(trial, a, b)
+        rates = (self.cell_evaporated(trial) - before) / (b - a)
+        positive = self.cell_inlet_driving > 0.0
+        self.cell_conductance = np.where(
+            positive, rates / np.where(positive, self.cell_inlet_driving, 1.0), 0.0)
+
     def columns(self, times) -> dict:
         """Per output time [s]: the bed's evaporation rate [kg/s], the driving force its
         granules see [kg/kg], the outlet air's humidity [kg/kg dry air] and temperature [K]
-        (of the piece that ended there; time 0: the first piece's)."""
+        (of the piece that ended there; time 0: the first piece's). With a gas temperature
+        per cell the driving force is the conductance-weighted mean over the cells that dry,
+        and the outlet's temperature is not given (the CFD's energy equation has no
+        evaporation, the balance no heat)."""
         ends = np.array([p[0] for p in self.pieces])
-        out = {k: np.zeros(len(times)) for k in ("evaporation_rate_kg_s", "air_driving_force",
-                                                 "outlet_humidity", "outlet_temperature_K")}
+        names = ("evaporation_rate_kg_s", "air_driving_force", "outlet_humidity") + (
+            () if self.per_cell else ("outlet_temperature_K",))
+        out = {k: np.zeros(len(times)) for k in names}
         for r, t in enumerate(times):
             if not self.pieces:
                 rate, driving = 0.0, self.inlet_driving
@@ -98,7 +175,8 @@ class BedAir:
             out["evaporation_rate_kg_s"][r] = rate
             out["air_driving_force"][r] = driving
             out["outlet_humidity"][r] = y
-            out["outlet_temperature_K"][r] = temp
+            if not self.per_cell:
+                out["outlet_temperature_K"][r] = temp
         return out
 
 
@@ -139,6 +217,9 @@ class AirPlan:
     inlet_temperature: float
     inlet_humidity: float
     wet_bulb: float
+    cell_unit: np.ndarray | None = None
+    cell_inlet_driving: np.ndarray | None = None
+    cell_temperature: np.ndarray | None = None
 
     def bed_air(self, arrays) -> BedAir:
         """A fresh ``BedAir`` of a run packed into ``arrays`` (its evaporated-liquid entry
@@ -149,7 +230,9 @@ class AirPlan:
                       evaporated_index=arrays.state_names.index("evaporated_liquid"),
                       scale=arrays.number_scale * arrays.mass_scale,
                       inlet_temperature=self.inlet_temperature,
-                      inlet_humidity=self.inlet_humidity, wet_bulb=self.wet_bulb)
+                      inlet_humidity=self.inlet_humidity, wet_bulb=self.wet_bulb,
+                      cell_unit=self.cell_unit, cell_inlet_driving=self.cell_inlet_driving,
+                      cell_temperature=self.cell_temperature)
 
 
 def air_plan(scene, volumes, area=None, inlet_velocity=None) -> AirPlan | None:
@@ -201,7 +284,17 @@ def coupled_air_plan(scene, cells, idx) -> AirPlan | None:
     if dry.air_mass_flow is None and dry.bed_area is None:
         area = domain_section(cells)
     volumes = np.asarray(cells.cell_volume, dtype=float)[idx]
-    return air_plan(scene, volumes, area=area, inlet_velocity=velocity)
+    plan = air_plan(scene, volumes, area=area, inlet_velocity=velocity)
+    if dry.air_temperature_source != "cfd":
+        return plan
+    from dataclasses import replace
+
+    from ..physics.drying import gas_parts_cells
+    from .cell_gas import cell_inputs
+    temps = next(item.values for item in cell_inputs(scene, cells)
+                 if item.key == "air_temperature_source")[idx]
+    unit, driving, _, _ = gas_parts_cells(temps, dry.air_humidity, dry.pressure)
+    return replace(plan, cell_unit=unit, cell_inlet_driving=driving, cell_temperature=temps)
 
 
 def coupled_air(plan: AirPlan | None, arrays, executor=None) -> BedAir | None:

@@ -242,6 +242,14 @@ def air_lines(scene) -> list[str]:
                   f"({'scene' if dry.superficial_velocity else 'the case gas inlet'}) x "
                   f"{dry.bed_area or area:g} m2 x the inlet's dry-air density")
     flow = air_flow(scene, area, velocity)
+    if dry.air_temperature_source == "cfd":
+        out = out + [f"    air balance: {dry.air_balance} gas; dry-air flow {flow:.4g} kg/s "
+                     f"({source}); one bed humidity Y, each cell drying against "
+                     "Y_s(T_wb) - Y at the wet bulb of its own gas temperature (a cell whose "
+                     "Y_s(T_wb) is at or below Y does not dry: condensation is not modelled)"]
+        return out + [f"    the bed's humidity: held {dry.air_interval:g} s at a time, from "
+                      "each cell's evaporation over the interval before (first order in the "
+                      "interval)"]
     driving = gas_state(dry.air_temperature, dry.air_humidity, dry.pressure)[4]
     return out + [f"    air balance: {dry.air_balance} gas; dry-air flow {flow:.4g} kg/s "
                   f"({source}); capacity G dY_in = {flow * driving:.4g} kg water/s",

@@ -131,7 +131,8 @@ def drying_refusals(scene, methods):
 
 def _cfd_refusals(scene):
     """[(key, refusal)] of the per-cell inputs from the CFD: an OpenFOAM domain to read them
-    from, and no bed air balance with the CFD's gas temperature."""
+    from, and with the CFD's gas temperature a well-mixed bed air (the plug flow's gas rises
+    through granules that see the height's average, not a cell's own temperature)."""
     dry = scene.drying
     keys = [k for k in ("slip_velocity_source", "air_temperature_source")
             if getattr(dry, k) == "cfd"]
@@ -140,11 +141,12 @@ def _cfd_refusals(scene):
     if scene.domain.type == "well-mixed":
         return [(f"drying.{keys[0]}", "a well-mixed domain has no CFD fields: expected "
                                       "\"scene\", or an OpenFOAM domain")]
-    if dry.air_temperature_source == "cfd" and dry.air_balance != "none":
+    if dry.air_temperature_source == "cfd" and dry.air_balance == "plug-flow":
         return [("drying.air_temperature_source",
-                 "the bed's air balance holds one bed humidity at the inlet air's temperature: "
-                 "expected air_temperature_source = \"scene\" with air_balance = "
-                 f"{dry.air_balance!r}, or air_balance = \"none\"")]
+                 "the plug-flow air balance's granules see the average over the bed's height, "
+                 "not their cell's gas temperature: expected air_balance = \"well-mixed\" or "
+                 "\"none\" with air_temperature_source = \"cfd\", or air_temperature_source "
+                 "= \"scene\"")]
     return []
 
 

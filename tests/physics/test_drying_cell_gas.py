@@ -8,13 +8,14 @@ the physics module's code); M01, M10 and the evaporated liquid to 1e-8 (the inte
 1e-11 over ~10^2 steps, as ``test_drying``). The one point of every method's quadrature is
 exact, so each method's drift is that of one granule.
 """
+import math
 import shutil
 
 import meshio
 import numpy as np
 import pytest
 
-from test_drying import AIR, P0, TOL, _constant_rate, _scene
+from test_drying import AIR, N0, P0, TOL, _constant_rate, _scene
 from pbe_cfd.io import openfoam as of
 from pbe_cfd.physics import drying
 from pbe_cfd.physics import parameters as P
@@ -97,6 +98,103 @@ def test_each_cell_dries_in_its_own_gas_temperature(method):
              for u, t in zip(SLIPS, temps)]
     batch, names = _two_cells(method, air_rows)
     _follow(batch, names, rates, _end(rates))
+
+
+# ---- the bed's air balance with a gas temperature per cell ------------------------------
+TEMPS = (300.0, 350.0)       # K
+VOLUMES = (2.0e-4, 1.0e-4)   # m3 of bed per cell
+
+
+def _balanced_cells(method, flow):
+    """``_two_cells`` at TEMPS with the bed's well-mixed air (dry-air flow ``flow`` [kg/s])
+    over VOLUMES: each cell its own gas state from ``gas_parts_cells``."""
+    from pbe_cfd.runs.air import BedAir
+    unit, inlet, reynolds, schmidt = drying.gas_parts_cells(np.array(TEMPS),
+                                                            AIR["air_humidity"], 101325.0)
+    batch, names = _two_cells(method, np.column_stack([unit * inlet, reynolds, schmidt]))
+    arrays = batch.arrays
+    batch.air = BedAir(volumes=np.array(VOLUMES), flow=flow, inlet_driving=float(inlet[0]),
+                       unit_driving=float(unit[0]), mixing="well-mixed", interval=0.05,
+                       evaporated_index=names.index("evaporated_liquid"),
+                       scale=arrays.number_scale * arrays.mass_scale,
+                       inlet_temperature=AIR["air_temperature"],
+                       inlet_humidity=AIR["air_humidity"], wet_bulb=math.nan,
+                       cell_unit=unit, cell_inlet_driving=inlet,
+                       cell_temperature=np.array(TEMPS))
+    return batch, names
+
+
+def _isolated():
+    """(e_c [kg/s] of a granule alone in each cell's gas, dY_in,c [kg/kg], K_c [kg/s] of each
+    cell's N0 V_c granules): the scalar ``gas_state`` and the formula of ``test_drying``."""
+    rates = [_constant_rate(P0, Y0, {**AIR, "slip_velocity": u, "air_temperature": t})
+             for u, t in zip(SLIPS, TEMPS)]
+    inlet = [drying.gas_state(t, AIR["air_humidity"], 101325.0)[4] for t in TEMPS]
+    cond = [N0 * v * e / d for v, e, d in zip(VOLUMES, rates, inlet)]
+    return rates, inlet, cond
+
+
+@pytest.mark.parametrize("method", ["qmom", "laguerre"])
+def test_cells_of_their_own_temperature_share_the_beds_humidity(method):
+    """Constant rate, both cells drying: the gas balance G x = sum K_c (dY_in,c - x) (written
+    out here) gives x, and each cell's liquid falls linearly at e_c (dY_in,c - x) / dY_in,c
+    (exact for the lagged pieces: every K_c is constant), to 1e-8 as ``_follow``."""
+    rates, inlet, cond = _isolated()
+    # the flow that puts the bed's humidity rise at 0.6 of the cold cell's dY_in
+    flow = sum(k * d for k, d in zip(cond, inlet)) / (0.6 * inlet[0]) - sum(cond)
+    rise = sum(k * d for k, d in zip(cond, inlet)) / (flow + sum(cond))
+    assert 0.0 < flow and rise < min(inlet)         # both cells dry
+    lowered = [e * (d - rise) / d for e, d in zip(rates, inlet)]
+    assert lowered[0] < 0.5 * rates[0]              # told apart from the isolated rates
+    batch, names = _balanced_cells(method, flow)
+    _follow(batch, names, lowered, _end(lowered))
+    pieces = batch.air.pieces
+    bed = sum(N0 * v * r for v, r in zip(VOLUMES, lowered))
+    assert pieces[-1][1] == pytest.approx(bed, rel=TOL, abs=0.0)
+    col = batch.air.columns(np.array([pieces[-1][0]]))
+    assert col["outlet_humidity"][0] == pytest.approx(AIR["air_humidity"] + rise, rel=TOL,
+                                                      abs=0.0)
+    assert "outlet_temperature_K" not in col
+    # the rows are put back: the CFD's gas state at the inlet humidity
+    unit, inlet_c, _, _ = drying.gas_parts_cells(np.array(TEMPS), AIR["air_humidity"],
+                                                 101325.0)
+    assert np.array_equal(batch.rows[:, P.GAS_DRIVING], unit * inlet_c)
+
+
+def test_a_cell_below_the_beds_humidity_stops_drying_and_is_named():
+    """A small air flow: the warm cell alone raises the bed's humidity above the cold cell's
+    Y_s(T_wb): x = K_w dY_w / (G + K_w), the warm cell dries at e_w (dY_w - x) / dY_w, the
+    cold one not at all (no condensation), and the run says so once."""
+    rates, inlet, cond = _isolated()
+    flow = 0.2 * cond[1] * (inlet[1] - inlet[0]) / inlet[0]
+    rise = cond[1] * inlet[1] / (flow + cond[1])
+    assert inlet[0] < rise < inlet[1]
+    lowered = [0.0, rates[1] * (inlet[1] - rise) / inlet[1]]
+    batch, names = _balanced_cells("qmom", flow)
+    _follow(batch, names, lowered, 0.9 * (Y0 * P0 - X_CR * P0 * (1.0 - Y0)) / lowered[1])
+    notes = [n for n in batch.notes if "condensation is not modelled" in n]
+    assert len(notes) == 1 and "1 of 2 cells" in notes[0] and "300..300 K" in notes[0]
+
+
+def test_cell_humidity_rise_is_the_root_of_the_gas_balance():
+    """``cell_humidity_rise`` against the balance it solves, on random cells (seed fixed):
+    G x = sum K_c max(0, dY_c - x) to round-off, and the equal-driving limit dY K / (G + K)
+    of the bed's one-temperature balance."""
+    from pbe_cfd.physics.air import cell_humidity_rise
+    rng = np.random.default_rng(20261205)
+    for _ in range(50):
+        n = int(rng.integers(1, 40))
+        k = rng.uniform(0.0, 2.0, n) * (rng.random(n) > 0.2)
+        d = rng.uniform(-0.002, 0.03, n)
+        flow = float(rng.uniform(0.01, 5.0))
+        x = cell_humidity_rise(k, d, flow)
+        gas = flow * x
+        granules = float(np.sum(k * np.maximum(0.0, d - x)))
+        assert x >= 0.0
+        assert gas == pytest.approx(granules, rel=1e-12, abs=1e-15 * flow)
+    k = rng.uniform(0.1, 1.0, 7)
+    assert cell_humidity_rise(k, np.full(7, 0.02), 0.3) == pytest.approx(
+        0.02 * k.sum() / (0.3 + k.sum()), rel=1e-14, abs=0.0)
 
 
 def test_vectorised_gas_state_is_the_scalar_one():
@@ -196,6 +294,34 @@ def test_a_coupled_run_reads_them(tmp_path, monkeypatch):
     assert held == pytest.approx(last["liquid_sprayed_kg"], rel=1e-12, abs=0.0)
 
 
+def test_a_coupled_run_holds_the_beds_air_with_the_cfds_temperature(tmp_path, monkeypatch):
+    """``couple`` with the CFD's gas temperature and the well-mixed bed air, against the same
+    run without the balance: exit 0, the sprayed liquid held or evaporated to 1e-12, less
+    evaporated (the air limits: the bed's humidity lowers every cell's driving force), the
+    outlet humidity Y_in + E / G of the bed's rate, and no outlet temperature column."""
+    import csv
+    from pbe_cfd.cli import main
+    path = _coupled_scene(tmp_path, _snapshot(tmp_path))
+    text = path.read_text().replace("[drying]", "[drying]\nair_balance = \"well-mixed\"\n"
+                                    "air_mass_flow = 5e-5\nair_interval = 0.25")
+    balanced = tmp_path / "b.toml"
+    balanced.write_text(text)
+    monkeypatch.chdir(tmp_path)
+    last = {}
+    for name, scene in (("free", path), ("held", balanced)):
+        assert main(["couple", str(scene), "--out", name]) == 0
+        with open(tmp_path / name / "bed_moments.csv") as fh:
+            rows = list(csv.DictReader(fh))
+        last[name] = {k: float(v) for k, v in rows[-1].items()}
+    held = last["held"]
+    total = sum(held[f"liquid_{k}_kg"] for k in ("granules", "droplets", "evaporated"))
+    assert total == pytest.approx(held["liquid_sprayed_kg"], rel=1e-12, abs=0.0)
+    assert 0.0 < held["liquid_evaporated_kg"] < 0.5 * last["free"]["liquid_evaporated_kg"]
+    assert held["outlet_humidity"] == pytest.approx(
+        0.005 + held["evaporation_rate_kg_s"] / 5e-5, rel=1e-12, abs=0.0)
+    assert "outlet_temperature_K" not in held
+
+
 @pytest.mark.parametrize("missing,key", [("U.particles", "slip_velocity_source"),
                                          ("T.air", "air_temperature_source")])
 def test_a_case_without_the_field_is_one_line_exit_2(tmp_path, capsys, monkeypatch, missing,
@@ -215,12 +341,12 @@ def test_a_case_without_the_field_is_one_line_exit_2(tmp_path, capsys, monkeypat
 @pytest.mark.parametrize("edit,key", [
     ({"slip_velocity_source": 'slip_velocity = 0.3\nslip_velocity_source = "cfd"'},
      "drying.slip_velocity"),
-    ({"air_temperature_source": 'air_temperature_source = "cfd"\nair_balance = "well-mixed"'
+    ({"air_temperature_source": 'air_temperature_source = "cfd"\nair_balance = "plug-flow"'
                                 '\nair_mass_flow = 5e-3'}, "drying.air_temperature_source"),
     ({"slip_velocity_source": 'slip_velocity_source = "sky"'}, "drying.slip_velocity_source")])
 def test_bad_source_keys_are_refused(tmp_path, edit, key):
     """slip_velocity beside slip_velocity_source = "cfd", the CFD's gas temperature with the
-    bed's air balance (one bed humidity at the inlet's temperature), an unknown source."""
+    plug-flow air balance (its granules see the height's average), an unknown source."""
     path = _coupled_scene(tmp_path, _snapshot(tmp_path))
     lines = []
     for line in path.read_text().splitlines():
