@@ -83,18 +83,39 @@ class KernelMixture:
 
     def _kernel_cdf(self, p, rows=slice(None), slope=False):
         """Per row (of ``rows``) and kernel the mass fraction of the kernel below p [kg]
-        (rows, n, k); ``slope``: also its derivative in p [1/kg]. With u = (p - s) / sigma
-        and g = u^l e^-u / Gamma(l + 1) (the recurrence P(l, u) = P(l + 1, u) + g), the
-        fraction is P(l + 1, u) + c g and its slope g (1 + c (l / u - 1)) / sigma, c = s /
-        (s + x_a) the floor's share of the kernel's mean mass."""
+        ((rows, k)) as (rows, n, k); ``slope``: also its derivative in p [1/kg]. With u = (p
+        - s) / sigma and g = u^l e^-u / Gamma(l + 1) (the recurrence P(l, u) = P(l + 1, u) +
+        g), the fraction is P(l + 1, u) + c g and its slope g (1 + c (l / u - 1)) / sigma, c
+        = s / (s + x_a) the floor's share of the kernel's mean mass. Every entry is computed
+        on its own, so large calls run in blocks of rows on the run's threads
+        (``row_blocks``) with every number as in one block."""
+        idx = np.arange(self.rows)[rows]
+        p = np.broadcast_to(np.asarray(p, dtype=float), (idx.size,) + np.shape(p)[-1:])
+        floored = bool(np.any(self.floor[idx] > 0))
+        blocks = row_blocks(idx.size, self.x.shape[1] * p.shape[1])
+        if len(blocks) == 1:
+            return self._kernel_cdf_rows(p, idx, slope, floored)
+        shape = (idx.size, self.x.shape[1], p.shape[1])
+        out = [np.empty(shape) for _ in range(2 if slope else 1)]
+
+        def block(b):
+            got = self._kernel_cdf_rows(p[b], idx[b], slope, floored)
+            for o, g in zip(out, got if slope else (got,)):
+                o[b] = g
+
+        for _ in _pool(len(blocks)).map(block, blocks):
+            pass
+        return tuple(out) if slope else out[0]
+
+    def _kernel_cdf_rows(self, p, rows, slope, floored):
+        """``_kernel_cdf`` of the rows ``rows`` (index array) at p [kg] (len(rows), k);
+        ``floored``: whether any row of the call has a floor (the floor's term is added)."""
         from scipy.special import gammainc, gammaln
-        p = np.asarray(p, dtype=float)
         sigma, x, s = self.sigma[rows], self.x[rows], self.floor[rows][:, None, None]
         smooth = (sigma > 0)[:, None, None]
         sig = np.where(sigma > 0, sigma, 1.0)[:, None, None]
         l = np.where(x > 0, x, 1.0)[:, :, None] / sig
         u = np.maximum(p[:, None, :] - s, 0.0) / sig
-        floored = np.any(s > 0)
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
             q = gammainc(l + 1.0, u)
             if floored or slope:
@@ -124,20 +145,36 @@ class KernelMixture:
         of the kernel's gamma components, each (rows, n, len(fractions)): s + P^-1(l_a, f)
         sigma and s + P^-1(l_a + 1, f) sigma (without a floor both the kernel's own
         percentile P^-1(l_a + 1, f) sigma), s + x_a where sigma = 0; NaN for a kernel
-        without mass."""
-        from scipy.special import gammaincinv
+        without mass. Run in blocks of rows on the run's threads as ``_kernel_cdf``."""
         f = check_fractions(fractions)
-        sig = np.where(self.sigma > 0, self.sigma, 1.0)[:, None, None]
-        s = self.floor[:, None, None]
-        shape = np.where(self.x > 0, self.x, 1.0)[:, :, None] / sig
+        blocks = row_blocks(self.rows, self.x.shape[1] * f.size)
+        if len(blocks) == 1:
+            return self._kernel_quantiles_rows(f, slice(None))
+        out = [np.empty((self.rows, self.x.shape[1], f.size)) for _ in range(2)]
+
+        def block(b):
+            for o, g in zip(out, self._kernel_quantiles_rows(f, b)):
+                o[b] = g
+
+        for _ in _pool(len(blocks)).map(block, blocks):
+            pass
+        return out[0], out[1]
+
+    def _kernel_quantiles_rows(self, f, rows):
+        """``kernel_quantiles`` of the rows ``rows`` (a slice) at the fractions f."""
+        from scipy.special import gammaincinv
+        sigma, x, floor = self.sigma[rows], self.x[rows], self.floor[rows]
+        sig = np.where(sigma > 0, sigma, 1.0)[:, None, None]
+        s = floor[:, None, None]
+        shape = np.where(x > 0, x, 1.0)[:, :, None] / sig
         hi = gammaincinv(shape + 1.0, f[None, None, :]) * sig + s
         lo = hi
         if np.any(s > 0):
             lo = np.where(s > 0, gammaincinv(shape, f[None, None, :]) * sig + s, hi)
-        discrete = (self.sigma > 0)[:, None, None]
-        lo = np.where(discrete, lo, (self.x + self.floor[:, None])[:, :, None])
-        hi = np.where(discrete, hi, (self.x + self.floor[:, None])[:, :, None])
-        has = (self.kernel_mass > 0)[:, :, None]
+        discrete = (sigma > 0)[:, None, None]
+        lo = np.where(discrete, lo, (x + floor[:, None])[:, :, None])
+        hi = np.where(discrete, hi, (x + floor[:, None])[:, :, None])
+        has = (self.kernel_mass[rows] > 0)[:, :, None]
         return np.where(has, lo, np.nan), np.where(has, hi, np.nan)
 
     def quantiles(self, fractions):
@@ -223,6 +260,36 @@ class KernelMixture:
         tot = dm.sum(axis=1)
         yb = np.einsum("rn,rnk->rk", self.y, dm)
         return np.where(tot > 0, yb / np.where(tot > 0, tot, 1.0), 0.0)
+
+
+#: entries (rows x kernels x points) of a ``_kernel_cdf`` call below which it runs in one
+#: block (ours: a thread's start-up is worth it from about this size, ~10 ms of special
+#: functions)
+BLOCK_ENTRIES = 200_000
+
+
+def row_blocks(rows: int, per_row: int) -> list:
+    """Slices of ``rows`` rows for the run's threads (numba's thread count, ``--threads``):
+    one block below BLOCK_ENTRIES entries (``per_row`` each), else one per thread."""
+    import numba
+    threads = max(1, int(numba.get_num_threads()))
+    if threads == 1 or rows * per_row < BLOCK_ENTRIES or rows < 2:
+        return [slice(0, rows)]
+    edges = np.linspace(0, rows, min(threads, rows) + 1).astype(int)
+    return [slice(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+
+_POOLS = {}
+
+
+def _pool(workers: int):
+    """A thread pool of ``workers`` threads, kept for the process (the special functions
+    release the GIL)."""
+    from concurrent.futures import ThreadPoolExecutor
+    if workers not in _POOLS:
+        _POOLS[workers] = ThreadPoolExecutor(max_workers=workers,
+                                             thread_name_prefix="pbe-cfd-cdf")
+    return _POOLS[workers]
 
 
 def of_states(states, aux, arrays, rho, bivariate, labels=str) -> KernelMixture:

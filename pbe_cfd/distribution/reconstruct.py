@@ -151,7 +151,14 @@ def interpolate_rows(q, x, y):
 def padded_rows(populations, k):
     """Entry k (0: w, 1: p, 2: b) of every row's population as one (rows, n_max) array,
     rows with fewer nodes (a degenerate quadrature) padded with zeros (w = 0: no node)."""
-    parts = [np.asarray(r[k], dtype=float).ravel() for r in populations]
+    parts = [r[k] for r in populations]
+    try:                       # rows of one length: one conversion
+        out = np.array(parts, dtype=float)
+    except ValueError:         # rows of different lengths
+        out = None
+    if out is not None and out.ndim == 2:
+        return out
+    parts = [np.asarray(x, dtype=float).ravel() for x in parts]
     out = np.zeros((len(parts), max((x.size for x in parts), default=0)))
     for r, x in enumerate(parts):
         out[r, :x.size] = x

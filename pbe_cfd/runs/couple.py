@@ -179,6 +179,20 @@ def _cell_distribution(plan, arrays, aux, states, populations, idx, n, t, fields
     return recon
 
 
+def _weighted_particles(populations, volumes):
+    """([w V [-] per cell], [p [kg] per cell]) of every cell's particles (w [1/m3], p [kg],
+    b [kg]) times its volume [m3]; one array each where every cell has as many particles."""
+    try:
+        w = np.array([r[0] for r in populations], dtype=float)
+        p = np.array([r[1] for r in populations], dtype=float)
+    except ValueError:          # cells of different particle counts
+        w = p = None
+    if w is not None and w.ndim == 2 and p.shape == w.shape:
+        return [(w * volumes[:, None]).ravel()], [p.ravel()]
+    return ([np.asarray(w) * volumes[c] for c, (w, _, _) in enumerate(populations)],
+            [np.asarray(p) for _, p, _ in populations])
+
+
 def _bed_distribution(plan, arrays, times, bed, mixtures, cell_fields, warnings):
     """Bed d10/d50/d90/span columns (added after the others), the bed's psd.csv columns
     and the columns.json labels."""
@@ -250,8 +264,7 @@ def _outputs(plan, arrays, aux, cells, active, spray, idx, times, history, warni
                 bed.setdefault(name, np.zeros(len(times)))[k] = float(
                     np.sum(values * v_active) / bed_volume)
         # bed d32/d43 from every cell's population, weighted by cell volume
-        ws = [np.asarray(w) * v_active[c] for c, (w, _, _) in enumerate(populations)]
-        ps = [np.asarray(p) for _, p, _ in populations]
+        ws, ps = _weighted_particles(populations, v_active)
         if plan.separate_droplets and "droplet_number_density" in cols:
             ws.append(np.array([np.sum(cols["droplet_number_density"] * v_active)]))
             ps.append(np.array([pd]))
