@@ -348,6 +348,27 @@ class Mixture:
         # a relative 1e-9 outside them: a step at the top is reached despite round-off in d(p)
         return q.min(axis=0)[None, :] * (1 - 1e-9), q.max(axis=0)[None, :] * (1 + 1e-9)
 
+    def psd_rows(self, d, d_lo, d_hi, edges):
+        """(``cdf(d)``, the classes' binder fraction (1, k) or None) from one evaluation of
+        the rows' Q3 at d [m]: the classes [d_lo, d_hi] [m] weighted by the rows' mass
+        between the diameters ``d[edges]`` (k + 1 indices: the class edges, as psd.csv's
+        q3), each row's binder fraction of a class from ``parts.class_binder``."""
+        d = np.asarray(d, dtype=float).reshape(-1)
+        k = np.size(d_lo)
+        if self.empty[0]:
+            none = self.parts.class_binder(d_lo, d_hi) is None
+            return np.zeros((1, d.size)), None if none else np.zeros((1, k))
+        rows = self.parts.cdf(d)
+        at = (self.weights @ rows)[None, :] / self.mass[0]
+        y = self.parts.class_binder(d_lo, d_hi)
+        if y is None:
+            return at, None
+        edge = rows[:, edges]
+        dm = self.weights[:, None] * (edge[:, 1:] - edge[:, :-1])
+        tot = dm.sum(axis=0)
+        return at, (np.where(tot > 0, (dm * y).sum(axis=0) / np.where(tot > 0, tot, 1.0), 0.0)
+                    [None, :])
+
     def class_binder(self, d_lo, d_hi):
         """Mass-weighted binder fraction [-] of the rows in each class (1, k)."""
         y = self.parts.class_binder(d_lo, d_hi)
@@ -396,3 +417,11 @@ class Stack:
         """Binder fraction [-] per class per row, or None."""
         parts = [it.class_binder(d_lo, d_hi) for it in self.items]
         return None if any(p is None for p in parts) else np.vstack(parts)
+
+    def psd_rows(self, d, d_lo, d_hi, edges):
+        """Per row ``Mixture.psd_rows``: (Q3 at d, class binder fractions or None), each
+        mixture read once."""
+        parts = [it.psd_rows(d, d_lo, d_hi, edges) for it in self.items]
+        binder = [b for _, b in parts]
+        return (np.vstack([a for a, _ in parts]),
+                None if any(b is None for b in binder) else np.vstack(binder))

@@ -200,12 +200,15 @@ def psd_columns(times, recon, grid=None, band=None) -> tuple[dict, list]:
     h = math.log(grid[1] / grid[0])
     lo, hi = grid * math.exp(-0.5 * h), grid * math.exp(0.5 * h)
     n = grid.size
-    at = recon.cdf(np.concatenate([grid, lo[:1], hi]))    # the class edges: lo[1:] = hi[:-1]
+    points = np.concatenate([grid, lo[:1], hi])    # the class edges: lo[1:] = hi[:-1]
+    if hasattr(recon, "psd_rows"):   # a bed's mixtures: the rows' Q3 evaluated once for both
+        at, binder = recon.psd_rows(points, lo, hi, np.arange(n, 2 * n + 1))
+    else:
+        at, binder = recon.cdf(points), recon.class_binder(lo, hi)
     big_q, edges = at[:, :n], at[:, n:]
     q3 = (edges[:, 1:] - edges[:, :-1]) / h
     cols = {"time_s": np.repeat(np.asarray(times, float), grid.size),
             "d_m": np.tile(grid, len(times)), "Q3": big_q.ravel(), "q3_per_ln_d": q3.ravel()}
-    binder = recon.class_binder(lo, hi)
     if binder is not None:
         cols["binder_fraction"] = binder.ravel()
     if band is not None:
