@@ -76,20 +76,15 @@ class BedAir:
     def advance(self, batch, states, t0, t1, run):
         """Run ``run(states, a, b)`` (the batch's per-cell integration) over [t0, t1] [s] in
         pieces of at most ``interval``, each at the bed's driving force (module docstring)."""
-        n = max(1, math.ceil((t1 - t0) / self.interval * (1.0 - 1e-12)))
         if self.per_cell:
             saved = batch.rows[:, P.GAS_DRIVING].copy()
             try:
-                for k in range(n):
-                    a = t0 + (t1 - t0) * k / n
-                    b = t1 if k == n - 1 else t0 + (t1 - t0) * (k + 1) / n
+                for a, b in self._pieces(t0, t1):
                     self._cell_piece(batch, states, a, b, run)
             finally:
                 batch.rows[:, P.GAS_DRIVING] = saved
             return
-        for k in range(n):
-            a = t0 + (t1 - t0) * k / n
-            b = t1 if k == n - 1 else t0 + (t1 - t0) * (k + 1) / n
+        for a, b in self._pieces(t0, t1):
             if math.isnan(self.conductance):
                 self._probe(batch, states, a, a + PROBE_SHARE * (b - a))
             driving = air_physics.effective_driving(self.conductance, self.flow,
@@ -100,6 +95,12 @@ class BedAir:
             rate = (self.evaporated(states) - before) / (b - a)
             self.conductance = rate / driving if driving > 0.0 else 0.0
             self.pieces.append((b, rate, driving))
+
+    def _pieces(self, t0, t1):
+        """[(a, b)] [s]: [t0, t1] in equal pieces of at most ``interval``."""
+        n = max(1, math.ceil((t1 - t0) / self.interval * (1.0 - 1e-12)))
+        return [(t0 + (t1 - t0) * k / n, t1 if k == n - 1 else t0 + (t1 - t0) * (k + 1) / n)
+                for k in range(n)]
 
     def _probe(self, batch, states, a, b):
         """The bed's conductance at time a [s]: a copy of the states run at the inlet's
