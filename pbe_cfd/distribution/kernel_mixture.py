@@ -262,10 +262,10 @@ class KernelMixture:
         return np.where(tot > 0, yb / np.where(tot > 0, tot, 1.0), 0.0)
 
 
-#: entries (rows x kernels x points) of a ``_kernel_cdf`` call below which it runs in one
-#: block (ours: a thread's start-up is worth it from about this size, ~10 ms of special
-#: functions)
-BLOCK_ENTRIES = 200_000
+#: entries (rows x kernels x points) of a call below which it runs in one block (ours: about
+#: 1.5 ms of special functions, against ~0.1 ms to hand a block to a thread; the bed's
+#: percentile bisections evaluate every cell at three diameters, ~2e5 entries at 1e5 cells)
+BLOCK_ENTRIES = 20_000
 
 
 def row_blocks(rows: int, per_row: int) -> list:
