@@ -20,6 +20,8 @@ A row whose inversion fell back is named in ``notes`` with the fallback.
 """
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from .quantiles import BISECTIONS, bisect_quantiles, check_fractions
@@ -280,6 +282,8 @@ def row_blocks(rows: int, per_row: int) -> list:
 
 
 _POOLS = {}
+# a forked child inherits the pools without their threads: it makes its own
+os.register_at_fork(after_in_child=_POOLS.clear)
 
 
 def _pool(workers: int):

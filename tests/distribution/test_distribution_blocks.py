@@ -1,6 +1,7 @@
 """The kernel mixture's special functions in blocks of rows on the run's threads
 (``distribution.kernel_mixture.row_blocks``): every number equal to the one-block evaluation,
-so the size distribution of a run does not depend on its thread count."""
+so the size distribution of a run does not depend on its thread count; a forked child does
+not wait on its parent's threads."""
 import numba
 import numpy as np
 import pytest
@@ -59,3 +60,36 @@ def test_blocks_cover_the_rows_once():
         assert K.row_blocks(10, 1) == [slice(0, 10)]      # below BLOCK_ENTRIES: one block
     finally:
         numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+
+
+FORKED = """
+import os, sys
+import numpy as np
+from pbe_cfd.distribution import kernel_mixture as K
+K.BLOCK_ENTRIES = 1
+rng = np.random.default_rng(0)
+rows = 100
+mix = K.KernelMixture.of_arrays(rng.uniform(1e-11, 1e-10, rows),
+                                rng.uniform(1e-10, 1e-8, (rows, 1)), np.ones((rows, 1)),
+                                np.zeros((rows, 1)), np.zeros(rows, int), 1000.0, False, ["ok"])
+d = np.geomspace(1e-5, 1e-3, 5)
+before = mix.cdf(d)
+pid = os.fork()
+if pid == 0:
+    import signal
+    signal.alarm(60)               # a child waiting on threads it does not have ends here
+    os._exit(0 if np.array_equal(mix.cdf(d), before) else 3)
+_, status = os.waitpid(pid, 0)
+sys.exit(os.waitstatus_to_exitcode(status))
+"""
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two numba threads")
+def test_a_forked_child_evaluates_in_blocks_of_its_own():
+    """A process forked after the blocks ran (the drawing processes) inherits the thread pool
+    without its threads: it makes its own instead of waiting on them for ever."""
+    import subprocess
+    import sys
+    run = subprocess.run([sys.executable, "-c", FORKED], timeout=120, capture_output=True,
+                         text=True)
+    assert run.returncode == 0, run.stderr[-2000:]
