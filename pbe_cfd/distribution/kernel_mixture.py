@@ -94,20 +94,9 @@ class KernelMixture:
         idx = np.arange(self.rows)[rows]
         p = np.broadcast_to(np.asarray(p, dtype=float), (idx.size,) + np.shape(p)[-1:])
         floored = bool(np.any(self.floor[idx] > 0))
-        blocks = row_blocks(idx.size, self.x.shape[1] * p.shape[1])
-        if len(blocks) == 1:
-            return self._kernel_cdf_rows(p, idx, slope, floored)
-        shape = (idx.size, self.x.shape[1], p.shape[1])
-        out = [np.empty(shape) for _ in range(2 if slope else 1)]
-
-        def block(b):
-            got = self._kernel_cdf_rows(p[b], idx[b], slope, floored)
-            for o, g in zip(out, got if slope else (got,)):
-                o[b] = g
-
-        for _ in _pool(len(blocks)).map(block, blocks):
-            pass
-        return tuple(out) if slope else out[0]
+        return in_row_blocks(
+            lambda b: self._kernel_cdf_rows(p[b], idx[b], slope, floored), idx.size,
+            (self.x.shape[1], p.shape[1]), 2 if slope else 1)
 
     def _kernel_cdf_rows(self, p, rows, slope, floored):
         """``_kernel_cdf`` of the rows ``rows`` (index array) at p [kg] (len(rows), k);
@@ -149,18 +138,8 @@ class KernelMixture:
         percentile P^-1(l_a + 1, f) sigma), s + x_a where sigma = 0; NaN for a kernel
         without mass. Run in blocks of rows on the run's threads as ``_kernel_cdf``."""
         f = check_fractions(fractions)
-        blocks = row_blocks(self.rows, self.x.shape[1] * f.size)
-        if len(blocks) == 1:
-            return self._kernel_quantiles_rows(f, slice(None))
-        out = [np.empty((self.rows, self.x.shape[1], f.size)) for _ in range(2)]
-
-        def block(b):
-            for o, g in zip(out, self._kernel_quantiles_rows(f, b)):
-                o[b] = g
-
-        for _ in _pool(len(blocks)).map(block, blocks):
-            pass
-        return out[0], out[1]
+        return in_row_blocks(lambda b: self._kernel_quantiles_rows(f, b), self.rows,
+                             (self.x.shape[1], f.size), 2)
 
     def _kernel_quantiles_rows(self, f, rows):
         """``kernel_quantiles`` of the rows ``rows`` (a slice) at the fractions f."""
@@ -279,6 +258,27 @@ def row_blocks(rows: int, per_row: int) -> list:
         return [slice(0, rows)]
     edges = np.linspace(0, rows, min(threads, rows) + 1).astype(int)
     return [slice(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+
+def in_row_blocks(evaluate, rows: int, trailing: tuple, outputs: int = 1):
+    """``evaluate(block)`` over the blocks of ``row_blocks`` of ``rows`` rows: it takes a
+    slice of the rows and returns one array (or a tuple of ``outputs``) of shape (block rows,)
+    + ``trailing``. On the run's threads into arrays allocated once, or one call for one
+    block. ``evaluate`` must compute every row on its own (then the numbers are those of one
+    block)."""
+    blocks = row_blocks(rows, int(np.prod(trailing)))
+    if len(blocks) == 1:
+        return evaluate(blocks[0])
+    out = [np.empty((rows,) + tuple(trailing)) for _ in range(outputs)]
+
+    def block(b):
+        got = evaluate(b)
+        for o, g in zip(out, got if outputs > 1 else (got,)):
+            o[b] = g
+
+    for _ in _pool(len(blocks)).map(block, blocks):
+        pass
+    return tuple(out) if outputs > 1 else out[0]
 
 
 _POOLS = {}

@@ -148,17 +148,23 @@ def interpolate_rows(q, x, y):
     return np.where((nv > 0)[:, None], y0 + t * (y1 - y0), 0.0)
 
 
+def stacked_rows(populations, k):
+    """Entry k (0: w, 1: p, 2: b) of every row's population as one (rows, n) array in one
+    conversion where every row has n nodes, else None."""
+    try:
+        out = np.array([r[k] for r in populations], dtype=float)
+    except ValueError:         # rows of different lengths
+        return None
+    return out if out.ndim == 2 else None
+
+
 def padded_rows(populations, k):
     """Entry k (0: w, 1: p, 2: b) of every row's population as one (rows, n_max) array,
     rows with fewer nodes (a degenerate quadrature) padded with zeros (w = 0: no node)."""
-    parts = [r[k] for r in populations]
-    try:                       # rows of one length: one conversion
-        out = np.array(parts, dtype=float)
-    except ValueError:         # rows of different lengths
-        out = None
-    if out is not None and out.ndim == 2:
+    out = stacked_rows(populations, k)
+    if out is not None:
         return out
-    parts = [np.asarray(x, dtype=float).ravel() for x in parts]
+    parts = [np.asarray(r[k], dtype=float).ravel() for r in populations]
     out = np.zeros((len(parts), max((x.size for x in parts), default=0)))
     for r, x in enumerate(parts):
         out[r, :x.size] = x

@@ -182,12 +182,9 @@ def _cell_distribution(plan, arrays, aux, states, populations, idx, n, t, fields
 def _weighted_particles(populations, volumes):
     """([w V [-] per cell], [p [kg] per cell]) of every cell's particles (w [1/m3], p [kg],
     b [kg]) times its volume [m3]; one array each where every cell has as many particles."""
-    try:
-        w = np.array([r[0] for r in populations], dtype=float)
-        p = np.array([r[1] for r in populations], dtype=float)
-    except ValueError:          # cells of different particle counts
-        w = p = None
-    if w is not None and w.ndim == 2 and p.shape == w.shape:
+    from ..distribution.reconstruct import stacked_rows
+    w, p = stacked_rows(populations, 0), stacked_rows(populations, 1)
+    if w is not None and p is not None and p.shape == w.shape:
         return [(w * volumes[:, None]).ravel()], [p.ravel()]
     return ([np.asarray(w) * volumes[c] for c, (w, _, _) in enumerate(populations)],
             [np.asarray(p) for _, p, _ in populations])
