@@ -20,11 +20,10 @@ A row whose inversion fell back is named in ``notes`` with the fallback.
 """
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 from .quantiles import BISECTIONS, bisect_quantiles, check_fractions
+from ..util.threads import run_threads, thread_pool
 from .reconstruct import DELTA_REL_VAR, _rows_text, diameter_of_mass, mass_of_diameter
 
 #: Newton's method for a percentile between its components' own stops at a step below this
@@ -252,8 +251,7 @@ BLOCK_ENTRIES = 20_000
 def row_blocks(rows: int, per_row: int) -> list:
     """Slices of ``rows`` rows for the run's threads (numba's thread count, ``--threads``):
     one block below BLOCK_ENTRIES entries (``per_row`` each), else one per thread."""
-    import numba
-    threads = max(1, int(numba.get_num_threads()))
+    threads = run_threads()
     if threads == 1 or rows * per_row < BLOCK_ENTRIES or rows < 2:
         return [slice(0, rows)]
     edges = np.linspace(0, rows, min(threads, rows) + 1).astype(int)
@@ -276,24 +274,9 @@ def in_row_blocks(evaluate, rows: int, trailing: tuple, outputs: int = 1):
         for o, g in zip(out, got if outputs > 1 else (got,)):
             o[b] = g
 
-    for _ in _pool(len(blocks)).map(block, blocks):
+    for _ in thread_pool(len(blocks), "cdf").map(block, blocks):
         pass
     return tuple(out) if outputs > 1 else out[0]
-
-
-_POOLS = {}
-# a forked child inherits the pools without their threads: it makes its own
-os.register_at_fork(after_in_child=_POOLS.clear)
-
-
-def _pool(workers: int):
-    """A thread pool of ``workers`` threads, kept for the process (the special functions
-    release the GIL)."""
-    from concurrent.futures import ThreadPoolExecutor
-    if workers not in _POOLS:
-        _POOLS[workers] = ThreadPoolExecutor(max_workers=workers,
-                                             thread_name_prefix="pbe-cfd-cdf")
-    return _POOLS[workers]
 
 
 def of_states(states, aux, arrays, rho, bivariate, labels=str) -> KernelMixture:

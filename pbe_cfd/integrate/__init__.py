@@ -11,18 +11,29 @@ Three schemes (``[method] integrator``, config[INTEGRATOR]):
 * ``auto`` (default): explicit until a cell's steps are limited by stiffness, then implicit
   for as long as that pays, per cell (``cell``).
 
-Cells are independent and run in parallel (``numba.prange``): the well-mixed run is the
-one-cell case of the same function the mesh coupling calls. Only the method and the scheme a
-scene uses are compiled (``integrate_cells`` passes both as compile-time constants); the
-compiled code is cached on disk.
+Cells are independent: each of the run's threads integrates every n-th cell
+(``integrate_cells_kernel`` releases the GIL), so the cells of a spray zone, next to each
+other in the mesh, are shared between the threads. The well-mixed run is the one-cell case of
+the same function the mesh coupling calls. Only the method and the scheme a scene uses are
+compiled (``integrate_cells`` passes both as compile-time constants); the compiled code is
+cached on disk.
+
+What compiles as a function of its own: numba generates machine code for every function it
+compiles separately, and again for each of its callees, linked into the caller's module. So
+the integrator's functions that call the method's right-hand side or its realizability test
+(the schemes' attempts, the Jacobians, the switch location, ``integrate_cell``) are inlined
+into their callers (``inline="always"``): the method's functions and the small helpers are
+compiled once each, the integrator once, in the kernel (docs/results/first-run.md).
 """
 import time
+from concurrent.futures import wait
 
 import numpy as np
 from numba import typeof
 from numba.core import types
 
 from ..physics import parameters as P
+from ..util.threads import run_threads, thread_pool
 from .cell import integrate_cell, integrate_cells_kernel  # noqa: F401
 from .codes import (ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, IMPLICIT,  # noqa: F401
                     IMPLICIT_STEPS, JACOBIANS,
@@ -34,7 +45,8 @@ from .codes import (ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, IMPLICIT,  # no
 
 def integrate_cells(states, cells, aux, params, config, t_start, t_end, steps, rtol, atol,
                     max_steps, stats, status, reached):
-    """Advance every cell (row of ``states``) from t_start to t_end [s] in parallel.
+    """Advance every cell (row of ``states``) from t_start to t_end [s], on the run's threads
+    (``util.threads.run_threads``; each cell's numbers do not depend on their count).
 
     states (n_cells, n_state) scaled moments, modified in place; cells (n_cells, N_CELL) local
     fields; aux the method's auxiliary array; params, config the packed scene
@@ -46,18 +58,37 @@ def integrate_cells(states, cells, aux, params, config, t_start, t_end, steps, r
     """
     args = (states, cells, aux, params, config, float(t_start), float(t_end), steps,
             float(rtol), float(atol), int(max_steps), stats, status, reached)
-    kernel(int(config[P.METHOD]), int(config[P.INTEGRATOR]), args)(
-        int(config[P.METHOD]), int(config[P.INTEGRATOR]), *args)
+    method, scheme = int(config[P.METHOD]), int(config[P.INTEGRATOR])
+    entry = kernel(method, scheme, args)
+    threads = min(run_threads(), max(1, states.shape[0]))
+    if threads == 1:
+        entry(method, scheme, *args, 0, 1)
+        return
+    shares = [thread_pool(threads - 1, "cells").submit(entry, method, scheme, *args, k, threads)
+              for k in range(1, threads)]
+    try:
+        entry(method, scheme, *args, 0, threads)        # this thread's share
+    finally:
+        wait(shares)            # no thread still writes into the arrays when this returns
+    for share in shares:
+        share.result()
 
 
 _KERNELS = {}
+
+
+def _signature(method, scheme, args):
+    """The kernel's numba signature: method and scheme codes as literals, the types of
+    ``args``, then a thread's first row and the stride (integers)."""
+    return ((types.literal(method), types.literal(scheme)) + tuple(typeof(a) for a in args)
+            + (types.int64, types.int64))
 
 
 def kernel(method, scheme, args):
     """The compiled ``integrate_cells_kernel`` for method and scheme codes as compile-time
     constants and the types of ``args`` (compiled, or loaded from the disk cache, on first
     use; a direct entry point afterwards, so a call costs no type resolution)."""
-    sig = (types.literal(method), types.literal(scheme)) + tuple(typeof(a) for a in args)
+    sig = _signature(method, scheme, args)
     entry = _KERNELS.get(sig)
     if entry is None:
         integrate_cells_kernel.compile(sig)
@@ -149,7 +180,7 @@ def kernel_ready(aux, params, config) -> bool:
     interface to ask."""
     args = _probe_args(aux, params, config, 1)
     method, scheme = int(config[P.METHOD]), int(config[P.INTEGRATOR])
-    sig = (types.literal(method), types.literal(scheme)) + tuple(typeof(a) for a in args)
+    sig = _signature(method, scheme, args)
     if sig in _KERNELS or sig in integrate_cells_kernel.overloads:
         return True
     try:

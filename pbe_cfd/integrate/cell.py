@@ -269,7 +269,7 @@ CAP_AGE = 2              # accepted steps since it was evaluated
 N_CAP = 3
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _capture_chosen(scheme, method, state, h, buf, cap, cell, aux, params, config, work, rtol,
                     atol, d, n, stats):
     """Auto: True if the next explicit step of h [s] integrates the droplet capture exactly
@@ -301,7 +301,7 @@ def _capture_chosen(scheme, method, state, h, buf, cap, cell, aux, params, confi
     return expo
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _rate_after_step(method, explicit, expo, crossed, state, buf, cell, aux, params, config,
                      work, n, stats):
     """buf[F0] = f(state) after an accepted step: first same as last where the explicit pair's
@@ -346,7 +346,7 @@ def _all_finite(values, n):
     return True
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _absorb_droplets(method, state, d, atol, pivots, coefs, n_inv, aux, params, config, work,
                      saved):
     """A free-droplet density in (0, atol] (numerically zero: below the absolute tolerance)
@@ -421,7 +421,7 @@ def _clear_crossed(local):
         local[P.STOKES_CROSSED] = 0.0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _attempt(scheme, method, mode, state, h_try, buf, phis, cap, jac, lu, piv, pivots, coefs,
              n_inv, have_jac, secant, cell, aux, local, config, work, rtol, atol, droplet, n,
              stats):
@@ -452,7 +452,7 @@ def _attempt(scheme, method, mode, state, h_try, buf, phis, cap, jac, lu, piv, p
     return outcome, err, h_rho, expo, have_jac
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_end, step,
                    rtol, atol, max_steps, stats):
     """Advance one cell's state from t_start to t_end [s] in place. method, scheme: literal
@@ -555,12 +555,13 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
     return OK, t
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, nogil=True)
 def integrate_cells_kernel(method, scheme, states, cells, aux, params, config, t_start, t_end,
-                           steps, rtol, atol, max_steps, stats, status, reached):
-    """``integrate_cell`` over every row of ``states`` in parallel (numba prange)."""
+                           steps, rtol, atol, max_steps, stats, status, reached, first, stride):
+    """``integrate_cell`` over the rows first, first + stride, first + 2 stride, ... of
+    ``states`` (one thread's share of the cells; the GIL released)."""
     n_cells = states.shape[0]
-    for c in nb.prange(n_cells):
+    for c in range(first, n_cells, stride):
         if status[c] != OK:
             continue
         code, t = integrate_cell(method, scheme, states[c], cells[c], aux, params, config,

@@ -26,7 +26,7 @@ def _combine(y, h, k1, c1, k2, c2, k3, c3, out, n):
         out[i] = y[i] + h * (c1 * k1[i] + c2 * k2[i] + c3 * k3[i])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def bs3_attempt(method, y, h, buf, cell, aux, params, config, work, rtol, atol, n):
     """Attempt one step of size h [s] from y (scaled state, buf[F0] = d(y)/dt [1/s]).
 

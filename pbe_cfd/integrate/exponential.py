@@ -58,7 +58,7 @@ def phi_functions(z, out):
             fact *= k
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def capture_column(method, y, buf, cell, aux, params, config, work, d, n):
     """buf[GCOL] = d f / d n_d at y (exact: the RHS is linear in the droplet number), from one
     RHS evaluation at y with n_d raised (buf[F0] = f(y)). Returns the capture rate lambda
@@ -86,7 +86,7 @@ def capture_column(method, y, buf, cell, aux, params, config, work, d, n):
     return -g[d]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def exp_bs3_attempt(method, y, h, buf, phis, cell, aux, params, config, work, rtol, atol, d,
                     n):
     """Attempt one step of size h [s] from y (buf[F0] = f(y), buf[GCOL] = G_n, d the droplet

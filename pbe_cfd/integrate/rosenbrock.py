@@ -33,7 +33,7 @@ GAMMA = 0.5
 SQRT_EPS = 1.4901161193847656e-08
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def jacobian(method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, config, work,
              rtol, atol, n):
     """``secant_jacobian`` with the differences at sqrt(eps) (h_scale = 0): the Jacobian
@@ -42,7 +42,7 @@ def jacobian(method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, confi
                            config, work, rtol, atol, n, 0.0)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def secant_jacobian(method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, config,
                     work, rtol, atol, n, h_scale):
     """Central-difference Jacobian of the RHS at y (buf[F0] = f(y)) into jac (n, n) [1/s].
@@ -187,7 +187,7 @@ def spectral_radius(jac, v, w, n):
     return size
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def rodas3_attempt(method, y, h, buf, jac, lu, piv, cell, aux, params, config, work, rtol,
                    atol, n):
     """Attempt one RODAS3 step of size h [s] from y with Jacobian jac (buf[F0] = f(y)).

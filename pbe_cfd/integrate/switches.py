@@ -48,7 +48,7 @@ def release(local):
     local[P.STOKES_CROSSED] = 0.0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _switch_defect(method, state, h, buf, cell, aux, local, config, work, rtol, atol, n):
     """Error norm [-] of a step of h [s] from ``state`` to buf[YNEW] within which a pair's
     sharp Stokes decision switched (the held rates f_held were integrated to the step's end):
@@ -84,7 +84,7 @@ def location_memory():
     return loc
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def located(method, t, state, h, buf, cell, aux, local, config, work, rtol, atol, n, stats,
              saved, loc, outcome, err):
     """An accepted step from t [s] of h [s] across which a sharp Stokes decision switched: kept

@@ -20,8 +20,8 @@ from numba.core import types
 
 from ..methods import registry
 from ..physics import parameters as P
-from . import cell, explicit, exponential, rosenbrock, switches
-from .codes import AUTO, EXPLICIT, IMPLICIT, N_BUF
+from . import exponential, rosenbrock, switches
+from .codes import AUTO, EXPLICIT, N_BUF
 
 
 def _types(aux, params, config):
@@ -30,17 +30,20 @@ def _types(aux, params, config):
     vec = typeof(np.zeros(n))                            # states[c], buf rows, local, work
     return dict(V=vec, M=typeof(np.zeros((N_BUF, n))), I=typeof(np.zeros(2, dtype=np.int64)),
                 A=typeof(aux), P=typeof(params), C=typeof(config),
-                f=types.float64, i=types.int64, b=types.boolean)
+                f=types.float64, i=types.int64)
 
 
 def warm_stages(method: int, scheme: int, aux, params, config) -> list:
     """Stages of (function name, dispatcher, signature) groups for the kernel of method code
     ``method`` and scheme code ``scheme`` on the packed scene (aux, params, config): a list
-    of stages, each a list of groups, each a list of (name, dispatcher, argument types)."""
+    of stages, each a list of groups, each a list of (name, dispatcher, argument types).
+
+    One stage of two groups: the method's right-hand side, and its other functions with the
+    integrator's helpers. The integrator's functions that call the method are inlined into
+    the kernel (``integrate`` module docstring), so they compile with it."""
     entry = registry.entry_of_code(method)
     t = _types(aux, params, config)
-    V, M, I, A, C, f, i, b = (t[k] for k in "VMIACfib")
-    m, s = types.literal(method), types.literal(scheme)
+    V, M, I, A, C, f, i = (t[k] for k in "VMIACfi")
     leaves = [("held_params", switches.held_params, (t["P"], C)),
               ("location_memory", switches.location_memory, ()),
               ("release", switches.release, (V,))]
@@ -53,30 +56,7 @@ def warm_stages(method: int, scheme: int, aux, params, config) -> list:
     method_state = [(f"{entry.name} realizable", entry.realizable, (V, A, V, C, V)),
                     (f"{entry.name} project", entry.project, (V, A, V, C, V)),
                     (f"{entry.name} conserved", entry.conserved, (C, V, I, M))]
-    first = [("located", switches.located,
-              (m, f, V, f, M, V, A, V, C, V, f, f, i, I, V, V, i, f)),
-             ("_absorb_droplets", cell._absorb_droplets,
-              (m, V, i, f, I, M, i, A, V, C, V, V))]
-    second = [("_rate_after_step", cell._rate_after_step,
-               (m, b, b, b, V, M, V, A, V, C, V, i, I)),
-              ("_capture_chosen", cell._capture_chosen,
-               (s, m, V, f, M, I, V, A, V, C, V, f, f, i, i, I))]
-    if scheme != EXPLICIT:
-        first += [("secant_jacobian", rosenbrock.secant_jacobian,
-                   (m, V, M, M, I, M, i, V, A, V, C, V, f, f, i, f)),
-                  ("rodas3_attempt", rosenbrock.rodas3_attempt,
-                   (m, V, f, M, M, M, I, V, A, V, C, V, f, f, i))]
-    if scheme != IMPLICIT:
-        second += [("bs3_attempt", explicit.bs3_attempt,
-                    (m, V, f, M, V, A, V, C, V, f, f, i))]
-    if scheme == AUTO:
-        second += [("exp_bs3_attempt", exponential.exp_bs3_attempt,
-                    (m, V, f, M, M, V, A, V, C, V, f, f, i, i)),
-                   ("capture_column", exponential.capture_column,
-                    (m, V, M, V, A, V, C, V, i, i))]
-    return [[method_state, leaves],
-            [[(f"{entry.name} rhs", entry.rhs, (V, V, V, A, V, C, V))]],
-            [first, second]]
+    return [[[(f"{entry.name} rhs", entry.rhs, (V, V, V, A, V, C, V))], method_state + leaves]]
 
 
 def compile_group(group) -> list:

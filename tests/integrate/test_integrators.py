@@ -373,7 +373,9 @@ def test_a_scene_compiles_only_its_method_and_scheme(tmp_path):
     """In a fresh process with an empty kernel cache, an explicit QMOM scene compiles the QMOM
     kernel with the explicit pair only: neither the Laguerre right-hand side nor the Rosenbrock
     or exponential steps are compiled (a loaded cache would compile nothing, hence the fresh
-    cache directory)."""
+    cache directory). The schemes' attempts are inlined into the kernel, so what is checked
+    are the helpers only they call, compiled as functions of their own: the LU factorisation
+    and solve (Rosenbrock) and the phi functions (exponential)."""
     code = """
 import json, dataclasses
 from pbe_cfd import integrate
@@ -387,12 +389,13 @@ arrays = model.pack(scene)
 aux = method_of(scene).aux(scene, arrays, None)
 integrate.compile_kernels(aux, arrays.params, arrays.config)
 from pbe_cfd.methods import laguerre
-from pbe_cfd.integrate import rosenbrock, exponential, cell
+from pbe_cfd.integrate import rosenbrock, exponential, cell, explicit
 sigs = list(cell.integrate_cells_kernel.signatures)
 print(json.dumps({"laguerre": len(laguerre.laguerre_rhs.signatures),
-                  "rodas3": len(rosenbrock.rodas3_attempt.signatures),
-                  "jacobian": len(rosenbrock.secant_jacobian.signatures),
-                  "exponential": len(exponential.exp_bs3_attempt.signatures),
+                  "lu_factor": len(rosenbrock.lu_factor.signatures),
+                  "lu_solve": len(rosenbrock.lu_solve.signatures),
+                  "phi": len(exponential.phi_functions.signatures),
+                  "combine": len(explicit._combine.signatures),
                   "kernels": [str(s[0]) + " " + str(s[1]) for s in sigs]}))
 """
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
@@ -400,8 +403,9 @@ print(json.dumps({"laguerre": len(laguerre.laguerre_rhs.signatures),
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          env=env, check=True, timeout=1800)
     seen = json.loads(out.stdout.strip().splitlines()[-1])
-    assert seen["laguerre"] == 0 and seen["rodas3"] == 0 and seen["jacobian"] == 0
-    assert seen["exponential"] == 0
+    assert seen["laguerre"] == 0 and seen["lu_factor"] == 0 and seen["lu_solve"] == 0
+    assert seen["phi"] == 0
+    assert seen["combine"] == 1                 # the explicit pair's helper: it was compiled
     assert seen["kernels"] == ["Literal[int](0) Literal[int](0)"]
 
 
