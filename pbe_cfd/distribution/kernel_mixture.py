@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .quantiles import BISECTIONS, bisect_quantiles, check_fractions
 from ..util.threads import run_threads, thread_pool
+from .quantiles import BISECTIONS, bisect_quantiles, check_fractions
 from .reconstruct import DELTA_REL_VAR, _rows_text, diameter_of_mass, mass_of_diameter
 
 #: Newton's method for a percentile between its components' own stops at a step below this
