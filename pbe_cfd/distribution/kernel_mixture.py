@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..util.threads import run_threads, thread_pool
+from ..util.threads import run_shares, run_threads
 from .quantiles import BISECTIONS, bisect_quantiles, check_fractions
 from .reconstruct import DELTA_REL_VAR, _rows_text, diameter_of_mass, mass_of_diameter
 
@@ -274,8 +274,7 @@ def in_row_blocks(evaluate, rows: int, trailing: tuple, outputs: int = 1):
         for o, g in zip(out, got if outputs > 1 else (got,)):
             o[b] = g
 
-    for _ in thread_pool(len(blocks), "cdf").map(block, blocks):
-        pass
+    run_shares(block, blocks, "cdf")
     return tuple(out) if outputs > 1 else out[0]
 
 

@@ -333,10 +333,13 @@ class Mixture:
 
     def cdf(self, d):
         """Q3 [-] at diameters d [m] ((k,) or (1, k))."""
-        d = np.asarray(d, dtype=float).reshape(-1)
+        return self._weighted_cdf(self.parts.cdf(np.asarray(d, dtype=float).reshape(-1)))
+
+    def _weighted_cdf(self, rows):
+        """Q3 (1, k) of the mixture from its rows' Q3 (rows, k) at the same diameters."""
         if self.empty[0]:
-            return np.zeros((1, d.size))
-        return (self.weights @ self.parts.cdf(d))[None, :] / self.mass[0]
+            return np.zeros((1, rows.shape[1]))
+        return (self.weights @ rows)[None, :] / self.mass[0]
 
     def quantiles(self, fractions):
         """Diameters [m] at the mass fractions (1, len(fractions))."""
@@ -365,7 +368,7 @@ class Mixture:
             none = self.parts.class_binder(d_lo, d_hi) is None
             return np.zeros((1, d.size)), None if none else np.zeros((1, k))
         rows = self.parts.cdf(d)
-        at = (self.weights @ rows)[None, :] / self.mass[0]
+        at = self._weighted_cdf(rows)
         y = self.parts.class_binder(d_lo, d_hi)
         if y is None:
             return at, None

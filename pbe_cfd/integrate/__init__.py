@@ -26,14 +26,13 @@ into their callers (``inline="always"``): the method's functions and the small h
 compiled once each, the integrator once, in the kernel (docs/results/first-run.md).
 """
 import time
-from concurrent.futures import wait
 
 import numpy as np
 from numba import typeof
 from numba.core import types
 
 from ..physics import parameters as P
-from ..util.threads import run_threads, thread_pool
+from ..util.threads import run_shares, run_threads
 from .cell import integrate_cell, integrate_cells_kernel  # noqa: F401
 from .codes import (ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, IMPLICIT,  # noqa: F401
                     IMPLICIT_STEPS, JACOBIANS,
@@ -61,17 +60,8 @@ def integrate_cells(states, cells, aux, params, config, t_start, t_end, steps, r
     method, scheme = int(config[P.METHOD]), int(config[P.INTEGRATOR])
     entry = kernel(method, scheme, args)
     threads = min(run_threads(), max(1, states.shape[0]))
-    if threads == 1:
-        entry(method, scheme, *args, 0, 1)
-        return
-    shares = [thread_pool(threads - 1, "cells").submit(entry, method, scheme, *args, k, threads)
-              for k in range(1, threads)]
-    try:
-        entry(method, scheme, *args, 0, threads)        # this thread's share
-    finally:
-        wait(shares)            # no thread still writes into the arrays when this returns
-    for share in shares:
-        share.result()
+    # share k: the rows k, k + threads, ...; every share done when this returns
+    run_shares(lambda k: entry(method, scheme, *args, k, threads), range(threads), "cells")
 
 
 _KERNELS = {}
