@@ -85,41 +85,11 @@ class CompileProfile(event.Listener):
         return dict(sorted(out.items(), key=lambda kv: -kv[1][2]))
 
 
-def _serial_top():
-    """CPU seconds to compile a plain loop over ``integrate_cell`` (what a kernel without the
-    parfor would cost above the cell function, which is compiled already)."""
-    import numba as nb
-    from numba import typeof
-    from numba.core import types
-    from pbe_cfd import integrate
-    from pbe_cfd.integrate.cell import integrate_cell
-
-    @nb.njit
-    def serial(method, scheme, states, cells, aux, params, config, t_start, t_end, steps,
-               rtol, atol, max_steps, stats, status, reached):
-        for c in range(states.shape[0]):
-            if status[c] != 0:
-                continue
-            code, t = integrate_cell(method, scheme, states[c], cells[c], aux, params, config,
-                                     t_start, t_end, steps[c:c + 1], rtol, atol, max_steps,
-                                     stats[c])
-            status[c] = code
-            reached[c] = t
-
-    key = next(iter(integrate._KERNELS))
-    start = _now()
-    serial.compile(key)
-    print(f"serial top level (no parfor): {_now() - start:.1f} s CPU")
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scenes", nargs="*")
     ap.add_argument("--top", type=int, default=30)
     ap.add_argument("--json", help="write the whole profile here")
-    ap.add_argument("--serial-top", action="store_true",
-                    help="then compile a serial loop over integrate_cell (no parfor) with the "
-                         "kernel's signature and say what that top level costs")
     args = ap.parse_args(argv)
     from pbe_cfd.cli import DEFAULT_COUPLED, DEFAULT_WELL_MIXED
     from pbe_cfd.runs.precompile import compile_scene
@@ -134,8 +104,6 @@ def main(argv=None) -> int:
         print(f"{name}: {done['kernel']} compiled={done['compiled']} "
               f"{done['seconds']:.1f} s wall, {done['cpu_s']:.1f} s CPU", flush=True)
     total = _now() - cpu0
-    if args.serial_top:
-        _serial_top()
     rows = prof.per_function()
     print(f"\ntotal {total:.1f} s CPU, {time.perf_counter() - wall0:.1f} s wall; "
           f"{len(rows)} functions, {sum(r[0] for r in rows.values())} signatures; "

@@ -15,25 +15,25 @@ Cells are independent: each of the run's threads integrates every n-th cell
 (``integrate_cells_kernel`` releases the GIL), so the cells of a spray zone, next to each
 other in the mesh, are shared between the threads. The well-mixed run is the one-cell case of
 the same function the mesh coupling calls. Only the method and the scheme a scene uses are
-compiled (``integrate_cells`` passes both as compile-time constants); the compiled code is
-cached on disk.
+compiled: the scheme is a compile-time constant of the kernel, the method's functions are
+its arguments (``kernel_types``); the compiled code is cached on disk.
 
 What compiles as a function of its own: numba generates machine code for every function it
 compiles separately, and again for each of its callees, linked into the caller's module. So
-the integrator's functions that call the method's right-hand side or its realizability test
-(the schemes' attempts, the Jacobians, the switch location, ``integrate_cell``) are inlined
-into their callers (``inline="always"``): the method's functions and the small helpers are
-compiled once each, the integrator once, in the kernel (docs/results/first-run.md).
+the integrator's functions that call the method (the schemes' attempts, the Jacobians, the
+switch location, ``integrate_cell``) are inlined into their callers (``inline="always"``),
+and the kernel calls the method's functions through their addresses, never linking them:
+the method's functions and the small helpers are compiled once each, the integrator once,
+in the kernel, for every method alike (docs/results/first-run.md).
 """
 import time
 
 import numpy as np
-from numba import typeof
-from numba.core import types
 
 from ..physics import parameters as P
 from ..util.threads import run_shares, run_threads
 from .cell import integrate_cell, integrate_cells_kernel  # noqa: F401
+from .kernel_types import functions_of, kernel_signature, probe_args, signatures
 from .codes import (ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, IMPLICIT,  # noqa: F401
                     IMPLICIT_STEPS, JACOBIANS,
                     MAX_STEPS_PER_INTERVAL, N_STATS, NOT_FINITE, OK, REJECTED_ERROR,
@@ -58,33 +58,29 @@ def integrate_cells(states, cells, aux, params, config, t_start, t_end, steps, r
     args = (states, cells, aux, params, config, float(t_start), float(t_end), steps,
             float(rtol), float(atol), int(max_steps), stats, status, reached)
     method, scheme = int(config[P.METHOD]), int(config[P.INTEGRATOR])
-    entry = kernel(method, scheme, args)
+    share = kernel(method, scheme, args)
     threads = min(run_threads(), max(1, states.shape[0]))
     # share k: the rows k, k + threads, ...; every share done when this returns
-    run_shares(lambda k: entry(method, scheme, *args, k, threads), range(threads), "cells")
+    run_shares(lambda k: share(k, threads), range(threads), "cells")
 
 
 _KERNELS = {}
 
 
-def _signature(method, scheme, args):
-    """The kernel's numba signature: method and scheme codes as literals, the types of
-    ``args``, then a thread's first row and the stride (integers)."""
-    return ((types.literal(method), types.literal(scheme)) + tuple(typeof(a) for a in args)
-            + (types.int64, types.int64))
-
-
 def kernel(method, scheme, args):
-    """The compiled ``integrate_cells_kernel`` for method and scheme codes as compile-time
-    constants and the types of ``args`` (compiled, or loaded from the disk cache, on first
-    use; a direct entry point afterwards, so a call costs no type resolution)."""
-    sig = _signature(method, scheme, args)
+    """The compiled ``integrate_cells_kernel`` for the method with code ``method``, the scheme
+    code ``scheme`` as a compile-time constant and the types of ``args`` (compiled, or loaded
+    from the disk cache, on first use; a direct entry point afterwards, so a call costs no
+    type resolution). Returns ``share(first, stride)``, the kernel over the rows first,
+    first + stride, ... of the cells in ``args``."""
+    sig = kernel_signature(scheme, args)
     entry = _KERNELS.get(sig)
     if entry is None:
         integrate_cells_kernel.compile(sig)
         entry = integrate_cells_kernel.overloads[sig].entry_point
         _KERNELS[sig] = entry
-    return entry
+    functions = functions_of(method)
+    return lambda first, stride: entry(*functions, scheme, *args, first, stride)
 
 
 def failure_reason(code, stats, params, config) -> str:
@@ -152,29 +148,34 @@ def compile_kernels(aux, params, config, n_cells=1) -> float:
     its method and its scheme only. Returns the wall time it took [s] (near zero when the
     cache holds the kernel and it was loaded before in this process)."""
     start = time.perf_counter()
-    integrate_cells(*_probe_args(aux, params, config, n_cells))
+    integrate_cells(*probe_args(aux, params, config, n_cells))
     return time.perf_counter() - start
 
 
-def _probe_args(aux, params, config, n_cells):
-    """Arguments of ``integrate_cells`` that run no cell (every status UNREALIZABLE_START)."""
-    n = int(config[P.N_STATE])
-    return (np.zeros((n_cells, n)), np.zeros((n_cells, P.N_CELL)), aux, params, config, 0.0,
-            0.0, np.zeros(n_cells), 1e-8, 1e-14, 1, np.zeros((n_cells, N_STATS), dtype=np.int64),
-            np.full(n_cells, UNREALIZABLE_START, dtype=np.int64), np.zeros(n_cells))
-
-
 def kernel_ready(aux, params, config) -> bool:
-    """True if the kernel of a packed scene is compiled in this process or can be loaded from
-    numba's on-disk cache (a compile would only load it); False where numba has no cache
-    interface to ask."""
-    args = _probe_args(aux, params, config, 1)
+    """True if the kernel of a packed scene and its method's functions are compiled in this
+    process or can be loaded from numba's on-disk cache (a compile would only load them);
+    False where numba has no cache interface to ask."""
+    args = probe_args(aux, params, config, 1)
     method, scheme = int(config[P.METHOD]), int(config[P.INTEGRATOR])
-    sig = _signature(method, scheme, args)
-    if sig in _KERNELS or sig in integrate_cells_kernel.overloads:
+    wanted = [(integrate_cells_kernel, kernel_signature(scheme, args))]
+    wanted += list(zip(functions_of(method), signatures(aux, params, config)))
+    return all(_ready(dispatcher, sig) for dispatcher, sig in wanted)
+
+
+def _ready(dispatcher, sig) -> bool:
+    """True if ``dispatcher`` has ``sig`` (argument types, or a whole signature) compiled here
+    or in numba's on-disk cache."""
+    if getattr(sig, "args", sig) in dispatcher.overloads:
         return True
     try:
-        cache = integrate_cells_kernel._cache
-        return cache.load_overload(sig, integrate_cells_kernel.targetctx) is not None
+        return dispatcher._cache.load_overload(sig, dispatcher.targetctx) is not None
     except (AttributeError, TypeError):
         return False
+
+
+def compile_misses(method: int) -> int:
+    """numba's cache misses in this process (compiles) of the kernel and of the functions of
+    the method with code ``method``: a change says that a call compiled."""
+    return sum(sum(d.stats.cache_misses.values())
+               for d in (integrate_cells_kernel, *functions_of(method)))

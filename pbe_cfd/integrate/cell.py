@@ -1,7 +1,8 @@
 """The per-cell time loop: step control, realizability, and the auto switch between schemes.
 
-``integrate_cell(method, scheme, ...)`` takes the method and scheme codes as compile-time
-constants (numba integer literals): the scheme's step functions are chosen at typing time
+``integrate_cell(method, scheme, ...)`` takes the method's functions (a ``MethodFunctions``
+of first-class functions, ``kernel_types``) and the scheme code as a compile-time constant (a
+numba integer literal): the scheme's step functions are chosen at typing time
 (``_explicit``, ``_jacobian``, ``_implicit`` below), so an explicit scene never compiles the
 Rosenbrock code and an implicit one never the explicit pair.
 
@@ -28,7 +29,7 @@ import numpy as np
 from numba.core import types
 from numba.extending import overload
 
-from ..methods.dispatch import WORK_SIZE, conserved, project, realizable, rhs
+from ..methods.entry import WORK_SIZE
 from ..physics import parameters as P
 from ..physics.injection import droplet_liquid, droplet_liquid_entry, evaporated_entry
 from .codes import (ACCEPT, ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, F0, FTMP, GCOL,
@@ -38,6 +39,7 @@ from .codes import (ACCEPT, ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, F0, FTM
                     REJECTED_REALIZABILITY, REJECTED_SWITCH, RHS_CALLS, STEP_BELOW_FLOOR,
                     STOKES_EVENTS, SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START, YNEW, YTMP)
 from .explicit import bs3_attempt
+from .kernel_types import MethodFunctions
 from .exponential import capture_column, exp_bs3_attempt
 from .rosenbrock import rodas3_attempt, secant_jacobian, spectral_radius
 from .switches import held_params, locate_next, located, location_memory, release
@@ -318,7 +320,7 @@ def _rate_after_step(method, explicit, expo, crossed, state, buf, cell, aux, par
         for i in range(n):
             f0[i] = last_rate[i]
     else:
-        rhs(method, state, f0, cell, aux, params, config, work)
+        method.rhs(state, f0, cell, aux, params, config, work)
         stats[RHS_CALLS] += 1
 
 
@@ -367,7 +369,7 @@ def _absorb_droplets(method, state, d, atol, pivots, coefs, n_inv, aux, params, 
     state[d] = 0.0
     if liquid >= 0:
         state[liquid] = 0.0
-    if not realizable(method, state, aux, params, config, work):
+    if not method.realizable(state, aux, params, config, work):
         for i in range(state.shape[0]):
             state[i] = saved[i]
 
@@ -455,15 +457,15 @@ def _attempt(scheme, method, mode, state, h_try, buf, phis, cap, jac, lu, piv, p
 @nb.njit(cache=True, inline="always")
 def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_end, step,
                    rtol, atol, max_steps, stats):
-    """Advance one cell's state from t_start to t_end [s] in place. method, scheme: literal
-    codes (methods.dispatch, integrate.codes). ``step``: one-element array, the proposed step
+    """Advance one cell's state from t_start to t_end [s] in place. method: the method's
+    functions (``kernel_types.MethodFunctions``); scheme: a literal code (``codes``). ``step``: one-element array, the proposed step
     [s] (updated for the next call; its sign is the auto scheme's memory). ``stats``
     accumulates the columns of ``codes``. Returns (status, time reached [s]). Under the sharp
     viscous Stokes step the pairs' decisions are held within a step and a step across a switch
     restarts the next from its end (``switches``)."""
     n = config[P.N_STATE]
     work = np.empty(WORK_SIZE)
-    if not realizable(method, state, aux, params, config, work):
+    if not method.realizable(state, aux, params, config, work):
         return UNREALIZABLE_START, t_start
     local, saved = held_params(params, config)
     hold = saved.shape[0] > 0
@@ -471,13 +473,13 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
     jac, lu = np.empty((n, n)), np.empty((n, n))
     piv = np.empty(n, dtype=np.int64)
     pivots, coefs = np.zeros(2, dtype=np.int64), np.zeros((2, n))
-    n_inv = conserved(method, config, local, pivots, coefs)
+    n_inv = method.conserved(config, local, pivots, coefs)
     sw = np.zeros(N_SW)
     phis = np.empty((3, 6))
     droplet = n - 1 if config[P.SEPARATE_DROPLETS] == 1 else -1
     mode = 1 if (scheme == IMPLICIT or (scheme == AUTO and step[0] < 0.0)) else 0
     h = abs(step[0]) if abs(step[0]) > 0.0 else (t_end - t_start) * 1e-3
-    rhs(method, state, buf[F0], cell, aux, local, config, work)
+    method.rhs(state, buf[F0], cell, aux, local, config, work)
     stats[RHS_CALLS] += 1
     if not _all_finite(buf[F0], n):
         step[0] = _memory(scheme, mode, h)
@@ -518,7 +520,7 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
                                  local, config, work, buf[FTMP])
             if droplet >= 0:
                 _dry_out_droplets(state, droplet, local, config, rtol, atol)
-            project(method, state, aux, local, config, work)
+            method.project(state, aux, local, config, work)
             _rate_after_step(method, mode == 0, expo, crossed, state, buf, cell, aux, local,
                              config, work, n, stats)
             stats[ACCEPTED] += 1
@@ -556,10 +558,14 @@ def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_
 
 
 @nb.njit(cache=True, nogil=True)
-def integrate_cells_kernel(method, scheme, states, cells, aux, params, config, t_start, t_end,
-                           steps, rtol, atol, max_steps, stats, status, reached, first, stride):
+def integrate_cells_kernel(rhs, realizable, project, conserved, scheme, states, cells, aux,
+                           params, config, t_start, t_end, steps, rtol, atol, max_steps, stats,
+                           status, reached, first, stride):
     """``integrate_cell`` over the rows first, first + stride, first + 2 stride, ... of
-    ``states`` (one thread's share of the cells; the GIL released)."""
+    ``states`` (one thread's share of the cells; the GIL released). rhs, realizable,
+    project, conserved: the method's functions as first-class functions
+    (``kernel_types``)."""
+    method = MethodFunctions(rhs, realizable, project, conserved)
     n_cells = states.shape[0]
     for c in range(first, n_cells, stride):
         if status[c] != OK:

@@ -15,7 +15,6 @@ import math
 
 import numba as nb
 
-from ..methods.dispatch import realizable, rhs
 from .codes import (ACCEPT, F0, KA, KB, KC, REJECT_ERROR, REJECT_NOT_FINITE,
                     REJECT_REALIZABILITY, STAGE, YNEW)
 
@@ -41,17 +40,17 @@ def bs3_attempt(method, y, h, buf, cell, aux, params, config, work, rtol, atol, 
     stage = buf[STAGE]
     y3 = buf[YNEW]
     _combine(y, h, k1, 0.5, k1, 0.0, k1, 0.0, stage, n)
-    if not realizable(method, stage, aux, params, config, work):
+    if not method.realizable(stage, aux, params, config, work):
         return REJECT_REALIZABILITY, 0.0, 0.0, 0
-    rhs(method, stage, k2, cell, aux, params, config, work)
+    method.rhs(stage, k2, cell, aux, params, config, work)
     _combine(y, h, k1, 0.0, k2, 0.75, k2, 0.0, stage, n)
-    if not realizable(method, stage, aux, params, config, work):
+    if not method.realizable(stage, aux, params, config, work):
         return REJECT_REALIZABILITY, 0.0, 0.0, 1
-    rhs(method, stage, k3, cell, aux, params, config, work)
+    method.rhs(stage, k3, cell, aux, params, config, work)
     _combine(y, h, k1, 2.0 / 9.0, k2, 1.0 / 3.0, k3, 4.0 / 9.0, y3, n)
-    if not realizable(method, y3, aux, params, config, work):
+    if not method.realizable(y3, aux, params, config, work):
         return REJECT_REALIZABILITY, 0.0, 0.0, 2
-    rhs(method, y3, k4, cell, aux, params, config, work)
+    method.rhs(y3, k4, cell, aux, params, config, work)
     err = 0.0
     finite = True
     num = 0.0

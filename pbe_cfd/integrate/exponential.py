@@ -28,7 +28,6 @@ import math
 
 import numba as nb
 
-from ..methods.dispatch import realizable, rhs
 from ..physics import parameters as P
 from ..physics.injection import droplet_liquid, droplet_liquid_entry
 from .codes import (ACCEPT, F0, FTMP, GCOL, KA, KB, KC, REJECT_ERROR, REJECT_NOT_FINITE,
@@ -79,7 +78,7 @@ def capture_column(method, y, buf, cell, aux, params, config, work, d, n):
         per_droplet = (y[liquid] / y[d] if y[d] > 0.0
                        else droplet_liquid(params) / params[P.MASS_SCALE])
         yp[liquid] = y[liquid] + delta * per_droplet
-    rhs(method, yp, fp, cell, aux, params, config, work)
+    method.rhs(yp, fp, cell, aux, params, config, work)
     step = yp[d] - y[d]
     for i in range(n):
         g[i] = (fp[i] - f0[i]) / step
@@ -115,9 +114,9 @@ def exp_bs3_attempt(method, y, h, buf, phis, cell, aux, params, config, work, rt
     coef_y = 0.5 * ph[1] * h * yd + 0.5 * h * 0.5 * ph[2] * h * n1d
     for i in range(n):
         s2[i] = y[i] + coef_y * g[i] + 0.5 * h * (f0[i] - g[i] * yd)
-    if not realizable(method, s2, aux, params, config, work):
+    if not method.realizable(s2, aux, params, config, work):
         return REJECT_REALIZABILITY, 0.0, 0.0, 0
-    rhs(method, s2, ft, cell, aux, params, config, work)
+    method.rhs(s2, ft, cell, aux, params, config, work)
     for i in range(n):
         n2[i] = ft[i] - g[i] * s2[d]
     # stage 3 (c = 3/4): e^(3hL/4) y + 3h/4 phi1(3hL/4) N1 + h a32(hL) (N2 - N1)
@@ -128,9 +127,9 @@ def exp_bs3_attempt(method, y, h, buf, phis, cell, aux, params, config, work, rt
               + h * da32 * h * diff_d)
     for i in range(n):
         stage[i] = y[i] + coef_y * g[i] + 0.75 * h * n2[i]
-    if not realizable(method, stage, aux, params, config, work):
+    if not method.realizable(stage, aux, params, config, work):
         return REJECT_REALIZABILITY, 0.0, 0.0, 1
-    rhs(method, stage, ft, cell, aux, params, config, work)
+    method.rhs(stage, ft, cell, aux, params, config, work)
     for i in range(n):
         n3[i] = ft[i] - g[i] * stage[d]
     # y_new = e^(hL) y + h (b1(hL) N1 + b2(hL) N2 + b3(hL) N3), b_i(hL) = b_i(0) + db_i hL
@@ -142,9 +141,9 @@ def exp_bs3_attempt(method, y, h, buf, phis, cell, aux, params, config, work, rt
         n1 = f0[i] - g[i] * yd
         y_new[i] = y[i] + coef_y * g[i] + h * (2.0 / 9.0 * n1 + 1.0 / 3.0 * n2[i]
                                                + 4.0 / 9.0 * n3[i])
-    if not realizable(method, y_new, aux, params, config, work):
+    if not method.realizable(y_new, aux, params, config, work):
         return REJECT_REALIZABILITY, 0.0, 0.0, 2
-    rhs(method, y_new, ft, cell, aux, params, config, work)
+    method.rhs(y_new, ft, cell, aux, params, config, work)
     err = 0.0
     num = 0.0
     den2 = 0.0

@@ -24,7 +24,6 @@ import math
 
 import numba as nb
 
-from ..methods.dispatch import realizable, rhs
 from .codes import (ACCEPT, F0, FTMP, KA, KB, KC, KD, REJECT_ERROR, REJECT_NOT_FINITE,
                     REJECT_REALIZABILITY, STAGE, YNEW, YTMP)
 
@@ -77,14 +76,14 @@ def secant_jacobian(method, y, buf, jac, pivots, coefs, n_inv, cell, aux, params
         if h_scale > 0.0:
             delta = max(delta, h_scale * abs(f0[j]))
         yp[j] = y[j] + delta
-        up = realizable(method, yp, aux, params, config, work)
+        up = method.realizable(yp, aux, params, config, work)
         if up:
-            rhs(method, yp, fp, cell, aux, params, config, work)
+            method.rhs(yp, fp, cell, aux, params, config, work)
             calls += 1
         yp[j] = y[j] - delta
-        down = realizable(method, yp, aux, params, config, work)
+        down = method.realizable(yp, aux, params, config, work)
         if down:
-            rhs(method, yp, fm, cell, aux, params, config, work)
+            method.rhs(yp, fm, cell, aux, params, config, work)
             calls += 1
         yp[j] = y[j]
         if up and down:             # central: second-order accurate
@@ -219,17 +218,17 @@ def rodas3_attempt(method, y, h, buf, jac, lu, piv, cell, aux, params, config, w
     lu_solve(lu, piv, k2, n)
     for i in range(n):
         stage[i] = y[i] + 2.0 * k1[i]
-    if not realizable(method, stage, aux, params, config, work):
+    if not method.realizable(stage, aux, params, config, work):
         return REJECT_REALIZABILITY, 0.0, 0
-    rhs(method, stage, ft, cell, aux, params, config, work)
+    method.rhs(stage, ft, cell, aux, params, config, work)
     for i in range(n):
         k3[i] = ft[i] + inv_h * (k1[i] - k2[i])
     lu_solve(lu, piv, k3, n)
     for i in range(n):
         stage[i] += k3[i]
-    if not realizable(method, stage, aux, params, config, work):
+    if not method.realizable(stage, aux, params, config, work):
         return REJECT_REALIZABILITY, 0.0, 1
-    rhs(method, stage, ft, cell, aux, params, config, work)
+    method.rhs(stage, ft, cell, aux, params, config, work)
     for i in range(n):
         k4[i] = ft[i] + inv_h * (k1[i] - k2[i] - 8.0 / 3.0 * k3[i])
     lu_solve(lu, piv, k4, n)
@@ -243,6 +242,6 @@ def rodas3_attempt(method, y, h, buf, jac, lu, piv, cell, aux, params, config, w
             err = r
     if err > 1.0:
         return REJECT_ERROR, err, 2
-    if not realizable(method, y_new, aux, params, config, work):
+    if not method.realizable(y_new, aux, params, config, work):
         return REJECT_REALIZABILITY, 0.0, 2
     return ACCEPT, err, 2

@@ -15,7 +15,6 @@ import math
 import numba as nb
 import numpy as np
 
-from ..methods.dispatch import rhs
 from ..physics import parameters as P
 from .codes import FTMP, REJECT_SWITCH, RHS_CALLS, YNEW, YTMP
 
@@ -57,9 +56,9 @@ def _switch_defect(method, state, h, buf, cell, aux, local, config, work, rtol, 
     error test, max_i over atol + rtol max(|y_i|, |y_new_i|). Leaves the decisions of
     buf[YNEW] held; two RHS calls (buf[FTMP], buf[YTMP] overwritten)."""
     y_new = buf[YNEW]
-    rhs(method, y_new, buf[FTMP], cell, aux, local, config, work)
+    method.rhs(y_new, buf[FTMP], cell, aux, local, config, work)
     release(local)
-    rhs(method, y_new, buf[YTMP], cell, aux, local, config, work)
+    method.rhs(y_new, buf[YTMP], cell, aux, local, config, work)
     err = 0.0
     for i in range(n):
         sc = atol + rtol * max(abs(state[i]), abs(y_new[i]))

@@ -1,36 +1,26 @@
-"""The integration kernel's call tree in stages that can compile in separate processes.
+"""The integration kernel and the functions it calls, in stages that can compile in separate
+processes.
 
-numba compiles a kernel on one thread, callee before caller; a callee that another process
+numba compiles a function on one thread, callee before caller; a callee that another process
 has compiled into the on-disk cache is loaded instead (with its code for linking), as long as
-it is asked for with the same argument types. ``warm_stages`` lists the functions below
-``integrate_cells_kernel`` with the argument types the kernel's call sites give them, in
-stages: every function of a stage needs only functions of earlier stages, and each stage is
-split into groups of about equal compile time (measured: docs/results/first-run.md). Groups of
-one stage compile in parallel (``runs.precompile``), stage after stage; the kernel itself
-then compiles in the caller, loading everything below it.
+it is asked for with the same argument types. ``warm_stages`` lists the method's functions
+with the argument types the kernel's call sites give them, the integrator's helpers and the
+kernel itself, in stages: every function of a stage needs only functions of earlier stages or
+of its own group, and each stage is split into groups of about equal compile time (measured:
+docs/results/first-run.md). Groups of one stage compile in parallel (``runs.precompile``),
+stage after stage; the caller then loads everything from the cache.
 
-A type that no longer matches its call site costs time, never correctness: the kernel then
+A type that no longer matches its call site costs time, never correctness: the caller then
 compiles that function itself (``recompiled`` says which).
 """
 from __future__ import annotations
 
-import numpy as np
-from numba import typeof
-from numba.core import types
-
 from ..methods import registry
 from ..physics import parameters as P
 from . import exponential, rosenbrock, switches
-from .codes import AUTO, EXPLICIT, N_BUF
-
-
-def _types(aux, params, config):
-    """The numba types of the call sites' arguments (see ``integrate_cell``)."""
-    n = int(config[P.N_STATE])
-    vec = typeof(np.zeros(n))                            # states[c], buf rows, local, work
-    return dict(V=vec, M=typeof(np.zeros((N_BUF, n))), I=typeof(np.zeros(2, dtype=np.int64)),
-                A=typeof(aux), P=typeof(params), C=typeof(config),
-                f=types.float64, i=types.int64)
+from .codes import AUTO, EXPLICIT
+from .cell import integrate_cells_kernel
+from .kernel_types import call_types, kernel_signature, probe_args, signatures
 
 
 def warm_stages(method: int, scheme: int, aux, params, config) -> list:
@@ -38,12 +28,14 @@ def warm_stages(method: int, scheme: int, aux, params, config) -> list:
     ``method`` and scheme code ``scheme`` on the packed scene (aux, params, config): a list
     of stages, each a list of groups, each a list of (name, dispatcher, argument types).
 
-    One stage of two groups: the method's right-hand side, and its other functions with the
-    integrator's helpers. The integrator's functions that call the method are inlined into
-    the kernel (``integrate`` module docstring), so they compile with it."""
+    One stage of two groups: the method's right-hand side; its other functions, the
+    integrator's helpers and the kernel itself (the integrator's functions that call the
+    method are inlined into it, ``integrate`` module docstring). The kernel calls the method's
+    functions through their addresses (``kernel_types``), so it compiles without them."""
     entry = registry.entry_of_code(method)
-    t = _types(aux, params, config)
-    V, M, I, A, C, f, i = (t[k] for k in "VMIACfi")
+    t = call_types(aux, params, config)
+    V, M, I, C, f, i = (t[k] for k in "VMICfi")
+    sigs = signatures(aux, params, config)
     leaves = [("held_params", switches.held_params, (t["P"], C)),
               ("location_memory", switches.location_memory, ()),
               ("release", switches.release, (V,))]
@@ -53,10 +45,12 @@ def warm_stages(method: int, scheme: int, aux, params, config) -> list:
                    ("lu_solve", rosenbrock.lu_solve, (M, I, V, i))]
     if scheme == AUTO:
         leaves += [("phi_functions", exponential.phi_functions, (f, V))]
-    method_state = [(f"{entry.name} realizable", entry.realizable, (V, A, V, C, V)),
-                    (f"{entry.name} project", entry.project, (V, A, V, C, V)),
-                    (f"{entry.name} conserved", entry.conserved, (C, V, I, M))]
-    return [[[(f"{entry.name} rhs", entry.rhs, (V, V, V, A, V, C, V))], method_state + leaves]]
+    method_state = [(f"{entry.name} realizable", entry.realizable, sigs.realizable),
+                    (f"{entry.name} project", entry.project, sigs.project),
+                    (f"{entry.name} conserved", entry.conserved, sigs.conserved)]
+    kernel = [("integration kernel", integrate_cells_kernel,
+               kernel_signature(scheme, probe_args(aux, params, config, 1)))]
+    return [[[(f"{entry.name} rhs", entry.rhs, sigs.rhs)], method_state + leaves + kernel]]
 
 
 def compile_group(group) -> list:

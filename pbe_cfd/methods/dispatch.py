@@ -5,14 +5,16 @@ Each method's entry (``methods.registry``) provides ``rhs``, ``realizable``, ``p
 ``(config, params, pivots, coefs)``; ``work`` is a float scratch array of ``WORK_SIZE``
 allocated once per cell so that no call allocates.
 
-Two ways in:
+Three ways in:
 
-* ``rhs(method, ...)``, ``realizable(method, ...)``, ``project(method, ...)``,
-  ``conserved(method, ...)`` take the method code as their first argument. Called with a
-  compile-time constant code (an ``IntegerLiteral``, see ``numba.literally``) they compile into
-  the caller as that method's function alone, so a scene compiles only the method it uses
-  (numba prunes no branch on literal integers; the choice is made at typing time here, from
-  the registry as it is then: a method registered at run time is seen).
+* The integration kernel takes the method's functions themselves, as first-class functions
+  (``integrate.kernel_types``).
+* ``realizable(method, ...)`` and ``project(method, ...)`` take the method code as their first
+  argument. Called with a compile-time constant code (an ``IntegerLiteral``, see
+  ``numba.literally``) they compile into the caller as that method's function alone, so a
+  scene compiles only the method it uses (numba prunes no branch on literal integers; the
+  choice is made at typing time here, from the registry as it is then: a method registered
+  at run time is seen). The transport's repair of mixed states calls them.
 * ``method_rhs``, ``method_realizable``, ``method_project`` choose by ``config[METHOD]`` at run
   time (a chain of inlined branches, one per method registered when one of them is first
   named, as ``physics.registry`` builds the kernels' dispatch; every method is compiled); for
@@ -37,11 +39,6 @@ def _entry(method):
 
 
 # ---- literal dispatch: the stubs run only through numba --------------------------------------
-def rhs(method, state, out, cell, aux, params, config, work):
-    """d(state)/dt [scaled units per s] of one cell for the method with code ``method``."""
-    raise NotImplementedError("numba only")
-
-
 def realizable(method, state, aux, params, config, work):
     """True if the state is a realizable moment set for the method ``method``."""
     raise NotImplementedError("numba only")
@@ -50,21 +47,6 @@ def realizable(method, state, aux, params, config, work):
 def project(method, state, aux, params, config, work):
     """Re-project an accepted state onto the method's realizable set, in place."""
     raise NotImplementedError("numba only")
-
-
-def conserved(method, config, params, pivots, coefs):
-    """Linear invariants of the method's state (rows of coefs, pivot entries); returns count."""
-    raise NotImplementedError("numba only")
-
-
-@overload(rhs, prefer_literal=True)
-def _rhs(method, state, out, cell, aux, params, config, work):
-    entry = _entry(method)
-    if entry is None:
-        return None
-    f = entry.rhs
-    return lambda method, state, out, cell, aux, params, config, work: f(
-        state, out, cell, aux, params, config, work)
 
 
 @overload(realizable, prefer_literal=True)
@@ -83,15 +65,6 @@ def _project(method, state, aux, params, config, work):
         return None
     f = entry.project
     return lambda method, state, aux, params, config, work: f(state, aux, params, config, work)
-
-
-@overload(conserved, prefer_literal=True)
-def _conserved(method, config, params, pivots, coefs):
-    entry = _entry(method)
-    if entry is None:
-        return None
-    f = entry.conserved
-    return lambda method, config, params, pivots, coefs: f(config, params, pivots, coefs)
 
 
 # ---- run-time dispatch on config[METHOD]: chains built from the registry ----------------------

@@ -100,7 +100,7 @@ class CellBatch:
     arrays: object = None
     cell_ids: np.ndarray | None = None
     hints: bool = True
-    compiled_now: bool = False     # set by compile(): the kernel was compiled, not loaded
+    compiled_now: bool = False     # set by compile(): the kernel or the method compiled
     smoothed: np.ndarray = None    # (n,) True: the cell runs with the smooth Stokes switch
     notes: list = field(default_factory=list)   # what the batch did that a run reports
     #: spray schedule [(t0 [s], t1 [s], rate / peak rate [-])] (``spray.factors``): each
@@ -160,7 +160,8 @@ class CellBatch:
         argument types as ``advance``, nothing integrated. Returns the wall time it took [s]
         (seconds on a first run, milliseconds once cached); ``compiled_now`` then says whether
         numba compiled it (True) or found it in its cache (False)."""
-        misses = sum(integrate.integrate_cells_kernel.stats.cache_misses.values())
+        method = int(self.config[P.METHOD])
+        misses = integrate.compile_misses(method)
         start = _time.perf_counter()
         one = slice(0, 1)
         integrate.integrate_cells(self.states[one].copy(), self.rows[one].copy(), self.aux,
@@ -170,7 +171,7 @@ class CellBatch:
                                   np.full(1, integrate.UNREALIZABLE_START, dtype=np.int64),
                                   np.zeros_like(self.reached[one]))
         seconds = _time.perf_counter() - start
-        self.compiled_now = sum(integrate.integrate_cells_kernel.stats.cache_misses.values()) > misses
+        self.compiled_now = integrate.compile_misses(method) > misses
         return seconds
 
     def kernel_name(self) -> str:

@@ -37,7 +37,7 @@ def _batch_of(scene):
 
 
 def _stages_of(batch):
-    """The compile stages below the batch's kernel (``integrate.warmup.warm_stages``)."""
+    """The compile stages of the batch's kernel (``integrate.warmup.warm_stages``)."""
     from ..integrate.warmup import warm_stages
     from ..physics import parameters as P
     return warm_stages(int(batch.config[P.METHOD]), int(batch.config[P.INTEGRATOR]),
@@ -55,7 +55,7 @@ def _group_task(scene_name, stage, group):
 
 
 def _warm_in_parallel(scene_name, batch, jobs, say) -> dict:
-    """Compile the stages below the scene's kernel (``integrate.warmup``) in ``jobs`` helper
+    """Compile the stages of the scene's kernel (``integrate.warmup``) in ``jobs`` helper
     processes, stage after stage. Returns {"stages": the stages, "cpu_s": the helpers' CPU
     seconds, "compiled": names the helpers compiled}."""
     import multiprocessing
@@ -84,13 +84,13 @@ def compile_scene(scene, progress=None, jobs=1, scene_name=None) -> dict:
     """Compile (or load from the cache) the kernels a run of ``scene`` uses. ``progress``
     (an object with ``notice(text)``, or None) is told what compiles and roughly how long
     when it takes long. With ``jobs`` > 1 and ``scene_name`` (what ``load_scene`` reads the
-    scene from, for the helper processes), the functions below the kernel compile first in
-    ``jobs`` processes, stage by stage (``integrate.warmup``), unless the kernel is in the
-    cache already. Returns {"kernel": name, "seconds": wall time [s], "cpu_s": CPU time [s]
-    of this process and the helpers, "compiled": True if numba compiled (False: loaded from
-    the cache), "helpers": the helpers' compile or None, "recompiled": staged functions
-    the kernel compiled again here}; for a method that integrates no ODE (cNMC),
-    {"kernel": None, ...} with nothing compiled."""
+    scene from, for the helper processes), the kernel and the method's functions compile in
+    ``jobs`` processes, stage by stage (``integrate.warmup``), unless they are in the cache
+    already, and this process loads them. Returns {"kernel": name, "seconds": wall time
+    [s], "cpu_s": CPU time [s] of this process and the helpers, "compiled": True if numba
+    compiled (False: loaded from the cache), "helpers": the helpers' compile or None,
+    "recompiled": staged functions compiled again here}; for a method that integrates no
+    ODE (cNMC), {"kernel": None, ...} with nothing compiled."""
     batch, extra = _batch_of(scene)
     if batch is None:
         return {"kernel": None, "seconds": 0.0, "cpu_s": 0.0, "compiled": False,
@@ -103,8 +103,8 @@ def compile_scene(scene, progress=None, jobs=1, scene_name=None) -> dict:
             batch.aux, batch.params, batch.config):
         say = progress.notice if progress is not None else (lambda text: None)
         from ..util.progress import compile_text
-        say(f"{compile_text(batch.kernel_name())}; the functions below it in {jobs} "
-            "processes, stage by stage, then the kernel here")
+        say(f"{compile_text(batch.kernel_name())}; in {jobs} processes, stage by stage, "
+            "then loaded here")
         try:
             helpers = _warm_in_parallel(scene_name, batch, jobs, say)
         except Exception as exc:       # a helper that fails costs its share, not the compile
@@ -189,6 +189,7 @@ def add_compile_parser(sub, defaults):
     p.add_argument("scenes", nargs="*", metavar="SCENE",
                    help="scene TOML files or bundled scene names")
     p.add_argument("-j", "--jobs", type=_jobs, default=_default_jobs(),
-                   help="processes that compile the functions below a kernel in parallel "
-                        f"(default: {_default_jobs()}, the cores up to 2; 1: all in this one)")
+                   help="processes that compile a kernel and its method's functions in "
+                        f"parallel (default: {_default_jobs()}, the cores up to 2; 1: all in "
+                        "this one)")
     p.set_defaults(func=compile_command, defaults=tuple(defaults))

@@ -49,9 +49,9 @@ def test_every_cell_once_whatever_the_share_of_the_threads():
     results = []
     for stride in (1, 2, 3):
         def shares(*args, stride=stride):
-            entry = integrate.kernel(method, scheme, args)
+            share = integrate.kernel(method, scheme, args)
             for first in range(stride):
-                entry(method, scheme, *args, first, stride)
+                share(first, stride)
         results.append(_run(batch, _arrays(batch), shares))
     one = results[0]
     assert np.all(one[3] == integrate.OK) and np.all(one[4] == 1.0)

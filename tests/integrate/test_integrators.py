@@ -25,7 +25,9 @@ from pbe_cfd.integrate import codes
 from pbe_cfd.integrate.explicit import bs3_attempt
 from pbe_cfd.integrate.exponential import capture_column, exp_bs3_attempt
 from pbe_cfd.integrate.rosenbrock import jacobian, rodas3_attempt
-from pbe_cfd.methods.dispatch import WORK_SIZE, conserved, rhs
+from pbe_cfd.integrate.kernel_types import MethodFunctions
+from pbe_cfd.methods.entry import WORK_SIZE
+from pbe_cfd.methods.qmom import qmom_conserved, qmom_project, qmom_realizable, qmom_rhs
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.injection import droplet_mass
 from pbe_cfd.scene.scene import load_scene
@@ -119,19 +121,20 @@ def test_auto_keeps_the_explicit_results_and_cost_on_non_stiff_scenes():
 def _one_step(which, y, h, buf, jac, lu, piv, pivots, coefs, phis, cell, aux, params,
               config, work):
     """One step of size h [s] of the explicit pair (0), RODAS3 (1) or the exponential pair
-    (2) for QMOM (method code 0 as a literal); the result in buf[YNEW]."""
+    (2) for QMOM (its functions called directly); the result in buf[YNEW]."""
     n = y.shape[0]
-    rhs(0, y, buf[codes.F0], cell, aux, params, config, work)
+    qmom = MethodFunctions(qmom_rhs, qmom_realizable, qmom_project, qmom_conserved)
+    qmom.rhs(y, buf[codes.F0], cell, aux, params, config, work)
     if which == 0:
-        return bs3_attempt(0, y, h, buf, cell, aux, params, config, work, 1.0, 1.0, n)[0]
+        return bs3_attempt(qmom, y, h, buf, cell, aux, params, config, work, 1.0, 1.0, n)[0]
     if which == 1:
-        n_inv = conserved(0, config, params, pivots, coefs)
-        jacobian(0, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, config, work, 1e-8,
-                 1e-14, n)
-        return rodas3_attempt(0, y, h, buf, jac, lu, piv, cell, aux, params, config, work,
+        n_inv = qmom.conserved(config, params, pivots, coefs)
+        jacobian(qmom, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, config, work,
+                 1e-8, 1e-14, n)
+        return rodas3_attempt(qmom, y, h, buf, jac, lu, piv, cell, aux, params, config, work,
                               1.0, 1.0, n)[0]
-    capture_column(0, y, buf, cell, aux, params, config, work, n - 1, n)
-    return exp_bs3_attempt(0, y, h, buf, phis, cell, aux, params, config, work, 1.0, 1.0,
+    capture_column(qmom, y, buf, cell, aux, params, config, work, n - 1, n)
+    return exp_bs3_attempt(qmom, y, h, buf, phis, cell, aux, params, config, work, 1.0, 1.0,
                            n - 1, n)[0]
 
 
@@ -168,14 +171,15 @@ def test_each_step_is_third_order(which):
 
 @numba.njit
 def _rodas3_step(y, h, buf, jac, pivots, coefs, cell, aux, params, config, work, rtol, atol):
-    """One RODAS3 step of size h [s] for QMOM (method code 0) at the given rtol, atol [scaled
-    units]: (outcome, error norm); buf[STAGE] holds the embedded solution, buf[YNEW] the step."""
+    """One RODAS3 step of size h [s] for QMOM at the given rtol, atol [scaled units]:
+    (outcome, error norm); buf[STAGE] holds the embedded solution, buf[YNEW] the step."""
     n = y.shape[0]
-    rhs(0, y, buf[codes.F0], cell, aux, params, config, work)
-    n_inv = conserved(0, config, params, pivots, coefs)
-    jacobian(0, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, config, work, 1e-8,
+    qmom = MethodFunctions(qmom_rhs, qmom_realizable, qmom_project, qmom_conserved)
+    qmom.rhs(y, buf[codes.F0], cell, aux, params, config, work)
+    n_inv = qmom.conserved(config, params, pivots, coefs)
+    jacobian(qmom, y, buf, jac, pivots, coefs, n_inv, cell, aux, params, config, work, 1e-8,
              1e-14, n)
-    out = rodas3_attempt(0, y, h, buf, jac, np.zeros((n, n)), np.zeros(n, dtype=np.int64),
+    out = rodas3_attempt(qmom, y, h, buf, jac, np.zeros((n, n)), np.zeros(n, dtype=np.int64),
                          cell, aux, params, config, work, rtol, atol, n)
     return out[0], out[1]
 
@@ -388,15 +392,16 @@ scene = dataclasses.replace(scene, method=dataclasses.replace(scene.method, inte
 arrays = model.pack(scene)
 aux = method_of(scene).aux(scene, arrays, None)
 integrate.compile_kernels(aux, arrays.params, arrays.config)
-from pbe_cfd.methods import laguerre
+from pbe_cfd.methods import laguerre, qmom
 from pbe_cfd.integrate import rosenbrock, exponential, cell, explicit
 sigs = list(cell.integrate_cells_kernel.signatures)
 print(json.dumps({"laguerre": len(laguerre.laguerre_rhs.signatures),
+                  "qmom": len(qmom.qmom_rhs.signatures),
                   "lu_factor": len(rosenbrock.lu_factor.signatures),
                   "lu_solve": len(rosenbrock.lu_solve.signatures),
                   "phi": len(exponential.phi_functions.signatures),
                   "combine": len(explicit._combine.signatures),
-                  "kernels": [str(s[0]) + " " + str(s[1]) for s in sigs]}))
+                  "kernels": [str(s[4]) for s in sigs]}))
 """
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
     env["XDG_CACHE_HOME"] = str(tmp_path)
@@ -406,7 +411,8 @@ print(json.dumps({"laguerre": len(laguerre.laguerre_rhs.signatures),
     assert seen["laguerre"] == 0 and seen["lu_factor"] == 0 and seen["lu_solve"] == 0
     assert seen["phi"] == 0
     assert seen["combine"] == 1                 # the explicit pair's helper: it was compiled
-    assert seen["kernels"] == ["Literal[int](0) Literal[int](0)"]
+    assert seen["qmom"] == 1                    # the method's right-hand side, once
+    assert seen["kernels"] == ["Literal[int](0)"]    # one kernel, the explicit scheme's
 
 
 def test_the_droplets_liquid_counts_with_the_droplets_in_the_capture_test():
