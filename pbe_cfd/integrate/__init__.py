@@ -55,6 +55,9 @@ def integrate_cells(states, cells, aux, params, config, t_start, t_end, steps, r
     stats (n_cells, N_STATS) counters accumulated; status (n_cells,) int codes and
     reached (n_cells,) the time [s] each cell got to.
     """
+    # the method's functions take C-contiguous rows: another layout runs on a copy
+    given = states
+    states, cells = np.ascontiguousarray(states), np.ascontiguousarray(cells)
     args = (states, cells, aux, params, config, float(t_start), float(t_end), steps,
             float(rtol), float(atol), int(max_steps), stats, status, reached)
     method, scheme = int(config[P.METHOD]), int(config[P.INTEGRATOR])
@@ -62,6 +65,8 @@ def integrate_cells(states, cells, aux, params, config, t_start, t_end, steps, r
     threads = min(run_threads(), max(1, states.shape[0]))
     # share k: the rows k, k + threads, ...; every share done when this returns
     run_shares(lambda k: share(k, threads), range(threads), "cells")
+    if states is not given:
+        given[...] = states
 
 
 _KERNELS = {}

@@ -28,10 +28,11 @@ def warm_stages(method: int, scheme: int, aux, params, config) -> list:
     ``method`` and scheme code ``scheme`` on the packed scene (aux, params, config): a list
     of stages, each a list of groups, each a list of (name, dispatcher, argument types).
 
-    One stage of two groups: the method's right-hand side; its other functions, the
-    integrator's helpers and the kernel itself (the integrator's functions that call the
-    method are inlined into it, ``integrate`` module docstring). The kernel calls the method's
-    functions through their addresses (``kernel_types``), so it compiles without them."""
+    One stage of two groups: the method's functions (its right-hand side, realizability
+    test, projection and invariants, which share the moment inversion); the integrator's
+    helpers and the kernel itself (the integrator's functions that call the method are
+    inlined into it, ``integrate`` module docstring). The kernel calls the method's functions
+    through their addresses (``kernel_types``), so it compiles without them."""
     entry = registry.entry_of_code(method)
     t = call_types(aux, params, config)
     V, M, I, C, f, i = (t[k] for k in "VMICfi")
@@ -45,12 +46,11 @@ def warm_stages(method: int, scheme: int, aux, params, config) -> list:
                    ("lu_solve", rosenbrock.lu_solve, (M, I, V, i))]
     if scheme == AUTO:
         leaves += [("phi_functions", exponential.phi_functions, (f, V))]
-    method_state = [(f"{entry.name} realizable", entry.realizable, sigs.realizable),
-                    (f"{entry.name} project", entry.project, sigs.project),
-                    (f"{entry.name} conserved", entry.conserved, sigs.conserved)]
+    method = [(f"{entry.name} {name}", getattr(entry, name), getattr(sigs, name))
+              for name in sigs._fields]
     kernel = [("integration kernel", integrate_cells_kernel,
                kernel_signature(scheme, probe_args(aux, params, config, 1)))]
-    return [[[(f"{entry.name} rhs", entry.rhs, sigs.rhs)], method_state + leaves + kernel]]
+    return [[method, leaves + kernel]]
 
 
 def compile_group(group) -> list:

@@ -48,9 +48,8 @@ import numba as nb
 import numpy as np
 import scipy.sparse as sp
 from numba import typeof
-from numba.core import types
 
-from ..methods.dispatch import project, realizable
+from ..integrate.kernel_types import function_types, functions_of
 from .solids_flux import (ActiveFlux, circulation_time, restrict_and_correct, upwind_generator,
                           vertical_axis)
 from .substeps import apply_substeps
@@ -439,21 +438,23 @@ def _mixture_repair(settings, arrays, aux):
 
 
 @nb.njit(cache=True)
-def _repair_cells(method, states, aux, params, config, changed, work, fix):
-    """Count the cells whose state is not realizable for the method of code ``method`` (a
-    compile-time constant: only that method's check and projection are compiled) and, if
-    ``fix``, re-project them; ``changed[c]`` the largest relative change of an entry."""
+def _repair_cells(realizable, project, states, aux, params, config, changed, work, fix):
+    """Count the cells whose state is not realizable for the method and, if ``fix``,
+    re-project them; ``changed[c]`` the largest relative change of an entry. realizable,
+    project: the method's functions as first-class functions (``integrate.kernel_types``,
+    the integration kernel's signatures): this kernel compiles once for every method, and
+    only the scene's method's functions are compiled."""
     count = 0
     n_state = states.shape[1]
     before = np.empty(n_state)
     for c in range(states.shape[0]):
-        if realizable(method, states[c], aux, params, config, work):
+        if realizable(states[c], aux, params, config, work):
             continue
         count += 1
         if not fix:
             continue
         before[:] = states[c]
-        project(method, states[c], aux, params, config, work)
+        project(states[c], aux, params, config, work)
         worst = 0.0
         for k in range(n_state):
             scale = abs(before[k])
@@ -475,13 +476,14 @@ def _array_key(a):
     return type(a)
 
 
-def _repair_kernel(method: int, args):
-    """The compiled ``_repair_cells`` for the method code as a compile-time constant and the
-    types of ``args`` (compiled, or loaded from numba's disk cache, on first use)."""
-    key = (int(method),) + tuple(_array_key(a) for a in args)
+def _repair_kernel(args):
+    """The compiled ``_repair_cells`` for the types of ``args`` (compiled, or loaded from
+    numba's disk cache, on first use)."""
+    key = tuple(_array_key(a) for a in args)
     entry = _REPAIR_KERNELS.get(key)
     if entry is None:
-        sig = (types.literal(int(method)),) + tuple(typeof(a) for a in args)
+        functions = function_types(*args[1:4])
+        sig = (functions.realizable, functions.project) + tuple(typeof(a) for a in args)
         _repair_cells.compile(sig)
         entry = _repair_cells.overloads[sig].entry_point
         _REPAIR_KERNELS[key] = entry
@@ -489,17 +491,21 @@ def _repair_kernel(method: int, args):
 
 
 def unrealizable_cells(states, aux, params, config, fix=False):
-    """Number of rows of ``states`` (scaled moment states) that the method's realizability
-    check (method config[METHOD]) rejects; with ``fix`` they are re-projected in place by the
-    method's projection. Returns (count, largest relative change of any entry of a
-    re-projected cell)."""
-    from ..methods.dispatch import WORK_SIZE
+    """Number of rows of ``states`` (scaled moment states, one row per cell) that the
+    method's realizability check (method config[METHOD]) rejects; with ``fix`` they are
+    re-projected in place by the method's projection. Returns (count, largest relative change
+    of any entry of a re-projected cell)."""
+    from ..methods.entry import WORK_SIZE
     from ..physics import parameters as P
-    states = np.asarray(states)
+    given = np.asarray(states)
+    # the method's functions take C-contiguous rows: another layout is checked on a copy
+    states = np.ascontiguousarray(given)
     changed = np.zeros(states.shape[0])
-    method = int(config[P.METHOD])
+    functions = functions_of(int(config[P.METHOD]))
     args = (states, aux, params, config, changed, np.empty(WORK_SIZE), bool(fix))
-    n = _repair_kernel(method, args)(method, *args)
+    n = _repair_kernel(args)(functions.realizable, functions.project, *args)
+    if fix and n and states is not given:
+        given[...] = states
     return int(n), float(changed.max()) if changed.size else 0.0
 
 
