@@ -33,13 +33,14 @@ import numpy as np
 from ..physics import parameters as P
 from ..util.threads import run_shares, run_threads
 from .cell import integrate_cell, integrate_cells_kernel  # noqa: F401
-from .kernel_types import functions_of, kernel_signature, probe_args, signatures
 from .codes import (ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, IMPLICIT,  # noqa: F401
                     IMPLICIT_STEPS, JACOBIANS,
                     MAX_STEPS_PER_INTERVAL, N_STATS, NOT_FINITE, OK, REJECTED_ERROR,
                     REJECTED_REALIZABILITY, REJECTED_SWITCH, RHS_CALLS, SCHEMES,
                     STOKES_EVENTS, STATUS_TEXT, STEP_BELOW_FLOOR,
                     SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START)
+from .kernel_types import (addresses_of, functions_of, kernel_signature, layout_key,
+                           probe_args, signatures)
 
 
 def integrate_cells(states, cells, aux, params, config, t_start, t_end, steps, rtol, atol,
@@ -75,16 +76,19 @@ _KERNELS = {}
 def kernel(method, scheme, args):
     """The compiled ``integrate_cells_kernel`` for the method with code ``method``, the scheme
     code ``scheme`` as a compile-time constant and the types of ``args`` (compiled, or loaded
-    from the disk cache, on first use; a direct entry point afterwards, so a call costs no
-    type resolution). Returns ``share(first, stride)``, the kernel over the rows first,
-    first + stride, ... of the cells in ``args``."""
-    sig = kernel_signature(scheme, args)
-    entry = _KERNELS.get(sig)
-    if entry is None:
+    from the disk cache, on first use; a direct entry point and the method's entry points
+    afterwards, found by the arguments' layout, so a call costs no type resolution). Returns
+    ``share(first, stride)``, the kernel over the rows first, first + stride, ... of the
+    cells in ``args``."""
+    key = (method, scheme) + tuple(layout_key(a) for a in args)
+    found = _KERNELS.get(key)
+    if found is None:
+        sigs = signatures(*args[2:5])
+        sig = kernel_signature(scheme, args, sigs)
         integrate_cells_kernel.compile(sig)
-        entry = integrate_cells_kernel.overloads[sig].entry_point
-        _KERNELS[sig] = entry
-    functions = functions_of(method)
+        found = (integrate_cells_kernel.overloads[sig].entry_point, addresses_of(method, sigs))
+        _KERNELS[key] = found
+    entry, functions = found
     return lambda first, stride: entry(*functions, scheme, *args, first, stride)
 
 

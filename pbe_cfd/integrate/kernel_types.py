@@ -7,8 +7,8 @@ addresses, bundled in a ``MethodFunctions`` inside the kernel (``method.rhs(...)
 kernel compiles once per scheme and argument types, whatever the method, and never links a
 method's code into its own: numba optimises and generates the machine code of every callee it
 links once more in each caller, which made the method's code compile at every level of the
-integrator (docs/results/first-run.md). The method's functions compile on their own, for the
-signatures below (``function_types``), when the kernel is first called with them.
+integrator (docs/results/first-run.md). The method's functions compile on their own, for
+``signatures``, and are handed to the kernel as their entry points (``addresses_of``).
 
 The argument types are those of the kernel's call sites (``cell.integrate_cell``): the
 per-cell vectors (a row of the states, of the cells' fields or of the step buffers, the
@@ -64,9 +64,45 @@ def signatures(aux, params, config) -> MethodFunctions:
     return MethodFunctions(*(ret(*a) for ret, a in zip(RETURNS, args)))
 
 
-def function_types(aux, params, config) -> MethodFunctions:
-    """The ``types.FunctionType`` of each of the method's functions for a packed scene."""
-    return MethodFunctions(*(types.FunctionType(s) for s in signatures(aux, params, config)))
+class FunctionAddress:
+    """A compiled function's entry point as numba unboxes a first-class function argument
+    (its ``__wrapper_address__`` protocol): a call of the kernel then reads an integer, where
+    a dispatcher argument is looked up and checked again at every call (about 25 us each,
+    four per call of the kernel)."""
+
+    __slots__ = ("address", "name")
+
+    def __init__(self, address: int, name: str):
+        self.address, self.name = address, name
+
+    def __wrapper_address__(self) -> int:
+        return self.address
+
+    def __repr__(self) -> str:
+        return f"FunctionAddress({self.name})"
+
+
+_ADDRESSES = {}
+
+
+def addresses_of(method: int, sigs: MethodFunctions) -> MethodFunctions:
+    """The entry points (``FunctionAddress``) of the functions of the method with code
+    ``method`` for the signatures ``sigs`` (``signatures``), each compiled, or loaded from
+    numba's disk cache, on first use."""
+    key = (int(method), tuple(sigs))
+    found = _ADDRESSES.get(key)
+    if found is None:
+        found = MethodFunctions(*(_address(d, s) for d, s in zip(functions_of(method), sigs)))
+        _ADDRESSES[key] = found
+    return found
+
+
+def _address(dispatcher, sig) -> FunctionAddress:
+    """The entry point of ``dispatcher`` compiled for ``sig`` (a whole signature), as numba
+    takes it for a first-class function of that signature: its C-callable wrapper."""
+    compiled = dispatcher.get_compile_result(sig)
+    address = compiled.library.get_pointer_to_function(compiled.fndesc.llvm_cfunc_wrapper_name)
+    return FunctionAddress(address, dispatcher.__qualname__)
 
 
 def functions_of(method: int) -> MethodFunctions:
@@ -77,17 +113,20 @@ def functions_of(method: int) -> MethodFunctions:
     return MethodFunctions(entry.rhs, entry.realizable, entry.project, entry.conserved)
 
 
-def kernel_signature(scheme, args):
+def kernel_signature(scheme, args, sigs=None):
     """The kernel's numba signature: the method's functions as first-class function types
-    (``function_types``: the same for every method), the scheme code as a literal, the types
-    of ``args`` (those of ``integrate_cells`` from states on), then a thread's first row and
-    the stride (integers)."""
+    (of ``sigs``, default ``signatures`` of the scene in ``args``: the same for every
+    method), the scheme code as a literal, the types of ``args`` (those of
+    ``integrate_cells`` from states on), then a thread's first row and the stride
+    (integers)."""
     states, cells, aux, params, config = args[:5]
     for name, arr in (("states", states), ("cells", cells)):
         if arr.ndim != 2 or not arr.flags.c_contiguous:
             raise ValueError(f"integrate_cells: {name} must be a C-contiguous 2-D array "
                              f"(rows of cells), got shape {arr.shape}")
-    return (tuple(function_types(aux, params, config)) + (types.literal(scheme),)
+    if sigs is None:
+        sigs = signatures(aux, params, config)
+    return (tuple(types.FunctionType(s) for s in sigs) + (types.literal(scheme),)
             + tuple(typeof(a) for a in args) + (types.int64, types.int64))
 
 
@@ -97,3 +136,13 @@ def probe_args(aux, params, config, n_cells):
     return (np.zeros((n_cells, n)), np.zeros((n_cells, P.N_CELL)), aux, params, config, 0.0,
             0.0, np.zeros(n_cells), 1e-8, 1e-14, 1, np.zeros((n_cells, N_STATS), dtype=np.int64),
             np.full(n_cells, UNREALIZABLE_START, dtype=np.int64), np.zeros(n_cells))
+
+
+def layout_key(a):
+    """What numba's type of an argument depends on, read without typing it (``typeof`` of
+    every argument costs more than the kernel on a few cells): an array's dtype, dimensions,
+    layout and flags, else the Python type."""
+    if isinstance(a, np.ndarray):
+        f = a.flags
+        return (a.dtype.str, a.ndim, f.c_contiguous, f.f_contiguous, f.writeable, f.aligned)
+    return type(a)

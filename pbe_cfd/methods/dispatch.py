@@ -5,16 +5,11 @@ Each method's entry (``methods.registry``) provides ``rhs``, ``realizable``, ``p
 ``(config, params, pivots, coefs)``; ``work`` is a float scratch array of ``WORK_SIZE``
 allocated once per cell so that no call allocates.
 
-Three ways in:
+Two ways in:
 
-* The integration kernel takes the method's functions themselves, as first-class functions
-  (``integrate.kernel_types``).
-* ``realizable(method, ...)`` and ``project(method, ...)`` take the method code as their first
-  argument. Called with a compile-time constant code (an ``IntegerLiteral``, see
-  ``numba.literally``) they compile into the caller as that method's function alone, so a
-  scene compiles only the method it uses (numba prunes no branch on literal integers; the
-  choice is made at typing time here, from the registry as it is then: a method registered
-  at run time is seen). The transport's repair of mixed states calls them.
+* The integration kernel and the transport's mixture repair take the method's functions
+  themselves, as numba first-class functions (``integrate.kernel_types``): a scene compiles
+  only the method it uses.
 * ``method_rhs``, ``method_realizable``, ``method_project`` choose by ``config[METHOD]`` at run
   time (a chain of inlined branches, one per method registered when one of them is first
   named, as ``physics.registry`` builds the kernels' dispatch; every method is compiled); for
@@ -23,48 +18,10 @@ Three ways in:
 """
 import numba as nb
 import numpy as np
-from numba.core import types
-from numba.extending import overload
 
 from ..physics import parameters as P
 from .entry import WORK_SIZE  # noqa: F401 - the per-cell work array's length
 from . import registry
-
-
-def _entry(method):
-    """The registry entry of a literal method code (a numba type), or None."""
-    if isinstance(method, types.IntegerLiteral):
-        return registry.entry_of_code(method.literal_value)
-    return None
-
-
-# ---- literal dispatch: the stubs run only through numba --------------------------------------
-def realizable(method, state, aux, params, config, work):
-    """True if the state is a realizable moment set for the method ``method``."""
-    raise NotImplementedError("numba only")
-
-
-def project(method, state, aux, params, config, work):
-    """Re-project an accepted state onto the method's realizable set, in place."""
-    raise NotImplementedError("numba only")
-
-
-@overload(realizable, prefer_literal=True)
-def _realizable(method, state, aux, params, config, work):
-    entry = _entry(method)
-    if entry is None:
-        return None
-    f = entry.realizable
-    return lambda method, state, aux, params, config, work: f(state, aux, params, config, work)
-
-
-@overload(project, prefer_literal=True)
-def _project(method, state, aux, params, config, work):
-    entry = _entry(method)
-    if entry is None:
-        return None
-    f = entry.project
-    return lambda method, state, aux, params, config, work: f(state, aux, params, config, work)
 
 
 # ---- run-time dispatch on config[METHOD]: chains built from the registry ----------------------

@@ -7,8 +7,8 @@ method's name: the scene parses ``[method]`` with the entry's ``scene_keys`` int
 writes its ``code``, ``order`` and ``config_slots`` into ``config``, names the state entries
 with ``state_names`` and checks ``work_size``; the integration kernel takes its
 ``rhs``/``realizable``/``project``/``conserved`` as first-class functions
-(``integrate.kernel_types``), and ``methods.dispatch`` builds the numba dispatch by code
-(literal and run-time) from them; the runs
+(``integrate.kernel_types``), and ``methods.dispatch`` builds the run-time numba dispatch
+by code from them; the runs
 build its ``aux``, turn a state into SI columns through ``population`` (or ``columns``),
 explain a stopped cell with ``failure_hint`` and report ``diagnostics``; ``pbe-cfd plan``
 prints its ``plan_line``; the throughput study reads ``bench_orders``/``bench_scene``.
@@ -26,7 +26,7 @@ Adding a method ``foo`` (the contract):
    holds them as ``scene.method.options``), state names, plan line, and its Python hooks
    (``population``, optional ``aux``, ...);
 3. its package name in ``PACKAGES`` below (or ``register(ENTRY)`` at run time, as the test
-   suite does for its toy method: the integrator and the literal dispatch see it; the
+   suite does for its toy method: the integrator sees it; the
    run-time dispatch ``method_rhs`` ... is built on its first use from the methods listed
    then).
 

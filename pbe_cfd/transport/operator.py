@@ -48,8 +48,9 @@ import numba as nb
 import numpy as np
 import scipy.sparse as sp
 from numba import typeof
+from numba.core import types
 
-from ..integrate.kernel_types import function_types, functions_of
+from ..integrate.kernel_types import addresses_of, layout_key, signatures
 from .solids_flux import (ActiveFlux, circulation_time, restrict_and_correct, upwind_generator,
                           vertical_axis)
 from .substeps import apply_substeps
@@ -467,27 +468,21 @@ def _repair_cells(realizable, project, states, aux, params, config, changed, wor
 _REPAIR_KERNELS = {}
 
 
-def _array_key(a):
-    """What numba's type of an argument depends on, read without typing it (typing every
-    argument costs more than the kernel on a few hundred cells)."""
-    if isinstance(a, np.ndarray):
-        f = a.flags
-        return (a.dtype.str, a.ndim, f.c_contiguous, f.f_contiguous, f.writeable, f.aligned)
-    return type(a)
-
-
-def _repair_kernel(args):
-    """The compiled ``_repair_cells`` for the types of ``args`` (compiled, or loaded from
-    numba's disk cache, on first use)."""
-    key = tuple(_array_key(a) for a in args)
-    entry = _REPAIR_KERNELS.get(key)
-    if entry is None:
-        functions = function_types(*args[1:4])
-        sig = (functions.realizable, functions.project) + tuple(typeof(a) for a in args)
+def _repair_kernel(method, args):
+    """The compiled ``_repair_cells`` for the types of ``args`` and the entry points of the
+    method's realizability test and projection (compiled, or loaded from numba's disk cache,
+    on first use; found by the arguments' layout afterwards)."""
+    key = (int(method),) + tuple(layout_key(a) for a in args)
+    found = _REPAIR_KERNELS.get(key)
+    if found is None:
+        sigs = signatures(*args[1:4])
+        functions = addresses_of(method, sigs)
+        sig = ((types.FunctionType(sigs.realizable), types.FunctionType(sigs.project))
+               + tuple(typeof(a) for a in args))
         _repair_cells.compile(sig)
-        entry = _repair_cells.overloads[sig].entry_point
-        _REPAIR_KERNELS[key] = entry
-    return entry
+        found = (_repair_cells.overloads[sig].entry_point, functions)
+        _REPAIR_KERNELS[key] = found
+    return found
 
 
 def unrealizable_cells(states, aux, params, config, fix=False):
@@ -501,9 +496,9 @@ def unrealizable_cells(states, aux, params, config, fix=False):
     # the method's functions take C-contiguous rows: another layout is checked on a copy
     states = np.ascontiguousarray(given)
     changed = np.zeros(states.shape[0])
-    functions = functions_of(int(config[P.METHOD]))
     args = (states, aux, params, config, changed, np.empty(WORK_SIZE), bool(fix))
-    n = _repair_kernel(args)(functions.realizable, functions.project, *args)
+    entry, functions = _repair_kernel(int(config[P.METHOD]), args)
+    n = entry(functions.realizable, functions.project, *args)
     if fix and n and states is not given:
         given[...] = states
     return int(n), float(changed.max()) if changed.size else 0.0

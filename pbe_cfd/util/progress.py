@@ -18,11 +18,11 @@ COMPILING = "compiling kernels (first run only)"
 #: loading cached kernels well under a second (2-3 s on a heavily loaded machine).
 NOTICE_AFTER_S = 3.0
 #: How long a first compile takes where this machine has none on record: the qmom kernel with
-#: the auto integrator (all three schemes) took 51-54 s of CPU on an idle 2-core machine of
-#: this project; slower machines and load stretch that by up to 2-3x
-#: (docs/results/first-run.md), and the wall time is longer while other work shares the
-#: cores.
-FIRST_COMPILE_HINT = "roughly 1-1.5 min of CPU time"
+#: the auto integrator (all three schemes) took 31-37 s of CPU on an idle 2-core machine of
+#: this project, the other methods' 32-39 s; slower machines and load stretch that by up to
+#: 2-3x (docs/results/first-run.md), and the wall time is longer while other work shares
+#: the cores.
+FIRST_COMPILE_HINT = "roughly 0.5-1.5 min of CPU time"
 
 
 def _compile_record() -> Path:
