@@ -74,3 +74,23 @@ def test_two_threads_give_the_numbers_of_one():
         numba.set_num_threads(most)
     assert np.all(one[3] == integrate.OK)
     assert _equal(one, two)
+
+
+def test_states_of_another_layout_are_integrated_and_written_back():
+    """The method's functions take C-contiguous rows; Fortran-ordered states and cells (a
+    column-major copy of the same numbers) run on a C-contiguous copy whose result is written
+    back into the caller's array: the same numbers to the bit, and every cell moved."""
+    batch = _batch()
+    c_order = _run(batch, _arrays(batch), integrate.integrate_cells)
+    arrays = list(_arrays(batch))
+    arrays[0] = np.asfortranarray(arrays[0])
+    rows = batch.rows
+    batch.rows = np.asfortranarray(rows)
+    try:
+        f_order = _run(batch, tuple(arrays), integrate.integrate_cells)
+    finally:
+        batch.rows = rows
+    assert not f_order[0].flags.c_contiguous and f_order[0] is arrays[0]
+    assert np.all(f_order[3] == integrate.OK)
+    assert np.all(np.any(f_order[0] != batch.states, axis=1))
+    assert _equal(c_order, f_order)

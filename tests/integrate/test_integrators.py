@@ -379,7 +379,9 @@ def test_a_scene_compiles_only_its_method_and_scheme(tmp_path):
     or exponential steps are compiled (a loaded cache would compile nothing, hence the fresh
     cache directory). The schemes' attempts are inlined into the kernel, so what is checked
     are the helpers only they call, compiled as functions of their own: the LU factorisation
-    and solve (Rosenbrock) and the phi functions (exponential)."""
+    and solve (Rosenbrock) and the phi functions (exponential). The kernel takes the method's
+    functions as arguments: a CQMOM scene with the same scheme then compiles CQMOM's
+    functions and no second kernel."""
     code = """
 import json, dataclasses
 from pbe_cfd import integrate
@@ -395,8 +397,15 @@ integrate.compile_kernels(aux, arrays.params, arrays.config)
 from pbe_cfd.methods import laguerre, qmom
 from pbe_cfd.integrate import rosenbrock, exponential, cell, explicit
 sigs = list(cell.integrate_cells_kernel.signatures)
+from pbe_cfd.methods import cqmom
+other = load_scene("seed-wurster-cqmom")
+other = dataclasses.replace(other, method=dataclasses.replace(other.method, integrator="explicit"))
+arrays = model.pack(other)
+integrate.compile_kernels(method_of(other).aux(other, arrays, None), arrays.params, arrays.config)
 print(json.dumps({"laguerre": len(laguerre.laguerre_rhs.signatures),
                   "qmom": len(qmom.qmom_rhs.signatures),
+                  "cqmom": len(cqmom.cqmom_rhs.signatures),
+                  "kernels_after_cqmom": len(cell.integrate_cells_kernel.signatures),
                   "lu_factor": len(rosenbrock.lu_factor.signatures),
                   "lu_solve": len(rosenbrock.lu_solve.signatures),
                   "phi": len(exponential.phi_functions.signatures),
@@ -413,6 +422,8 @@ print(json.dumps({"laguerre": len(laguerre.laguerre_rhs.signatures),
     assert seen["combine"] == 1                 # the explicit pair's helper: it was compiled
     assert seen["qmom"] == 1                    # the method's right-hand side, once
     assert seen["kernels"] == ["Literal[int](0)"]    # one kernel, the explicit scheme's
+    # a second method with the same scheme: its own functions, the same kernel
+    assert seen["cqmom"] == 1 and seen["kernels_after_cqmom"] == 1
 
 
 def test_the_droplets_liquid_counts_with_the_droplets_in_the_capture_test():
