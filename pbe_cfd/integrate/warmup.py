@@ -18,8 +18,8 @@ from __future__ import annotations
 from ..methods import registry
 from ..physics import parameters as P
 from . import exponential, rosenbrock, switches
-from .codes import AUTO, EXPLICIT
 from .cell import integrate_cells_kernel
+from .codes import AUTO, EXPLICIT
 from .kernel_types import call_types, kernel_signature, probe_args, signatures
 
 

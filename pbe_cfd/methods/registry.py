@@ -167,8 +167,9 @@ def unregister(name: str) -> None:
 def entry_of_code(code: int) -> MethodEntry | None:
     """The integrated method with config[P.METHOD] = code, or None (the loaded entries are
     asked first; only a code none of them owns imports the other packages)."""
-    for entries in (tuple(_ENTRIES[n] for n in _NAMES if n in _ENTRIES), _all()):
-        for m in entries:
+    loaded = tuple(_ENTRIES[n] for n in _NAMES if n in _ENTRIES)
+    for entries in (lambda: loaded, _all):      # _all imports: only if no loaded entry owns it
+        for m in entries():
             if m.integrated and m.code == code:
                 return m
     return None
