@@ -99,7 +99,11 @@ def addresses_of(method: int, sigs: MethodFunctions) -> MethodFunctions:
 
 def _address(dispatcher, sig) -> FunctionAddress:
     """The entry point of ``dispatcher`` compiled for ``sig`` (a whole signature), as numba
-    takes it for a first-class function of that signature: its C-callable wrapper."""
+    takes it for a first-class function of that signature: its C-callable wrapper. Compiled
+    (or loaded) for the whole signature first, the key under which ``pbe-cfd compile``'s
+    helpers cache it (numba before 0.68 looks a first-class function up by its argument
+    types only, a key of its own in the disk cache)."""
+    dispatcher.compile(sig)
     compiled = dispatcher.get_compile_result(sig)
     address = compiled.library.get_pointer_to_function(compiled.fndesc.llvm_cfunc_wrapper_name)
     return FunctionAddress(address, dispatcher.__qualname__)
