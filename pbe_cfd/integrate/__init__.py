@@ -167,8 +167,9 @@ def kernel_ready(aux, params, config) -> bool:
     False where numba has no cache interface to ask."""
     args = probe_args(aux, params, config, 1)
     method, scheme = int(config[P.METHOD]), int(config[P.INTEGRATOR])
-    wanted = [(integrate_cells_kernel, kernel_signature(scheme, args))]
-    wanted += list(zip(functions_of(method), signatures(aux, params, config)))
+    sigs = signatures(aux, params, config)
+    wanted = [(integrate_cells_kernel, kernel_signature(scheme, args, sigs))]
+    wanted += list(zip(functions_of(method), sigs))
     return all(_ready(dispatcher, sig) for dispatcher, sig in wanted)
 
 

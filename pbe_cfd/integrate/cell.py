@@ -39,8 +39,8 @@ from .codes import (ACCEPT, ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, F0, FTM
                     REJECTED_REALIZABILITY, REJECTED_SWITCH, RHS_CALLS, STEP_BELOW_FLOOR,
                     STOKES_EVENTS, SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START, YNEW, YTMP)
 from .explicit import bs3_attempt
-from .kernel_types import MethodFunctions
 from .exponential import capture_column, exp_bs3_attempt
+from .kernel_types import MethodFunctions
 from .rosenbrock import rodas3_attempt, secant_jacobian, spectral_radius
 from .switches import held_params, locate_next, located, location_memory, release
 
@@ -458,11 +458,11 @@ def _attempt(scheme, method, mode, state, h_try, buf, phis, cap, jac, lu, piv, p
 def integrate_cell(method, scheme, state, cell, aux, params, config, t_start, t_end, step,
                    rtol, atol, max_steps, stats):
     """Advance one cell's state from t_start to t_end [s] in place. method: the method's
-    functions (``kernel_types.MethodFunctions``); scheme: a literal code (``codes``). ``step``: one-element array, the proposed step
-    [s] (updated for the next call; its sign is the auto scheme's memory). ``stats``
-    accumulates the columns of ``codes``. Returns (status, time reached [s]). Under the sharp
-    viscous Stokes step the pairs' decisions are held within a step and a step across a switch
-    restarts the next from its end (``switches``)."""
+    functions (``kernel_types.MethodFunctions``); scheme: a literal code (``codes``). ``step``:
+    one-element array, the proposed step [s] (updated for the next call; its sign is the auto
+    scheme's memory). ``stats`` accumulates the columns of ``codes``. Returns (status, time
+    reached [s]). Under the sharp viscous Stokes step the pairs' decisions are held within a
+    step and a step across a switch restarts the next from its end (``switches``)."""
     n = config[P.N_STATE]
     work = np.empty(WORK_SIZE)
     if not method.realizable(state, aux, params, config, work):

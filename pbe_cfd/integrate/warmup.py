@@ -49,7 +49,7 @@ def warm_stages(method: int, scheme: int, aux, params, config) -> list:
     method = [(f"{entry.name} {name}", getattr(entry, name), getattr(sigs, name))
               for name in sigs._fields]
     kernel = [("integration kernel", integrate_cells_kernel,
-               kernel_signature(scheme, probe_args(aux, params, config, 1)))]
+               kernel_signature(scheme, probe_args(aux, params, config, 1), sigs))]
     return [[method, leaves + kernel]]
 
 
