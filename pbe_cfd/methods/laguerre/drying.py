@@ -118,6 +118,26 @@ def _node_points(x, c, second, w):
 
 
 @nb.njit(cache=True)
+def gamma_nodes(w0, w1, w2, two):
+    """(x1, x2, a1, a2): the two-node Gauss rule of the gamma density with moments w0, w1, w2
+    (any consistent units; shape k = mu^2 / var, scale var / mu, nodes theta (k + 1 -+
+    sqrt(k + 1)), weights w0 (sqrt(k + 1) -+ 1) / (2 sqrt(k + 1)) > 0); it reproduces w0, w1,
+    w2. One node at the mean (x2 = a2 = 0) where ``two`` is False or var <= SINGLE_NODE_VARIANCE
+    mu^2; nothing (all 0) where w0 or w1 is not positive."""
+    if not (w0 > 0.0 and w1 > 0.0):
+        return 0.0, 0.0, 0.0, 0.0
+    mu = w1 / w0
+    var = w2 / w0 - mu * mu if two else 0.0
+    if not var > SINGLE_NODE_VARIANCE * mu * mu:
+        return mu, 0.0, w0, 0.0
+    k = mu * mu / var
+    theta = var / mu
+    s = math.sqrt(k + 1.0)
+    return (theta * (k + 1.0 - s), theta * (k + 1.0 + s), w0 * (s + 1.0) / (2.0 * s),
+            w0 * (s - 1.0) / (2.0 * s))
+
+
+@nb.njit(cache=True)
 def wet_points(state, m):
     """The point measure of the wet class (module docstring) [scaled]: (x1, x2, c1, c2, h1,
     h2, a1, a2, b1, b2): mass nodes x, liquid means c, half-widths h, the centre points'
@@ -128,18 +148,13 @@ def wet_points(state, m):
     if not (w00 > 0.0 and w10 > 0.0):
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     w01 = min(max(state[1], 0.0), w10)
-    mu = w10 / w00
-    var = state[2 * m] / w00 - mu * mu if m >= 3 else 0.0
-    if not var > SINGLE_NODE_VARIANCE * mu * mu:
+    x1, x2, w1, w2 = gamma_nodes(w00, w10, state[2 * m] if m >= 3 else 0.0, m >= 3)
+    if w2 == 0.0:
+        mu = x1
         c = w01 / w00
         second = state[2] / w00 if m >= 3 else c * c
         h, a, b = _node_points(mu, c, second, w00)
         return mu, mu, c, c, h, 0.0, a, 0.0, b, 0.0
-    k = mu * mu / var
-    theta = var / mu
-    s = math.sqrt(k + 1.0)
-    x1, x2 = theta * (k + 1.0 - s), theta * (k + 1.0 + s)
-    w1, w2 = w00 * (s + 1.0) / (2.0 * s), w00 * (s - 1.0) / (2.0 * s)
     c1, c2 = _conditional(x1, x2, w1, w2, w01, state[m + 1])
     c1, c2 = _clip_means(x1, x2, w1, w2, w01, c1, c2)
     q1, q2 = _conditional(x1, x2, w1, w2, state[2], state[m + 2])

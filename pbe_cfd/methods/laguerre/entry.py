@@ -5,8 +5,9 @@ from ..entry import MethodEntry
 from .guard import output_check
 from .number_watch import output_watch
 from .options import LaguerreOptions
-from .tensor import (aux_for_scene, escaped_share_report, failure_hint, population_for_output,
-                     plan_columns, scene_initial_state, scene_keys, state_names, table_bytes)
+from .tensor import (aux_for_scene, escaped_share_report, failure_hint, number_closure,
+                     population_for_output, plan_columns, scene_initial_state, scene_keys,
+                     state_names, table_bytes)
 from .rhs import laguerre_conserved, laguerre_project, laguerre_realizable, laguerre_rhs
 
 #: config[P.METHOD] of the Laguerre ROM
@@ -57,7 +58,8 @@ def _plan(scene):
     return (f"Laguerre ROM of order {m.order} "
             f"({'moment-consistent' if m.consistent else 'plain projection'}"
             f"{', dry class' if m.dry_class else ''}"
-            f"{', adaptive weights' if m.adaptive_weights else ''}), "
+            f"{', adaptive weights' if m.adaptive_weights else ''}, wet number row: "
+            f"{number_closure(m.following_support, m.number_closure)}), "
             f"support p <= {m.support_mass:g} kg, b <= {m.support_binder:g} kg, grid "
             f"{m.grid_mass} x {m.grid_binder}; {n_state} states")
 

@@ -24,8 +24,8 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.kernels import KTGF, kernel_cell_factor
-from .layout import (AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_OFF_Q, AUX_OFF_QDD,
-                     AUX_OFF_XL, AUX_ORDER, N_CORNERS, _corner, weight_corner)
+from .layout import (AUX_NPAIR, AUX_NUMBER_POINTS, AUX_NSLICE, AUX_NWC, AUX_NWD, AUX_OFF_Q,
+                     AUX_OFF_QDD, AUX_OFF_XL, AUX_ORDER, N_CORNERS, _corner, weight_corner)
 from .position import (_slice_position, _weight_position, binder_shift, laguerre_d43,
                        scale_binder)
 
@@ -161,7 +161,11 @@ class NumberWatch:
         return len(self.cells)
 
     def update(self, t, states, rows, aux, arrays, cell_ids=None) -> bool:
-        """Evaluate the cells at output time t [s]; True if any was flagged."""
+        """Evaluate the cells at output time t [s]; True if any was flagged. With the wet
+        number row on the point measure (aux[AUX_NUMBER_POINTS] = 1) the RHS's rate is not
+        positive by construction: nothing to watch."""
+        if aux[AUX_NUMBER_POINTS] == 1.0:
+            return False
         rel, flag = number_rates(np.ascontiguousarray(states, dtype=np.float64),
                                  np.ascontiguousarray(rows, dtype=np.float64), aux,
                                  arrays.params, arrays.config)

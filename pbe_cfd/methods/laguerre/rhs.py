@@ -50,11 +50,13 @@ from .admissible import (DRY_MERGE_SHARE, laguerre_conserved, laguerre_project, 
 from .drying import add_linear_terms
 from .layout import (AUX_CAPTURE_MOMENTS, AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NWD,
                      AUX_OFF_CAPMAP, AUX_OFF_CD, AUX_OFF_CD0, AUX_OFF_CDD, AUX_OFF_Q,
-                     AUX_OFF_QDD, AUX_OFF_X, AUX_OFF_XL, AUX_ORDER, AUX_SEPARATE, _corner,
+                     AUX_NUMBER_POINTS, AUX_OFF_QDD, AUX_OFF_X, AUX_OFF_XL, AUX_ORDER,
+                     AUX_SEPARATE, _corner,
                      droplet_number_entry, state_names, state_size,  # noqa: F401
                      N_CORNERS, weight_corner)
 from .moments import (moments_from_state, reconstruct, reconstruct_dry,  # noqa: F401
                       reconstructed_moment, support_share)
+from .number_points import wet_number_rate
 from .position import (_log_position, _slice_position, _weight_position,  # noqa: F401
                        LIQUID_FLOOR, binder_shift, laguerre_d43, scale_binder,
                        unscale_binder_rates)
@@ -76,15 +78,15 @@ def _any_nonzero(state, start, stop):
 
 
 @nb.njit(cache=True)
-def _quadratic_form(state, first, n, out, out_first, aux, base, mult):
-    """out[out_first + a] += mult sum_{k<=l<n} T[k,l,a] s_k s_l for a < n, s =
+def _quadratic_form(state, first, n, out, out_first, aux, base, mult, row0=0):
+    """out[out_first + a] += mult sum_{k<=l<n} T[k,l,a] s_k s_l for row0 <= a < n, s =
     state[first:first+n], T the pair-major block at aux[base]."""
     pos = base
     for k in range(n):
         mk = mult * state[first + k]
         for l in range(k, n):
             prod = mk * state[first + l]
-            for a in range(n):
+            for a in range(row0, n):
                 out[out_first + a] += prod * aux[pos + a]
             pos += n
 
@@ -199,6 +201,9 @@ def _dry_capture(state, out, aux, m, c0, w, at_point, xd, xl):
 AGGREGATION_TERMS = 1
 CAPTURE_TERMS = 2
 ALL_TERMS = AGGREGATION_TERMS | CAPTURE_TERMS
+#: with AGGREGATION_TERMS: leave out the wet class's granule-number row (W00) of the wet-wet
+#: aggregation, which ``number_points`` then gives
+WITHOUT_NUMBER_ROW = 4
 
 
 @nb.njit(cache=True)
@@ -216,6 +221,7 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
     npair = int(aux[AUX_NPAIR])
     capture = nd != 0.0 and aux[AUX_SEPARATE] == 1.0 and (terms & CAPTURE_TERMS) != 0
     aggregation = (terms & AGGREGATION_TERMS) != 0
+    row0 = 1 if (terms & WITHOUT_NUMBER_ROW) != 0 else 0      # the wet-wet form's first row
     at_point = aux[AUX_CAPTURE_MOMENTS] == 1.0
     loss = 0.0
     for sc in range(2):
@@ -240,7 +246,7 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
             ws_ = w * ns + s
             if aggregation:
                 _quadratic_form(state, 0, K, out, 0, aux,
-                                int(aux[AUX_OFF_Q]) + ws_ * npair * K, mult * f)
+                                int(aux[AUX_OFF_Q]) + ws_ * npair * K, mult * f, row0)
             if dry and aggregation:
                 _dry_wet_aggregation(state, out, aux, m,
                                      int(aux[AUX_OFF_X]) + ws_ * m * K * K,
@@ -257,14 +263,15 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
 
 @nb.njit(cache=True)
 def _below_lowest_fraction(state, out, aux, m, mult, nd, dry, i0, t, xd, xl, shift,
-                           scratch):
+                           scratch, skip=0):
     """The aggregation and capture terms of a wet class whose liquid fraction lies below the
     following tables' lowest (``position.binder_shift``: shift = ln(y_lo / y) > 0): evaluated
     on the state with the binder coordinate scaled up to y_lo in ``scratch`` (length >= K +
     m; ``position.scale_binder``) and scaled back. The droplet's liquid xl scales with it, so
     the capture gains at the droplet's point scale back exactly; a tabulated capture (the
     sprayed droplet's gain, which cannot scale), and any capture below LIQUID_FLOOR, is
-    evaluated on the state itself. Returns the droplets lost."""
+    evaluated on the state itself. ``skip``: WITHOUT_NUMBER_ROW or 0. Returns the droplets
+    lost."""
     K = m * m
     scale_binder(state, scratch, aux, m, K + m, shift)
     # the capture at the droplet's point scales with the class above LIQUID_FLOOR (below it
@@ -274,7 +281,8 @@ def _below_lowest_fraction(state, out, aux, m, mult, nd, dry, i0, t, xd, xl, shi
     loss = _aggregation_and_capture(scratch, out, aux, m, mult, nd, True, dry,
                                     _weight_position(scratch, aux, m), i0, t, xd,
                                     xl * math.exp(shift) if scaled_capture else xl,
-                                    ALL_TERMS if scaled_capture else AGGREGATION_TERMS)
+                                    (ALL_TERMS if scaled_capture else AGGREGATION_TERMS)
+                                    | skip)
     unscale_binder_rates(out, m, shift)
     if not scaled_capture:
         loss += _aggregation_and_capture(state, out, aux, m, mult, nd, True, dry,
@@ -299,6 +307,7 @@ def laguerre_rhs(state, out, cell, aux, params, config, work=None):
     for a in range(n):
         out[a] = 0.0
     nref = params[P.NUMBER_SCALE]
+    d43 = 0.0
     if config[P.KERNEL] == KTGF:
         d43 = laguerre_d43(state, aux, params, config)
         mult = nref * kernel_cell_factor(KTGF, cell[P.ALPHA], cell[P.THETA], d43, params)
@@ -318,16 +327,20 @@ def laguerre_rhs(state, out, cell, aux, params, config, work=None):
         i0, t = _slice_position(cell, aux)
         xd = pd / params[P.MASS_SCALE]
         xl = bd / params[P.MASS_SCALE]
+        skip = WITHOUT_NUMBER_ROW if (aux[AUX_NUMBER_POINTS] == 1.0 and wet) else 0
         shift = binder_shift(state, aux, m) if wet else 0.0
         if shift == 0.0:
             loss = _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry,
-                                            _weight_position(state, aux, m), i0, t, xd, xl)
+                                            _weight_position(state, aux, m), i0, t, xd, xl,
+                                            ALL_TERMS | skip)
         elif work is None:
             loss = _below_lowest_fraction(state, out, aux, m, mult, nd, dry, i0, t, xd, xl,
-                                          shift, np.empty(K + m))
+                                          shift, np.empty(K + m), skip)
         else:
             loss = _below_lowest_fraction(state, out, aux, m, mult, nd, dry, i0, t, xd, xl,
-                                          shift, work)
+                                          shift, work, skip)
+        if skip != 0:
+            out[0] += wet_number_rate(state, cell, aux, params, config, d43)
         if separate:
             out[droplets] = -loss
     if config[P.BREAKAGE] == 1 or config[P.DRYING] == 1:     # laguerre_breakage, _drying

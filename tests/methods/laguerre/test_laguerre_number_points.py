@@ -1,0 +1,104 @@
+"""The Laguerre ROM's wet granule-number row on the wet class's point measure
+(``methods.laguerre.number_points``, ``[method] number_closure = "points"``).
+
+Closed forms, independent of the ROM's tensors: for the constant, sum and product kernels the
+number rate of aggregation depends only on moments the point measure reproduces (W00, W10,
+W20), dW00/dt = -1/2 k0 W00^2, -k0 W00 W10 and -1/2 k0 W10^2. The measure's nodes and weights
+are sums of a few products and every pair term has one sign, so the rate holds to a few ulps:
+1e-13 relative. Red if a pair is counted twice, the diagonal not halved, or the nodes' masses
+wrong (sum and product kernels).
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from pbe_cfd.methods.laguerre.drying import gamma_nodes
+from pbe_cfd.methods.laguerre.layout import AUX_HEADER, AUX_ORDER
+from pbe_cfd.methods.laguerre.number_points import wet_number_rate
+from pbe_cfd.physics import parameters as P
+from pbe_cfd.physics.kernels import CONSTANT, PRODUCT, SUM
+
+from test_laguerre import setup
+
+M = 3
+K = M * M
+REL = 1e-13
+
+
+def _wet_state(params):
+    """A scaled wet class of shape 0.6 in p (SI mean 2e-9 kg, 3e9 granules per m3) holding
+    binder b = 0.3 p."""
+    pref, nref = params[P.MASS_SCALE], params[P.NUMBER_SCALE]
+    s = np.zeros(K + M)
+    n, mean, shape, y = 3e9 / nref, 2e-9 / pref, 0.6, 0.3
+    for i in range(M):
+        for j in range(M):
+            s[i * M + j] = (n * y ** j * math.gamma(shape + i + j) / math.gamma(shape)
+                            * (mean / shape) ** (i + j))
+    return s
+
+
+@pytest.mark.parametrize("kernel", [CONSTANT, SUM, PRODUCT], ids=["constant", "sum", "product"])
+def test_wet_number_rate_is_the_closed_form(kernel):
+    params, config = setup(M, kernel=kernel)
+    pref, nref = params[P.MASS_SCALE], params[P.NUMBER_SCALE]
+    # the kernels read SI masses: k0 p_ref per mass in the sum kernel, k0 p_ref^2 in the product
+    k = params[P.RATE] * nref * (pref if kernel == SUM else pref * pref if kernel == PRODUCT
+                                 else 1.0)
+    s = _wet_state(params)
+    s[K:] = (5.0, 2.0, 1.0)              # a dry class does not enter the wet number row
+    aux = np.zeros(AUX_HEADER)
+    aux[AUX_ORDER] = M
+    cell = np.zeros(P.N_CELL)
+    cell[P.ALPHA], cell[P.THETA], cell[P.COLLISION_VELOCITY] = 0.3, 1e-3, 0.1
+    w0, w1 = s[0], s[M]
+    want = {CONSTANT: -0.5 * k * w0 * w0, SUM: -k * w0 * w1, PRODUCT: -0.5 * k * w1 * w1}
+    got = wet_number_rate(s, cell, aux, params, config, 0.0)
+    assert got == pytest.approx(want[kernel], rel=REL, abs=0)
+    assert got < 0.0
+
+
+def test_gamma_nodes_reproduce_three_moments_and_stay_positive():
+    """The two-node rule: nodes and weights > 0, moments 0, 1, 2 reproduced (and the gamma's
+    third, which closes it); one node at the mean for a variance below the threshold."""
+    for shape in (0.05, 0.6, 2.0, 50.0):
+        n, mean = 2.5, 3.0
+        w = [n * math.gamma(shape + k) / math.gamma(shape) * (mean / shape) ** k
+             for k in range(4)]
+        x1, x2, a1, a2 = gamma_nodes(w[0], w[1], w[2], True)
+        assert min(x1, x2, a1, a2) > 0.0
+        for k in range(4):
+            assert a1 * x1 ** k + a2 * x2 ** k == pytest.approx(w[k], rel=1e-13, abs=0), k
+    x1, x2, a1, a2 = gamma_nodes(2.0, 6.0, 18.0 * (1 + 1e-10), True)
+    assert (x1, a1, x2, a2) == (3.0, 2.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("kernel", [CONSTANT, SUM], ids=["constant", "sum"])
+def test_the_rhs_takes_the_wet_number_row_from_the_points_and_nothing_else(kernel, tmp_path):
+    """The ROM's RHS with number_closure = "points" against the tensors' own: every row but
+    W00 identical to the bit, and W00 the closed form, which the consistent tensors also give
+    for these kernels (docs/physics.md 9: exact on any grid), within 100 eps cond(G) of the
+    aux (the tensors' round-off, tests/methods/laguerre/test_laguerre.py). Red if the
+    tensors' W00 row is not left out (counted twice) or another row is touched."""
+    from pbe_cfd.methods.laguerre import rhs as L
+    from pbe_cfd.methods.laguerre.layout import AUX_COND_G, AUX_NUMBER_POINTS
+    from pbe_cfd.methods.laguerre.tensor import build_aux
+    params, config = setup(M, kernel=kernel)
+    aux = build_aux(params, config, M, weights=dict(c=1e-9, d=1e-9, lam=1.0, gam=0.2),
+                    support=dict(p_max=1e-8, b_max=4e-9, n_p=10, n_b=10), consistent=True,
+                    cache_dir=str(tmp_path))
+    s = _wet_state(params)
+    s[:K] *= 1e-3                        # a class well inside the support
+    cell = np.zeros(P.N_CELL)
+    out = {}
+    for flag in (0.0, 1.0):
+        a = aux.copy()
+        a[AUX_NUMBER_POINTS] = flag
+        out[flag] = np.zeros(int(config[P.N_STATE]))
+        L.laguerre_rhs(s, out[flag], cell, a, params, config)
+    tol = 100 * np.finfo(float).eps * aux[AUX_COND_G]
+    assert np.array_equal(out[0.0][1:], out[1.0][1:])
+    assert out[1.0][0] == pytest.approx(out[0.0][0], rel=tol, abs=0)
+    assert out[1.0][0] < 0.0
