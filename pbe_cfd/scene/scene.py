@@ -191,6 +191,10 @@ class _Table:
     def has(self, key):
         return key in self.data
 
+    def fail(self, key, expected):
+        """Refuse the key's value: a SceneError naming the file, the key and ``expected``."""
+        raise SceneError(self.path, self._key(key), expected)
+
     def raw(self, key, default=None):
         self.used.add(key)
         return self.data.get(key, default)

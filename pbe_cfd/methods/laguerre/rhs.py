@@ -56,7 +56,7 @@ from .layout import (AUX_CAPTURE_MOMENTS, AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NW
                      N_CORNERS, weight_corner)
 from .moments import (moments_from_state, reconstruct, reconstruct_dry,  # noqa: F401
                       reconstructed_moment, support_share)
-from .number_points import wet_number_rate
+from .number_points import wet_pair_rates
 from .position import (_log_position, _slice_position, _weight_position,  # noqa: F401
                        LIQUID_FLOOR, binder_shift, laguerre_d43, scale_binder,
                        unscale_binder_rates)
@@ -78,17 +78,31 @@ def _any_nonzero(state, start, stop):
 
 
 @nb.njit(cache=True)
-def _quadratic_form(state, first, n, out, out_first, aux, base, mult, row0=0):
-    """out[out_first + a] += mult sum_{k<=l<n} T[k,l,a] s_k s_l for row0 <= a < n, s =
-    state[first:first+n], T the pair-major block at aux[base]."""
+def _quadratic_form(state, first, n, out, out_first, aux, base, mult, skip=0):
+    """out[out_first + a] += mult sum_{k<=l<n} T[k,l,a] s_k s_l for a < n, s =
+    state[first:first+n], T the pair-major block at aux[base]; the rows a whose bit is set in
+    ``skip`` are left out (``points_rows``)."""
     pos = base
     for k in range(n):
         mk = mult * state[first + k]
         for l in range(k, n):
             prod = mk * state[first + l]
-            for a in range(row0, n):
-                out[out_first + a] += prod * aux[pos + a]
+            for a in range(n):
+                if (skip >> a) & 1 == 0:
+                    out[out_first + a] += prod * aux[pos + a]
             pos += n
+
+
+@nb.njit(cache=True)
+def points_rows(m):
+    """Bit mask of the wet rows a = i m + j of order i + j = 0 and 2 (W00, W20, W11, W02),
+    which ``number_points`` gives (m <= 7: K < 63 bits)."""
+    mask = 0
+    for i in range(m):
+        for j in range(m):
+            if i + j == 0 or i + j == 2:
+                mask |= 1 << (i * m + j)
+    return mask
 
 
 @nb.njit(cache=True)
@@ -201,9 +215,9 @@ def _dry_capture(state, out, aux, m, c0, w, at_point, xd, xl):
 AGGREGATION_TERMS = 1
 CAPTURE_TERMS = 2
 ALL_TERMS = AGGREGATION_TERMS | CAPTURE_TERMS
-#: with AGGREGATION_TERMS: leave out the wet class's granule-number row (W00) of the wet-wet
-#: aggregation, which ``number_points`` then gives
-WITHOUT_NUMBER_ROW = 4
+#: with AGGREGATION_TERMS: leave out the wet-wet aggregation's rows of order 0 and 2 (W00,
+#: W20, W11, W02), which ``number_points`` then gives
+WITHOUT_POINT_ROWS = 4
 
 
 @nb.njit(cache=True)
@@ -221,7 +235,7 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
     npair = int(aux[AUX_NPAIR])
     capture = nd != 0.0 and aux[AUX_SEPARATE] == 1.0 and (terms & CAPTURE_TERMS) != 0
     aggregation = (terms & AGGREGATION_TERMS) != 0
-    row0 = 1 if (terms & WITHOUT_NUMBER_ROW) != 0 else 0      # the wet-wet form's first row
+    skip = points_rows(m) if (terms & WITHOUT_POINT_ROWS) != 0 else 0
     at_point = aux[AUX_CAPTURE_MOMENTS] == 1.0
     loss = 0.0
     for sc in range(2):
@@ -246,7 +260,7 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
             ws_ = w * ns + s
             if aggregation:
                 _quadratic_form(state, 0, K, out, 0, aux,
-                                int(aux[AUX_OFF_Q]) + ws_ * npair * K, mult * f, row0)
+                                int(aux[AUX_OFF_Q]) + ws_ * npair * K, mult * f, skip)
             if dry and aggregation:
                 _dry_wet_aggregation(state, out, aux, m,
                                      int(aux[AUX_OFF_X]) + ws_ * m * K * K,
@@ -270,7 +284,7 @@ def _below_lowest_fraction(state, out, aux, m, mult, nd, dry, i0, t, xd, xl, shi
     m; ``position.scale_binder``) and scaled back. The droplet's liquid xl scales with it, so
     the capture gains at the droplet's point scale back exactly; a tabulated capture (the
     sprayed droplet's gain, which cannot scale), and any capture below LIQUID_FLOOR, is
-    evaluated on the state itself. ``skip``: WITHOUT_NUMBER_ROW or 0. Returns the droplets
+    evaluated on the state itself. ``skip``: WITHOUT_POINT_ROWS or 0. Returns the droplets
     lost."""
     K = m * m
     scale_binder(state, scratch, aux, m, K + m, shift)
@@ -327,7 +341,7 @@ def laguerre_rhs(state, out, cell, aux, params, config, work=None):
         i0, t = _slice_position(cell, aux)
         xd = pd / params[P.MASS_SCALE]
         xl = bd / params[P.MASS_SCALE]
-        skip = WITHOUT_NUMBER_ROW if (aux[AUX_NUMBER_POINTS] == 1.0 and wet) else 0
+        skip = WITHOUT_POINT_ROWS if (aux[AUX_NUMBER_POINTS] == 1.0 and wet and m >= 3) else 0
         shift = binder_shift(state, aux, m) if wet else 0.0
         if shift == 0.0:
             loss = _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry,
@@ -340,7 +354,11 @@ def laguerre_rhs(state, out, cell, aux, params, config, work=None):
             loss = _below_lowest_fraction(state, out, aux, m, mult, nd, dry, i0, t, xd, xl,
                                           shift, work, skip)
         if skip != 0:
-            out[0] += wet_number_rate(state, cell, aux, params, config, d43)
+            n00, n20, n11, n02 = wet_pair_rates(state, cell, aux, params, config, d43)
+            out[0] += n00
+            out[2 * m] += n20
+            out[m + 1] += n11
+            out[2] += n02
         if separate:
             out[droplets] = -loss
     if config[P.BREAKAGE] == 1 or config[P.DRYING] == 1:     # laguerre_breakage, _drying

@@ -1,12 +1,17 @@
-"""The Laguerre ROM's wet granule-number row on the wet class's point measure
-(``methods.laguerre.number_points``, ``[method] number_closure = "points"``).
+"""The Laguerre ROM's wet-wet aggregation rows of order 0 and 2 on the wet class's point
+measure (``methods.laguerre.number_points``, ``[method] number_closure = "points"``).
 
 Closed forms, independent of the ROM's tensors: for the constant, sum and product kernels the
-number rate of aggregation depends only on moments the point measure reproduces (W00, W10,
-W20), dW00/dt = -1/2 k0 W00^2, -k0 W00 W10 and -1/2 k0 W10^2. The measure's nodes and weights
-are sums of a few products and every pair term has one sign, so the rate holds to a few ulps:
-1e-13 relative. Red if a pair is counted twice, the diagonal not halved, or the nodes' masses
-wrong (sum and product kernels).
+rates of W00, W20, W11, W02 depend only on moments the point measure reproduces (W00, W10,
+W20, W01, W11, W02):
+
+    constant  -1/2 k W00^2,  k W10^2,        k W10 W01,              k W01^2
+    sum       -k W00 W10,    2 k W20 W10,    k (W20 W01 + W11 W10),  2 k W11 W01
+    product   -1/2 k W10^2,  k W20^2,        k W20 W11,              k W11^2
+
+The measure's nodes and weights are sums of a few products and every pair term has one sign,
+so the rates hold to a few ulps: 1e-13 relative. Red if a pair is counted twice, the diagonal
+not halved, a gain's factor 2 lost, or the nodes' masses or liquids wrong.
 """
 
 import math
@@ -16,7 +21,7 @@ import pytest
 
 from pbe_cfd.methods.laguerre.drying import gamma_nodes
 from pbe_cfd.methods.laguerre.layout import AUX_HEADER, AUX_ORDER
-from pbe_cfd.methods.laguerre.number_points import wet_number_rate
+from pbe_cfd.methods.laguerre.number_points import wet_pair_rates
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.kernels import CONSTANT, PRODUCT, SUM
 
@@ -41,23 +46,27 @@ def _wet_state(params):
 
 
 @pytest.mark.parametrize("kernel", [CONSTANT, SUM, PRODUCT], ids=["constant", "sum", "product"])
-def test_wet_number_rate_is_the_closed_form(kernel):
+def test_wet_pair_rates_are_the_closed_forms(kernel):
     params, config = setup(M, kernel=kernel)
     pref, nref = params[P.MASS_SCALE], params[P.NUMBER_SCALE]
     # the kernels read SI masses: k0 p_ref per mass in the sum kernel, k0 p_ref^2 in the product
     k = params[P.RATE] * nref * (pref if kernel == SUM else pref * pref if kernel == PRODUCT
                                  else 1.0)
     s = _wet_state(params)
-    s[K:] = (5.0, 2.0, 1.0)              # a dry class does not enter the wet number row
+    s[K:] = (5.0, 2.0, 1.0)              # a dry class does not enter the wet-wet rows
     aux = np.zeros(AUX_HEADER)
     aux[AUX_ORDER] = M
     cell = np.zeros(P.N_CELL)
     cell[P.ALPHA], cell[P.THETA], cell[P.COLLISION_VELOCITY] = 0.3, 1e-3, 0.1
-    w0, w1 = s[0], s[M]
-    want = {CONSTANT: -0.5 * k * w0 * w0, SUM: -k * w0 * w1, PRODUCT: -0.5 * k * w1 * w1}
-    got = wet_number_rate(s, cell, aux, params, config, 0.0)
-    assert got == pytest.approx(want[kernel], rel=REL, abs=0)
-    assert got < 0.0
+    w00, w10, w20, w01, w11, w02 = s[0], s[M], s[2 * M], s[1], s[M + 1], s[2]
+    want = {CONSTANT: (-0.5 * k * w00 * w00, k * w10 * w10, k * w10 * w01, k * w01 * w01),
+            SUM: (-k * w00 * w10, 2 * k * w20 * w10, k * (w20 * w01 + w11 * w10),
+                  2 * k * w11 * w01),
+            PRODUCT: (-0.5 * k * w10 * w10, k * w20 * w20, k * w20 * w11, k * w11 * w11)}
+    got = wet_pair_rates(s, cell, aux, params, config, 0.0)
+    for name, g, w in zip(("W00", "W20", "W11", "W02"), got, want[kernel]):
+        assert g == pytest.approx(w, rel=REL, abs=0), name
+    assert got[0] < 0.0 < min(got[1:])
 
 
 def test_gamma_nodes_reproduce_three_moments_and_stay_positive():
@@ -76,12 +85,13 @@ def test_gamma_nodes_reproduce_three_moments_and_stay_positive():
 
 
 @pytest.mark.parametrize("kernel", [CONSTANT, SUM], ids=["constant", "sum"])
-def test_the_rhs_takes_the_wet_number_row_from_the_points_and_nothing_else(kernel, tmp_path):
+def test_the_rhs_takes_the_rows_of_order_0_and_2_from_the_points_and_nothing_else(kernel, tmp_path):
     """The ROM's RHS with number_closure = "points" against the tensors' own: every row but
-    W00 identical to the bit, and W00 the closed form, which the consistent tensors also give
-    for these kernels (docs/physics.md 9: exact on any grid), within 100 eps cond(G) of the
-    aux (the tensors' round-off, tests/methods/laguerre/test_laguerre.py). Red if the
-    tensors' W00 row is not left out (counted twice) or another row is touched."""
+    W00, W20, W11, W02 identical to the bit, and those four the closed forms, which the
+    consistent tensors also give for these kernels (docs/physics.md 9: exact on any grid),
+    within 100 eps cond(G) of the aux (the tensors' round-off,
+    tests/methods/laguerre/test_laguerre.py). Red if the tensors' rows are not left out
+    (counted twice) or another row is touched."""
     from pbe_cfd.methods.laguerre import rhs as L
     from pbe_cfd.methods.laguerre.layout import AUX_COND_G, AUX_NUMBER_POINTS
     from pbe_cfd.methods.laguerre.tensor import build_aux
@@ -99,6 +109,20 @@ def test_the_rhs_takes_the_wet_number_row_from_the_points_and_nothing_else(kerne
         out[flag] = np.zeros(int(config[P.N_STATE]))
         L.laguerre_rhs(s, out[flag], cell, a, params, config)
     tol = 100 * np.finfo(float).eps * aux[AUX_COND_G]
-    assert np.array_equal(out[0.0][1:], out[1.0][1:])
-    assert out[1.0][0] == pytest.approx(out[0.0][0], rel=tol, abs=0)
+    points = [0, 2, M + 1, 2 * M]        # W00, W02, W11, W20
+    others = [a for a in range(out[0.0].size) if a not in points]
+    assert np.array_equal(out[0.0][others], out[1.0][others])
+    for a in points:
+        assert out[1.0][a] == pytest.approx(out[0.0][a], rel=tol, abs=0), a
     assert out[1.0][0] < 0.0
+
+
+def test_points_with_order_2_is_refused_naming_the_key(scene_factory):
+    """The rows of order 2 of an m = 2 class are W11 alone: "points" needs order >= 3."""
+    from pbe_cfd.scene.scene import SceneError
+    with pytest.raises(SceneError, match=r"\[method\.number_closure\].*order >= 3"):
+        scene_factory(method={"name": "laguerre", "order": 2, "number_closure": "points",
+                              "_replace": True})
+    ok = scene_factory(method={"name": "laguerre", "order": 3, "number_closure": "points",
+                               "_replace": True})
+    assert ok.method.options.number_closure == "points"
