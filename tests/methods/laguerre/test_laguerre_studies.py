@@ -102,3 +102,37 @@ def test_fluid_bed_from_a_dry_start_against_qmom():
         assert lag.bed_columns[q][-1] == pytest.approx(qmom.bed_columns[q][-1], rel=0.10, abs=0), q
     for q in ("M10", "M01"):
         assert lag.bed_columns[q][-1] == pytest.approx(qmom.bed_columns[q][-1], rel=1e-10, abs=0), q
+
+
+@pytest.mark.slow
+@pytest.mark.study
+def test_bed_batch_within_5_percent_of_qmom_and_cqmom():
+    """The bundled fluid-bed-laguerre-batch (30 min with [transport]; the following support
+    with the wet rows of order 0 and 2 on the points) finishes, and its bed M00, d43 and
+    binder fraction are within 5% (issue 26's aim) of QMOM N = 3 and of CQMOM 3 x 3 on the same
+    scene at 15 and 30 min; at 5 min, where QMOM and CQMOM differ by 20% on M00, within 5% of
+    the interval between them. M10 and M01 as QMOM's to 1e-10. Measured 2026-12-06: largest
+    3.5% (M00 against CQMOM at 15 min); with the tensors' rows the run stops at 1080 s
+    (docs/results/laguerre.md). About 15 min of CPU."""
+    scene = load_scene("fluid-bed-laguerre-batch")
+    domain = load_domain(scene)
+    runs = {"laguerre": run_coupled(scene, domain),
+            "qmom": run_coupled(scene.with_method(name="qmom", nodes=3), domain),
+            "cqmom": run_coupled(scene.with_method(name="cqmom", nodes=3, binder_nodes=3),
+                                 domain)}
+    assert runs["laguerre"].times[-1] == scene.end_time
+
+    def at(name, q, t):
+        r = runs[name]
+        return r.bed_columns[q][int(np.argmin(np.abs(np.asarray(r.times) - t)))]
+
+    for q in ("M00", "d43_m", "binder_fraction"):
+        for t in (900.0, 1800.0):
+            for ref in ("qmom", "cqmom"):
+                assert at("laguerre", q, t) == pytest.approx(at(ref, q, t), rel=0.05,
+                                                             abs=0), (q, t, ref)
+        low, high = sorted((at("qmom", q, 300.0), at("cqmom", q, 300.0)))
+        assert 0.95 * low <= at("laguerre", q, 300.0) <= 1.05 * high, q
+    for q in ("M10", "M01"):
+        assert at("laguerre", q, 1800.0) == pytest.approx(at("qmom", q, 1800.0), rel=1e-10,
+                                                          abs=0), q
