@@ -88,13 +88,13 @@ HEADER = (
     ("AUX_CAPTURE_MOMENTS", "1: Cd holds int k_d A_f phi~_k, the moments of the granules that "
                             "capture, mapped at the RHS's droplet point (evaporating droplets); "
                             "0: the wet gain at the sprayed droplet (p_d, b_d)"),
-    ("AUX_NUMBER_POINTS", "the wet-wet aggregation's W00 row (NUMBER_CLOSURES): 0 the "
-                          "tensors', 1 the wet point measure's (number_points)"),
+    ("AUX_NUMBER_POINTS", "the wet-wet aggregation's rows of order 0 and 2 (NUMBER_CLOSURES): "
+                          "0 the tensors', 1 the wet point measure's (number_points)"),
 )
 AUX_HEADER = numbered(HEADER, globals())
 AUX_LAYOUT_VERSION = 9.0
 
-#: ``[method] number_closure`` -> aux[AUX_NUMBER_POINTS] (docs/physics.md 9.2, "The number row")
+#: ``[method] number_closure`` -> aux[AUX_NUMBER_POINTS] (docs/physics.md 9.2)
 NUMBER_CLOSURES = {"tensor": 0.0, "points": 1.0}
 
 TABLE_III = dict(weights=dict(c=1e-9, d=1e-9, lam=1.0, gam=0.2),

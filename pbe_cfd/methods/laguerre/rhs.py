@@ -21,6 +21,10 @@ and with evaporating droplets (drying) the droplet's point (s p_d + l, l), l = L
 the capture gains (Cd then holds the capture moments, ``capture_gain``) and the droplet
 class's liquid balance (``quadrature.drying_sources.add_droplet_class_terms``),
 
+with aux[AUX_NUMBER_POINTS] = 1 (``[method] number_closure = "points"``) the Q form's rows of
+order 0 and 2 (W00, W20, W11, W02) replaced by pair sums over the wet class's point measure
+(``number_points``),
+
 mult = k0 N_ref F_cell, F_cell = g0(alpha) sqrt(Theta) d43^(3/2) for the ktgf kernel (1
 otherwise); d43 [m] from the reconstruction: d43 = (6 / (pi rho_s))^(1/3) int p^(4/3) n /
 int p n of the granules of both classes, free droplets excluded as in every method
