@@ -17,9 +17,9 @@ with its conditional liquid points from W01, W11, W02, W12):
 
 i.e. -1/2 for W00, 2 x_s x_t for W20, x_s b_t + x_t b_s for W11, 2 b_s b_t for W02 [scaled
 moments per s]. The four rows move together as the moments of one positive measure under
-aggregation, so W00 W20 >= W10^2, W00 W02 >= W01^2 and the second moments' matrix stay
-those of a population (W00 alone on the points, with W20 from the tensors, broke W00 W20 >=
-W10^2 within 20 s on the bed; measured). W00 is clipped at 0 from above and the gains at 0
+aggregation, so this term alone keeps W00 W20 >= W10^2, W00 W02 >= W01^2 and the second
+moments' matrix as aggregation does for a population (W00 alone on the points, with W20
+from the tensors, would not). W00 is clipped at 0 from above and the gains at 0
 from below (a node's continued liquid pair may carry a small negative weight,
 ``drying._node_points``). W10 and W01 (exactly 0) and the rows of order 3 and 4 keep the
 tensors' sources, as do the dry class and the dry-wet terms.
