@@ -24,13 +24,11 @@ from below (a node's continued liquid pair may carry a small negative weight,
 ``drying._node_points``). W10 and W01 (exactly 0) and the rows of order 3 and 4 keep the
 tensors' sources, as do the dry class and the dry-wet terms.
 """
-import math
-
 import numba as nb
 import numpy as np
 
 from ...physics import parameters as P
-from ...physics.kernels import kernel_cell_factor
+from ...physics.kernels import collision_velocity, kernel_cell_factor
 from ...physics.properties import N_PROPS
 from ...physics.rates import pair_rate, particle_properties
 from .drying import N_POINTS, _point, wet_points
@@ -50,8 +48,7 @@ def wet_pair_rates(state, cell, aux, params, config, d43):
         return 0.0, 0.0, 0.0, 0.0
     u0 = cell[P.COLLISION_VELOCITY]
     if not u0 > 0.0:
-        theta = cell[P.THETA]
-        u0 = 4.0 * math.sqrt(theta / math.pi) if theta > 0.0 else 0.0
+        u0 = collision_velocity(cell[P.THETA])
     pref = own[P.MASS_SCALE]
     pts = wet_points(state, m)
     props = np.zeros((N_POINTS, N_PROPS))
