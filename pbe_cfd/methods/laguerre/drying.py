@@ -109,6 +109,8 @@ def _node_points(x, c, second, w):
         return 0.0, w, 0.0
     var = second - c * c
     h0 = min(CONTINUE_SPREAD * c, reach)
+    if not h0 * h0 > 0.0:                   # a liquid whose square underflows: one point
+        return 0.0, w, 0.0
     if var >= h0 * h0:
         return min(math.sqrt(var), reach), 0.0, w
     t = var / (h0 * h0)

@@ -88,8 +88,8 @@ HEADER = (
     ("AUX_CAPTURE_MOMENTS", "1: Cd holds int k_d A_f phi~_k, the moments of the granules that "
                             "capture, mapped at the RHS's droplet point (evaporating droplets); "
                             "0: the wet gain at the sprayed droplet (p_d, b_d)"),
-    ("AUX_NUMBER_POINTS", "the wet-wet aggregation's rows of order 0 and 2 (NUMBER_CLOSURES): "
-                          "0 the tensors', 1 the wet point measure's (number_points)"),
+    ("AUX_NUMBER_POINTS", "the rows of order <= 2 of aggregation and capture (NUMBER_CLOSURES): "
+                          "0 the tensors', 1 the point measures' (number_points)"),
 )
 AUX_HEADER = numbered(HEADER, globals())
 AUX_LAYOUT_VERSION = 9.0

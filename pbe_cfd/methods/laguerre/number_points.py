@@ -1,6 +1,6 @@
-"""The wet-wet aggregation's moments of order 0 and 2 on the wet class's point measure
-(``[method] number_closure = "points"``; docs/physics.md section 9.2, "The number row on the
-wet point measure").
+"""The rows of order <= 2 of aggregation and droplet capture on the classes' point measures
+(``[method] number_closure = "points"``; docs/physics.md section 9.2, "The rows of order 0-2
+on the point measures").
 
 Aggregation alone lowers the granule number: for any positive population
 d(M00)/dt = -1/2 of the double integral of beta psi n n <= 0. The tensors apply the kernel to
@@ -22,7 +22,25 @@ moments' matrix as aggregation does for a population (W00 alone on the points, w
 from the tensors, would not). W00 is clipped at 0 from above and the gains at 0
 from below (a node's continued liquid pair may carry a small negative weight,
 ``drying._node_points``). W10 and W01 (exactly 0) and the rows of order 3 and 4 keep the
-tensors' sources, as do the dry class and the dry-wet terms.
+tensors' sources.
+
+The dry-wet aggregation and the droplet capture act on the same measures: the dry class's
+two-node gamma rule (``dry_points``, from D0, D1, D2) and the wet points; the droplet is the
+cell's droplet point (p_d, b_d) (its current one where droplets evaporate). Per pair of a
+dry point r and a wet point s, and per captured droplet,
+
+    dD~_e/dt = -N_ref w_r w_s beta_rs x_r^e  (e < 3),   wet gain (x_r + x_s)^i b_s^j - x_s^i b_s^j,
+    dry + droplet: L_e = n~_d N_ref f sum_r w_r beta_rd x_r^e leaves D_e and enters every wet
+                   row as sum_e C(i, e) x_d^(i - e) x_l^j L_e  (``capture.capture_gain``),
+    wet + droplet: the wet rows of order <= 2 of (x_s + x_d)^i (b_s + x_l)^j - x_s^i b_s^j,
+
+f the droplet factor, the droplets lost the sum of both captures. What the dry class and the
+droplets lose, the wet class gains, pair by pair: M10 and M01 stay exact. A dry class at one
+mass (the start of wet granulation) then feeds a wet class at one mass, on the boundary
+W00 W20 = W10^2 and not outside it; the tensors on the dry class's signed reconstruction
+gave the young wet class W00 W20 / W10^2 = 0.83 on the bed batch's cell
+(docs/results/batch.md). The wet rows of order 3 and 4 of the dry-wet and wet capture terms,
+and the dry rows of order >= 3, keep the tensors' sources.
 """
 import numba as nb
 import numpy as np
@@ -31,8 +49,26 @@ from ...physics import parameters as P
 from ...physics.kernels import collision_velocity, kernel_cell_factor
 from ...physics.properties import N_PROPS
 from ...physics.rates import pair_rate, particle_properties
-from .drying import N_POINTS, _point, wet_points
+from .capture import capture_gain
+from .drying import N_POINTS, _point, gamma_nodes, wet_points
 from .layout import AUX_ORDER
+
+
+#: property rows of ``add_point_terms``: the wet points, then the dry points, the droplet
+DRY_ROW = N_POINTS
+DROPLET_ROW = N_POINTS + 2
+N_ROWS = N_POINTS + 3
+#: the dry class's rows on its points: D_e for e < DRY_POINT_ORDERS (those its two-node rule
+#: reproduces)
+DRY_POINT_ORDERS = 3
+
+
+@nb.njit(cache=True)
+def dry_points(state, m):
+    """(x1, x2, a1, a2): the dry class's two-node gamma rule from D0, D1, D2 [scaled]
+    (``drying.gamma_nodes``; one node at the mean where its variance is not positive)."""
+    K = m * m
+    return gamma_nodes(state[K], state[K + 1], state[K + 2] if m >= 3 else 0.0, m >= 3)
 
 
 @nb.njit(cache=True)
@@ -40,30 +76,17 @@ def wet_pair_rates(state, cell, aux, params, config, d43):
     """(dW~00/dt, dW~20/dt, dW~11/dt, dW~02/dt) of wet-wet aggregation [scaled moments per
     s] on the wet point measure (module docstring). state: scaled moments; cell: the cell's
     row (ALPHA [-], THETA [m2/s2], COLLISION_VELOCITY [m/s]: 4 sqrt(Theta / pi) where not
-    positive); d43 [m]: the cell's volume-mean diameter (the ktgf kernel's cell factor)."""
+    positive); d43 [m]: the cell's volume-mean diameter (the ktgf kernel's cell factor).
+    The wet-wet term of ``add_point_terms`` alone."""
+    out = np.zeros(int(config[P.N_STATE]))
+    add_point_terms(state, out, cell, aux, params, config, d43, 0.0, 0.0, 0.0, False)
     m = int(aux[AUX_ORDER])
-    own = params[:P.N_PARAMS]           # the scene's slots: no held Stokes decision
-    factor = kernel_cell_factor(config[P.KERNEL], cell[P.ALPHA], cell[P.THETA], d43, own)
-    if factor == 0.0:
-        return 0.0, 0.0, 0.0, 0.0
-    u0 = cell[P.COLLISION_VELOCITY]
-    if not u0 > 0.0:
-        u0 = collision_velocity(cell[P.THETA])
-    pref = own[P.MASS_SCALE]
-    pts = wet_points(state, m)
-    props = np.zeros((N_POINTS, N_PROPS))
-    x0, b0, w0 = _point(0, pts)
-    x1, b1, w1 = _point(1, pts)
-    x2, b2, w2 = _point(2, pts)
-    x3, b3, w3 = _point(3, pts)
-    x4, b4, w4 = _point(4, pts)
-    x5, b5, w5 = _point(5, pts)
-    mass = (x0, x1, x2, x3, x4, x5)           # N_POINTS = 6; tuples: only props allocated
-    liquid = (b0, b1, b2, b3, b4, b5)
-    weights = (w0, w1, w2, w3, w4, w5)
-    for q in range(N_POINTS):
-        if weights[q] != 0.0:
-            particle_properties(mass[q] * pref, liquid[q] * pref, own, config, props, q)
+    return out[0], out[2 * m], out[m + 1], out[2]
+
+
+@nb.njit(cache=True)
+def _wet_wet(out, m, props, mass, liquid, weights, factor, u0, own, config):
+    """The wet-wet rows W00, W20, W11, W02 over the wet points (module docstring)."""
     number = 0.0                        # each sum: 1/2 of the ordered double sum
     pp = 0.0
     pb = 0.0
@@ -83,5 +106,155 @@ def wet_pair_rates(state, cell, aux, params, config, d43):
             pb += f * (mass[s] * liquid[t] + mass[t] * liquid[s])
             bb += f * liquid[s] * liquid[t]
     nref = own[P.NUMBER_SCALE]
-    return (min(-nref * number, 0.0), max(2.0 * nref * pp, 0.0), max(nref * pb, 0.0),
-            max(2.0 * nref * bb, 0.0))
+    out[0] += min(-nref * number, 0.0)
+    out[2 * m] += max(2.0 * nref * pp, 0.0)
+    out[m + 1] += max(nref * pb, 0.0)
+    out[2] += max(2.0 * nref * bb, 0.0)
+
+
+@nb.njit(cache=True)
+def _dry_wet(out, m, props, dry_mass, dry_weights, mass, liquid, weights, factor, u0, own,
+             config):
+    """Dry + wet -> wet over the dry x wet points: dD_e = -sum w_r w_s beta x_r^e (e < 3),
+    dW10 = -dD_1, dW20 = sum w_r w_s beta (x_r^2 + 2 x_r x_s), dW11 = sum w_r w_s beta x_r b_s
+    (W00, W01, W02 unchanged)."""
+    K = m * m
+    nref = own[P.NUMBER_SCALE]
+    number = 0.0
+    first = 0.0
+    second = 0.0
+    gain20 = 0.0
+    gain11 = 0.0
+    for r in range(2):
+        wr = dry_weights[r]
+        if wr == 0.0:
+            continue
+        xr = dry_mass[r]
+        for s in range(N_POINTS):
+            ws = weights[s]
+            if ws == 0.0:
+                continue
+            f = nref * wr * ws * pair_rate(props, DRY_ROW + r, s, factor, u0, own, config)
+            number += f
+            first += f * xr
+            second += f * xr * xr
+            gain20 += f * (xr * xr + 2.0 * xr * mass[s])
+            gain11 += f * xr * liquid[s]
+    if not (number > 0.0 and first > 0.0):
+        return
+    out[K] -= number
+    out[K + 1] -= first
+    if m > 2:
+        out[K + 2] -= second
+    out[m] += first
+    out[2 * m] += max(gain20, 0.0)
+    out[m + 1] += max(gain11, 0.0)
+
+
+@nb.njit(cache=True)
+def _dry_capture(out, m, props, dry_mass, dry_weights, xd, xl, kd, factor, u0, own, config):
+    """Dry + droplet -> wet: L_e = kd sum_r w_r beta_rd x_r^e (e < 3) leaves D_e and enters
+    every wet row as sum_e C(i, e) x_d^(i - e) x_l^j L_e; returns L_0, the droplets lost."""
+    K = m * m
+    lost = 0.0
+    for r in range(2):
+        wr = dry_weights[r]
+        if wr == 0.0:
+            continue
+        xr = dry_mass[r]
+        f = kd * wr * pair_rate(props, DRY_ROW + r, DROPLET_ROW, factor, u0, own, config)
+        lost += f
+        xe = 1.0
+        for e in range(min(m, DRY_POINT_ORDERS)):
+            out[K + e] -= f * xe
+            out[e * m] += f * xe
+            capture_gain(out, f * xe, e * m, m, xd, xl, 0)
+            xe *= xr
+    return lost
+
+
+@nb.njit(cache=True)
+def _wet_capture(out, m, props, mass, liquid, weights, xd, xl, kd, factor, u0, own, config):
+    """Wet + droplet -> wet: the wet rows of order <= 2 of (x_s + x_d)^i (b_s + x_l)^j -
+    x_s^i b_s^j, kd sum_s w_s beta_sd per row; returns the droplets lost (0 where the sum is
+    not positive: then nothing is added)."""
+    lost = 0.0
+    g20 = 0.0
+    g11 = 0.0
+    g02 = 0.0
+    for s in range(N_POINTS):
+        ws = weights[s]
+        if ws == 0.0:
+            continue
+        f = kd * ws * pair_rate(props, s, DROPLET_ROW, factor, u0, own, config)
+        lost += f
+        g20 += f * (2.0 * mass[s] * xd + xd * xd)
+        g11 += f * (mass[s] * xl + liquid[s] * xd + xd * xl)
+        g02 += f * (2.0 * liquid[s] * xl + xl * xl)
+    if not lost > 0.0:
+        return 0.0
+    out[m] += lost * xd
+    out[1] += lost * xl
+    out[2 * m] += max(g20, 0.0)
+    out[m + 1] += max(g11, 0.0)
+    out[2] += max(g02, 0.0)
+    return lost
+
+
+@nb.njit(cache=True)
+def add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd, cross):
+    """Add the rows of order <= 2 of aggregation and droplet capture on the point measures
+    [scaled moments per s] to ``out``; return the droplets captured [scaled per s]. state:
+    scaled moments; cell: the cell's row (``wet_pair_rates``); d43 [m]; nd: the free
+    droplets [scaled]; pd, bd: one droplet's mass and liquid [kg].
+
+    Always the wet-wet rows W00, W20, W11, W02 (module docstring); with ``cross`` also the
+    dry-wet aggregation's wet rows of order <= 2 and dry rows D_e (e < 3) over the dry points
+    x wet points, the capture of nd droplets by the dry points (its dry loss L_e, e < 3,
+    mapped to every wet row as (p + p_d)^i b_d^j) and by the wet points (their wet rows of
+    order <= 2), and the droplets lost. The rows left to the tensors: ``rhs.points_rows``
+    and ``rhs.low_rows``."""
+    m = int(aux[AUX_ORDER])
+    own = params[:P.N_PARAMS]           # the scene's slots: no held Stokes decision
+    factor = kernel_cell_factor(config[P.KERNEL], cell[P.ALPHA], cell[P.THETA], d43, own)
+    if factor == 0.0:
+        return 0.0
+    u0 = cell[P.COLLISION_VELOCITY]
+    if not u0 > 0.0:
+        u0 = collision_velocity(cell[P.THETA])
+    pref = own[P.MASS_SCALE]
+    pts = wet_points(state, m)
+    props = np.zeros((N_ROWS, N_PROPS))
+    x0, b0, w0 = _point(0, pts)
+    x1, b1, w1 = _point(1, pts)
+    x2, b2, w2 = _point(2, pts)
+    x3, b3, w3 = _point(3, pts)
+    x4, b4, w4 = _point(4, pts)
+    x5, b5, w5 = _point(5, pts)
+    mass = (x0, x1, x2, x3, x4, x5)           # N_POINTS = 6; tuples: only props allocated
+    liquid = (b0, b1, b2, b3, b4, b5)
+    weights = (w0, w1, w2, w3, w4, w5)
+    for q in range(N_POINTS):
+        if weights[q] != 0.0:
+            particle_properties(mass[q] * pref, liquid[q] * pref, own, config, props, q)
+    _wet_wet(out, m, props, mass, liquid, weights, factor, u0, own, config)
+    if not cross:
+        return 0.0
+    dx1, dx2, da1, da2 = dry_points(state, m)
+    dry_mass = (dx1, dx2)
+    dry_weights = (da1, da2)
+    for r in range(2):
+        if dry_weights[r] != 0.0:
+            particle_properties(dry_mass[r] * pref, 0.0, own, config, props, DRY_ROW + r)
+    _dry_wet(out, m, props, dry_mass, dry_weights, mass, liquid, weights, factor, u0, own,
+             config)
+    if not (nd > 0.0 and pd > 0.0 and config[P.SEPARATE_DROPLETS] == 1):
+        return 0.0
+    particle_properties(pd, bd, own, config, props, DROPLET_ROW)
+    kd = own[P.NUMBER_SCALE] * nd * own[P.DROPLET_FACTOR]   # [1/s per (m3/s) of pair rate]
+    xd = pd / pref
+    xl = bd / pref
+    lost = _dry_capture(out, m, props, dry_mass, dry_weights, xd, xl, kd, factor, u0, own,
+                        config)
+    return lost + _wet_capture(out, m, props, mass, liquid, weights, xd, xl, kd, factor, u0,
+                               own, config)

@@ -22,8 +22,8 @@ the capture gains (Cd then holds the capture moments, ``capture_gain``) and the 
 class's liquid balance (``quadrature.drying_sources.add_droplet_class_terms``),
 
 with aux[AUX_NUMBER_POINTS] = 1 (``[method] number_closure = "points"``) the Q form's rows of
-order 0 and 2 (W00, W20, W11, W02) replaced by pair sums over the wet class's point measure
-(``number_points``),
+order 0 and 2 (W00, W20, W11, W02), the X, XL, Cd and Cdd rows of order <= 2 and the droplets
+lost replaced by pair sums over the classes' point measures (``number_points``),
 
 mult = k0 N_ref F_cell, F_cell = g0(alpha) sqrt(Theta) d43^(3/2) for the ktgf kernel (1
 otherwise); d43 [m] from the reconstruction: d43 = (6 / (pi rho_s))^(1/3) int p^(4/3) n /
@@ -60,7 +60,8 @@ from .layout import (AUX_CAPTURE_MOMENTS, AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NW
                      N_CORNERS, weight_corner)
 from .moments import (moments_from_state, reconstruct, reconstruct_dry,  # noqa: F401
                       reconstructed_moment, support_share)
-from .number_points import wet_pair_rates
+from .capture import capture_gain
+from .number_points import DRY_POINT_ORDERS, add_point_terms
 from .position import (_log_position, _slice_position, _weight_position,  # noqa: F401
                        LIQUID_FLOOR, binder_shift, laguerre_d43, scale_binder,
                        unscale_binder_rates)
@@ -100,7 +101,7 @@ def _quadratic_form(state, first, n, out, out_first, aux, base, mult, skip=0):
 @nb.njit(cache=True)
 def points_rows(m):
     """Bit mask of the wet rows a = i m + j of order i + j = 0 and 2 (W00, W20, W11, W02),
-    which ``number_points`` gives (m <= 7: K < 63 bits)."""
+    which ``number_points`` gives for the wet-wet aggregation (m <= 7: K < 63 bits)."""
     mask = 0
     for i in range(m):
         for j in range(m):
@@ -110,9 +111,22 @@ def points_rows(m):
 
 
 @nb.njit(cache=True)
-def _dry_wet_aggregation(state, out, aux, m, px, pl, mult):
+def low_rows(m):
+    """Bit mask of the wet rows a = i m + j of order i + j <= 2, which ``number_points``
+    gives for the dry-wet aggregation and the droplet capture (m <= 7)."""
+    mask = 0
+    for i in range(m):
+        for j in range(m):
+            if i + j <= 2:
+                mask |= 1 << (i * m + j)
+    return mask
+
+
+@nb.njit(cache=True)
+def _dry_wet_aggregation(state, out, aux, m, px, pl, mult, skip, dry_low):
     """Dry + wet -> wet: out[a] += mult X D W (a with i >= 1), out[K + e] += mult XL D W, X
-    and XL of one (weight, slice) at aux[px], aux[pl]."""
+    and XL of one (weight, slice) at aux[px], aux[pl]; the wet rows whose bit is set in
+    ``skip`` and the dry rows e < dry_low are left out (``low_rows``)."""
     K = m * m
     for k in range(m):
         dk = mult * state[K + k]
@@ -123,82 +137,63 @@ def _dry_wet_aggregation(state, out, aux, m, px, pl, mult):
         for l in range(K):
             prod = dk * state[l]
             for a in range(m, K):
-                out[a] += prod * aux[px + a]
-            for e in range(m):
+                if (skip >> a) & 1 == 0:
+                    out[a] += prod * aux[px + a]
+            for e in range(dry_low, m):
                 out[K + e] += prod * aux[pl + e]
             px += K
             pl += m
 
 
 @nb.njit(cache=True)
-def _wet_capture(state, out, aux, m, c0, d0, w):
-    """Droplets captured by wet granules: out[a] += w sum_k Cd[k, a] W_k; returns
-    w sum_k Cd0[k] W_k, the droplets lost (w = mult n~_d times the corner weight)."""
+def _wet_capture(state, out, aux, m, c0, d0, w, skip):
+    """Droplets captured by wet granules: out[a] += w sum_k Cd[k, a] W_k for the rows a whose
+    bit is not set in ``skip``; returns w sum_k Cd0[k] W_k, the droplets lost (0 with a
+    ``skip``: then the points give it), w = mult n~_d times the corner weight."""
     K = m * m
     loss = 0.0
     for k in range(K):
         wk = w * state[k]
         pos = c0 + k * K
         for a in range(K):
-            out[a] += wk * aux[pos + a]
-        loss += wk * aux[d0 + k]
+            if (skip >> a) & 1 == 0:
+                out[a] += wk * aux[pos + a]
+        if skip == 0:
+            loss += wk * aux[d0 + k]
     return loss
 
 
 @nb.njit(cache=True)
-def _binomial(n, k):
-    """C(n, k) for small non-negative integers."""
-    out = 1.0
-    for q in range(k):
-        out = out * (n - q) / (q + 1)
-    return out
-
-
-@nb.njit(cache=True, inline="always")
-def capture_gain(out, moment, f, m, xd, xl):
-    """out[a] += C(i, e1) C(j, e2) xd^(i - e1) xl^(j - e2) moment for every a = (i, j) > f =
-    (e1, e2): the wet gain [scaled units per s] of granules of capture moment ``moment``
-    (their int k_d p^e1 b^e2 n, scaled) that each take up one droplet of scaled mass xd and
-    liquid xl; summed over f it is (p + p_d)^i (b + b_d)^j - p^i b^j expanded without
-    cancellation."""
-    e1 = f // m
-    e2 = f - e1 * m
-    for i in range(e1, m):
-        ci = _binomial(i, e1) * xd ** (i - e1) * moment
-        for j in range(e2, m):
-            if i == e1 and j == e2:
-                continue
-            out[i * m + j] += ci * _binomial(j, e2) * xl ** (j - e2)
-
-
-@nb.njit(cache=True)
-def _wet_capture_at(state, out, aux, m, c0, d0, w, xd, xl):
+def _wet_capture_at(state, out, aux, m, c0, d0, w, xd, xl, skip):
     """Droplets of the point (xd, xl) (scaled) captured by wet granules, with the capture
     moments Cd[k, f] (AUX_CAPTURE_MOMENTS): the gain ``capture_gain`` of w sum_k Cd[k, f] W_k
-    for each f; returns w sum_k Cd0[k] W_k, the droplets lost."""
+    for each f, in the rows whose bit is not set in ``skip``; returns w sum_k Cd0[k] W_k,
+    the droplets lost (0 with a ``skip``)."""
     K = m * m
     loss = 0.0
-    for k in range(K):
-        loss += w * state[k] * aux[d0 + k]
+    if skip == 0:
+        for k in range(K):
+            loss += w * state[k] * aux[d0 + k]
     for f in range(K):
         moment = 0.0
         for k in range(K):
             moment += state[k] * aux[c0 + k * K + f]
         if moment != 0.0:
-            capture_gain(out, w * moment, f, m, xd, xl)
+            capture_gain(out, w * moment, f, m, xd, xl, skip)
     return loss
 
 
 @nb.njit(cache=True)
-def _dry_capture(state, out, aux, m, c0, w, at_point, xd, xl):
-    """Droplets captured by dry granules: L_e = w sum_k Cdd[k, e] D_k leaves the dry class
-    and enters the wet one as (p + p_d)^i b_d^j, through the tabulated CAPMAP of the sprayed
-    droplet, or with ``at_point`` (AUX_CAPTURE_MOMENTS) at the droplet's scaled point (xd, xl)
-    (the granule's own moment e plus ``capture_gain``); returns L_0, the droplets lost."""
+def _dry_capture(state, out, aux, m, c0, w, at_point, xd, xl, dry_low):
+    """Droplets captured by dry granules: L_e = w sum_k Cdd[k, e] D_k (e >= dry_low: the
+    points give the others) leaves the dry class and enters the wet one as (p + p_d)^i b_d^j,
+    through the tabulated CAPMAP of the sprayed droplet, or with ``at_point``
+    (AUX_CAPTURE_MOMENTS) at the droplet's scaled point (xd, xl) (the granule's own moment e
+    plus ``capture_gain``); returns L_0, the droplets lost (0 with dry_low > 0)."""
     K = m * m
     cap = int(aux[AUX_OFF_CAPMAP])
     loss = 0.0
-    for e in range(m):
+    for e in range(dry_low, m):
         acc = 0.0
         for k in range(m):
             acc += state[K + k] * aux[c0 + k * m + e]
@@ -206,7 +201,7 @@ def _dry_capture(state, out, aux, m, c0, w, at_point, xd, xl):
         out[K + e] -= lost
         if at_point:
             out[e * m] += lost
-            capture_gain(out, lost, e * m, m, xd, xl)
+            capture_gain(out, lost, e * m, m, xd, xl, 0)
         else:
             for a in range(K):
                 out[a] += aux[cap + e * K + a] * lost
@@ -219,9 +214,12 @@ def _dry_capture(state, out, aux, m, c0, w, at_point, xd, xl):
 AGGREGATION_TERMS = 1
 CAPTURE_TERMS = 2
 ALL_TERMS = AGGREGATION_TERMS | CAPTURE_TERMS
-#: with AGGREGATION_TERMS: leave out the wet-wet aggregation's rows of order 0 and 2 (W00,
-#: W20, W11, W02), which ``number_points`` then gives
+#: leave out the wet-wet aggregation's rows of order 0 and 2 (W00, W20, W11, W02), which
+#: ``number_points`` then gives
 WITHOUT_POINT_ROWS = 4
+#: also leave out the dry-wet aggregation's and the capture's wet rows of order <= 2, dry rows
+#: e < DRY_POINT_ORDERS and droplets lost, which ``number_points`` then gives
+WITHOUT_CROSS_ROWS = 8
 
 
 @nb.njit(cache=True)
@@ -240,6 +238,8 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
     capture = nd != 0.0 and aux[AUX_SEPARATE] == 1.0 and (terms & CAPTURE_TERMS) != 0
     aggregation = (terms & AGGREGATION_TERMS) != 0
     skip = points_rows(m) if (terms & WITHOUT_POINT_ROWS) != 0 else 0
+    low = low_rows(m) if (terms & WITHOUT_CROSS_ROWS) != 0 else 0
+    dry_low = min(m, DRY_POINT_ORDERS) if low != 0 else 0
     at_point = aux[AUX_CAPTURE_MOMENTS] == 1.0
     loss = 0.0
     for sc in range(2):
@@ -253,7 +253,7 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
                                 int(aux[AUX_OFF_QDD]) + s * npd * m, mult * ws)
             if capture:
                 loss += _dry_capture(state, out, aux, m, int(aux[AUX_OFF_CDD]) + s * m * m,
-                                     mult * ws * nd, at_point, xd, xl)
+                                     mult * ws * nd, at_point, xd, xl, dry_low)
         if not wet:
             continue
         for q in range(N_CORNERS):
@@ -268,14 +268,15 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
             if dry and aggregation:
                 _dry_wet_aggregation(state, out, aux, m,
                                      int(aux[AUX_OFF_X]) + ws_ * m * K * K,
-                                     int(aux[AUX_OFF_XL]) + ws_ * m * K * m, mult * f)
+                                     int(aux[AUX_OFF_XL]) + ws_ * m * K * m, mult * f, low,
+                                     dry_low)
             if capture and at_point:
                 loss += _wet_capture_at(state, out, aux, m, int(aux[AUX_OFF_CD]) + ws_ * K * K,
                                         int(aux[AUX_OFF_CD0]) + ws_ * K, mult * f * nd, xd,
-                                        xl)
+                                        xl, low)
             elif capture:
                 loss += _wet_capture(state, out, aux, m, int(aux[AUX_OFF_CD]) + ws_ * K * K,
-                                     int(aux[AUX_OFF_CD0]) + ws_ * K, mult * f * nd)
+                                     int(aux[AUX_OFF_CD0]) + ws_ * K, mult * f * nd, low)
     return loss
 
 
@@ -288,8 +289,8 @@ def _below_lowest_fraction(state, out, aux, m, mult, nd, dry, i0, t, xd, xl, shi
     m; ``position.scale_binder``) and scaled back. The droplet's liquid xl scales with it, so
     the capture gains at the droplet's point scale back exactly; a tabulated capture (the
     sprayed droplet's gain, which cannot scale), and any capture below LIQUID_FLOOR, is
-    evaluated on the state itself. ``skip``: WITHOUT_POINT_ROWS or 0. Returns the droplets
-    lost."""
+    evaluated on the state itself. ``skip``: WITHOUT_POINT_ROWS and WITHOUT_CROSS_ROWS, or
+    0. Returns the droplets lost."""
     K = m * m
     scale_binder(state, scratch, aux, m, K + m, shift)
     # the capture at the droplet's point scales with the class above LIQUID_FLOOR (below it
@@ -305,7 +306,7 @@ def _below_lowest_fraction(state, out, aux, m, mult, nd, dry, i0, t, xd, xl, shi
     if not scaled_capture:
         loss += _aggregation_and_capture(state, out, aux, m, mult, nd, True, dry,
                                          _weight_position(state, aux, m), i0, t, xd, xl,
-                                         CAPTURE_TERMS)
+                                         CAPTURE_TERMS | skip)
     return loss
 
 
@@ -345,7 +346,9 @@ def laguerre_rhs(state, out, cell, aux, params, config, work=None):
         i0, t = _slice_position(cell, aux)
         xd = pd / params[P.MASS_SCALE]
         xl = bd / params[P.MASS_SCALE]
-        skip = WITHOUT_POINT_ROWS if (aux[AUX_NUMBER_POINTS] == 1.0 and wet and m >= 3) else 0
+        skip = 0
+        if aux[AUX_NUMBER_POINTS] == 1.0 and m >= 3:
+            skip = WITHOUT_POINT_ROWS | WITHOUT_CROSS_ROWS
         shift = binder_shift(state, aux, m) if wet else 0.0
         if shift == 0.0:
             loss = _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry,
@@ -358,11 +361,8 @@ def laguerre_rhs(state, out, cell, aux, params, config, work=None):
             loss = _below_lowest_fraction(state, out, aux, m, mult, nd, dry, i0, t, xd, xl,
                                           shift, work, skip)
         if skip != 0:
-            n00, n20, n11, n02 = wet_pair_rates(state, cell, aux, params, config, d43)
-            out[0] += n00
-            out[2 * m] += n20
-            out[m + 1] += n11
-            out[2] += n02
+            loss += add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd,
+                                    True)
         if separate:
             out[droplets] = -loss
     if config[P.BREAKAGE] == 1 or config[P.DRYING] == 1:     # laguerre_breakage, _drying

@@ -381,9 +381,10 @@ def aux_for_scene(scene, arrays, theta_grid=None, cache_dir=None):
 
 
 def number_closure(following, given=None):
-    """The wet number row's closure ("tensor" or "points"): ``given``, or by default "points"
-    with the following support (measured on the batch proxies and the held-out suite,
-    docs/results/laguerre.md: the tensors' row turns positive for a broad class) and
+    """The closure of the rows of order <= 2 ("tensor" or "points"): ``given``, or by
+    default "points" with the following support (measured on the batch proxies, the bed
+    batch and the held-out suite, docs/results/laguerre.md: the tensors' number row turns
+    positive for a broad class, their capture pushes a class born at one mass outside) and
     "tensor" with the fixed seed support (where the tensors are exact or within 1.5%)."""
     return given or ("points" if following else "tensor")
 
@@ -455,7 +456,7 @@ def scene_keys(t, defaults):
     kw["following_growth"] = t.number("following_growth", defaults.following_growth,
                                       low=2.0, high=1e9)
     kw["following_shape"] = t.boolean("following_shape", defaults.following_shape)
-    # the wet number row; not given: ``number_closure`` decides with the following support
+    # the rows of order <= 2; not given: ``number_closure`` decides with the following support
     if t.has("number_closure"):
         kw["number_closure"] = t.choice("number_closure", tuple(NUMBER_CLOSURES))
     return kw

@@ -90,3 +90,24 @@ def test_sprayed_drying_cell_runs_to_its_end_realizable():
     assert np.all(w10 ** 2 <= w00 * w20 * (1.0 + slack))
     assert np.all(w01 ** 2 <= w00 * w02 * (1.0 + slack))
     assert np.all(w02 <= w11 * (1.0 + slack)) and np.all(w11 <= w20 * (1.0 + slack))
+
+
+def test_the_points_of_a_last_trace_of_liquid_are_one_point():
+    """A wet class that has dried to a trace of liquid (W01 = 1e-159 of W10; the bed batch
+    reaches it ~350 s into its drying) and whose carried W02 lies a little below W01^2 / W00:
+    the half-width of the liquid pair, 1e-3 of the liquid, squares to 0 in floating point.
+    Its points are the class's mass node with the liquid at one point, weights W00, liquid
+    W01 (no division by the squared half-width: inside the integrator that raised a
+    ZeroDivisionError that numba's function pointers cannot pass on, and the RHS went on with
+    what it had)."""
+    from pbe_cfd.methods.laguerre.drying import N_POINTS, _point, wet_points
+    m = 3
+    state = np.zeros(m * m + m)
+    state[0], state[m], state[2 * m] = 1.0, 0.6, 0.36          # one mass, 0.6 (scaled)
+    state[1], state[2] = 1e-159, 0.5e-318                        # W01, W02 < W01^2 / W00
+    state[m + 1], state[m + 2] = 0.6e-159, 0.3e-318
+    pts = wet_points(state, m)
+    points = [_point(q, pts) for q in range(N_POINTS)]
+    assert sum(w for _, _, w in points) == 1.0
+    assert sum(w * b for _, b, w in points) == 1e-159
+    assert all(x == pytest.approx(0.6, rel=1e-15, abs=0) for x, _, w in points if w != 0.0)
