@@ -276,3 +276,23 @@ def test_a_truncated_vtu_is_one_error_and_nothing_printed(tmp_path, capfd):
     assert "\n" not in str(err.value)
     out, errs = capfd.readouterr()
     assert out == "" and errs == "", (out, errs)
+
+
+def test_a_dried_bed_draws_on_a_log_axis_without_an_overflow(tmp_path):
+    """A batch's binder fraction falls to 4e-316 as its granules dry: the panel spans 300
+    decades, drawn on a log axis, and the span is judged without the ratio max / min, which
+    overflows to inf (a RuntimeWarning in every batch's run)."""
+    import warnings
+    from pbe_cfd.viz.render import bed_moments_figure
+    t = np.linspace(0, 1800, 7)
+    cols = {"time_s": t, "M00": np.full_like(t, 1e11), "d43_m": np.full_like(t, 2e-4),
+            "binder_fraction": np.array([0.01, 0.05, 0.03, 1e-3, 1e-186, 4e-316, 4e-316])}
+    csv = tmp_path / "bed_moments.csv"
+    csv.write_text(",".join(cols) + "\n" + "\n".join(
+        ",".join(repr(float(cols[k][i])) for k in cols) for i in range(len(t))) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fig = bed_moments_figure(csv, title="dried")
+    axis = [ax for ax in fig.axes
+            if "binder_fraction" in [ln.get_label() for ln in ax.get_lines()]][0]
+    assert axis.get_yscale() == "log"
