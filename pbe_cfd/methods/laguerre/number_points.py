@@ -39,7 +39,7 @@ droplets lose, the wet class gains, pair by pair: M10 and M01 stay exact. A dry 
 mass (the start of wet granulation) then feeds a wet class at one mass, on the boundary
 W00 W20 = W10^2 and not outside it; the tensors on the dry class's signed reconstruction
 gave the young wet class W00 W20 / W10^2 = 0.83 on the bed batch's cell
-(docs/results/batch.md). The wet rows of order 3 and 4 of the dry-wet and wet capture terms,
+(docs/results/laguerre.md). The wet rows of order 3 and 4 of the dry-wet and wet capture terms,
 and the dry rows of order >= 3, keep the tensors' sources.
 """
 import numba as nb
