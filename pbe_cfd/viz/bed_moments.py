@@ -88,6 +88,10 @@ def _scaled_axis(ax, unit: str):
 
 #: line styles of the curves of one panel, in drawing order
 _LINE_STYLES = ("-", "--", ":", "-.")
+#: a log axis shows at most this many decades below its panel's largest value (ours: a
+#: moisture from 5% down to 1e-10, a number over ten orders, stay readable; what falls
+#: below leaves the panel at its bottom)
+LOG_DECADES = 12
 
 #: Drawing cost of bed_moments.png in the units of the field pictures' tasks (``render``: 0.4
 #: + 0.6 per picture): measured warm on the bundled fluid bed, 1.0 s of CPU for its seven
@@ -150,6 +154,10 @@ def bed_moments_figure(csv_path: str | os.PathLike, title: str | None = None):
             ax.set_yscale("log")
             ax.minorticks_off()      # decades and the grid: minor ticks cost a third of the draw
             name += " (log scale)"
+            if pos.min() < pos.max() * 10.0 ** -LOG_DECADES:
+                # a dried bed's liquid falls to 1e-316: its 300 decades would flatten the rest
+                ax.set_ylim(pos.max() * 10.0 ** -LOG_DECADES, pos.max() * 3.0)
+                name += f", {LOG_DECADES} decades"
             ax.set_ylabel(f"[{unit}]", fontsize=9)
         else:
             _scaled_axis(ax, unit)

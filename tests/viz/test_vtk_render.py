@@ -280,8 +280,9 @@ def test_a_truncated_vtu_is_one_error_and_nothing_printed(tmp_path, capfd):
 
 def test_a_dried_bed_draws_on_a_log_axis_without_an_overflow(tmp_path):
     """A batch's binder fraction falls to 4e-316 as its granules dry: the panel spans 300
-    decades, drawn on a log axis, and the span is judged without the ratio max / min, which
-    overflows to inf (a RuntimeWarning in every batch's run)."""
+    decades, drawn on a log axis of LOG_DECADES below its largest value, and the span is
+    judged without the ratio max / min, which overflows to inf (a RuntimeWarning in every
+    batch's run)."""
     import warnings
     from pbe_cfd.viz.render import bed_moments_figure
     t = np.linspace(0, 1800, 7)
@@ -296,3 +297,6 @@ def test_a_dried_bed_draws_on_a_log_axis_without_an_overflow(tmp_path):
     axis = [ax for ax in fig.axes
             if "binder_fraction" in [ln.get_label() for ln in ax.get_lines()]][0]
     assert axis.get_yscale() == "log"
+    # the 300 decades do not flatten the spray's: the axis ends 12 decades below 0.05
+    from pbe_cfd.viz.bed_moments import LOG_DECADES
+    assert axis.get_ylim()[0] == pytest.approx(0.05 * 10.0 ** -LOG_DECADES, rel=1e-12, abs=0)
