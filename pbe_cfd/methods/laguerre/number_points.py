@@ -72,19 +72,6 @@ def dry_points(state, m):
 
 
 @nb.njit(cache=True)
-def wet_pair_rates(state, cell, aux, params, config, d43):
-    """(dW~00/dt, dW~20/dt, dW~11/dt, dW~02/dt) of wet-wet aggregation [scaled moments per
-    s] on the wet point measure (module docstring). state: scaled moments; cell: the cell's
-    row (ALPHA [-], THETA [m2/s2], COLLISION_VELOCITY [m/s]: 4 sqrt(Theta / pi) where not
-    positive); d43 [m]: the cell's volume-mean diameter (the ktgf kernel's cell factor).
-    The wet-wet term of ``add_point_terms`` alone."""
-    out = np.zeros(int(config[P.N_STATE]))
-    add_point_terms(state, out, cell, aux, params, config, d43, 0.0, 0.0, 0.0, False)
-    m = int(aux[AUX_ORDER])
-    return out[0], out[2 * m], out[m + 1], out[2]
-
-
-@nb.njit(cache=True)
 def _wet_wet(out, m, props, mass, liquid, weights, factor, u0, own, config):
     """The wet-wet rows W00, W20, W11, W02 over the wet points (module docstring)."""
     number = 0.0                        # each sum: 1/2 of the ordered double sum
@@ -152,7 +139,8 @@ def _dry_wet(out, m, props, dry_mass, dry_weights, mass, liquid, weights, factor
 
 
 @nb.njit(cache=True)
-def _dry_capture(out, m, props, dry_mass, dry_weights, xd, xl, kd, factor, u0, own, config):
+def _dry_capture_on_points(out, m, props, dry_mass, dry_weights, xd, xl, kd, factor, u0, own,
+                           config):
     """Dry + droplet -> wet: L_e = kd sum_r w_r beta_rd x_r^e (e < 3) leaves D_e and enters
     every wet row as sum_e C(i, e) x_d^(i - e) x_l^j L_e; returns L_0, the droplets lost."""
     K = m * m
@@ -174,7 +162,8 @@ def _dry_capture(out, m, props, dry_mass, dry_weights, xd, xl, kd, factor, u0, o
 
 
 @nb.njit(cache=True)
-def _wet_capture(out, m, props, mass, liquid, weights, xd, xl, kd, factor, u0, own, config):
+def _wet_capture_on_points(out, m, props, mass, liquid, weights, xd, xl, kd, factor, u0, own,
+                           config):
     """Wet + droplet -> wet: the wet rows of order <= 2 of (x_s + x_d)^i (b_s + x_l)^j -
     x_s^i b_s^j, kd sum_s w_s beta_sd per row; returns the droplets lost (0 where the sum is
     not positive: then nothing is added)."""
@@ -205,8 +194,10 @@ def _wet_capture(out, m, props, mass, liquid, weights, xd, xl, kd, factor, u0, o
 def add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd, cross):
     """Add the rows of order <= 2 of aggregation and droplet capture on the point measures
     [scaled moments per s] to ``out``; return the droplets captured [scaled per s]. state:
-    scaled moments; cell: the cell's row (``wet_pair_rates``); d43 [m]; nd: the free
-    droplets [scaled]; pd, bd: one droplet's mass and liquid [kg].
+    scaled moments; cell: the cell's row (ALPHA [-], THETA [m2/s2], COLLISION_VELOCITY [m/s]:
+    4 sqrt(Theta / pi) where not positive); d43 [m]: the cell's volume-mean diameter (the
+    ktgf kernel's cell factor); nd: the free droplets [scaled]; pd, bd: one droplet's mass
+    and liquid [kg].
 
     Always the wet-wet rows W00, W20, W11, W02 (module docstring); with ``cross`` also the
     dry-wet aggregation's wet rows of order <= 2 and dry rows D_e (e < 3) over the dry points
@@ -254,7 +245,7 @@ def add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd, cros
     kd = own[P.NUMBER_SCALE] * nd * own[P.DROPLET_FACTOR]   # [1/s per (m3/s) of pair rate]
     xd = pd / pref
     xl = bd / pref
-    lost = _dry_capture(out, m, props, dry_mass, dry_weights, xd, xl, kd, factor, u0, own,
-                        config)
-    return lost + _wet_capture(out, m, props, mass, liquid, weights, xd, xl, kd, factor, u0,
-                               own, config)
+    lost = _dry_capture_on_points(out, m, props, dry_mass, dry_weights, xd, xl, kd, factor,
+                                  u0, own, config)
+    return lost + _wet_capture_on_points(out, m, props, mass, liquid, weights, xd, xl, kd,
+                                         factor, u0, own, config)

@@ -21,7 +21,7 @@ import pytest
 
 from pbe_cfd.methods.laguerre.drying import gamma_nodes
 from pbe_cfd.methods.laguerre.layout import AUX_HEADER, AUX_ORDER
-from pbe_cfd.methods.laguerre.number_points import add_point_terms, wet_pair_rates
+from pbe_cfd.methods.laguerre.number_points import add_point_terms
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.physics.kernels import CONSTANT, PRODUCT, SUM
 
@@ -63,7 +63,9 @@ def test_wet_pair_rates_are_the_closed_forms(kernel):
             SUM: (-k * w00 * w10, 2 * k * w20 * w10, k * (w20 * w01 + w11 * w10),
                   2 * k * w11 * w01),
             PRODUCT: (-0.5 * k * w10 * w10, k * w20 * w20, k * w20 * w11, k * w11 * w11)}
-    got = wet_pair_rates(s, cell, aux, params, config, 0.0)
+    out = np.zeros(int(config[P.N_STATE]))
+    add_point_terms(s, out, cell, aux, params, config, 0.0, 0.0, 0.0, 0.0, False)
+    got = (out[0], out[2 * M], out[M + 1], out[2])
     for name, g, w in zip(("W00", "W20", "W11", "W02"), got, want[kernel]):
         assert g == pytest.approx(w, rel=REL, abs=0), name
     assert got[0] < 0.0 < min(got[1:])
