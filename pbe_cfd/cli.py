@@ -426,6 +426,7 @@ def _on_signal(signum, frame):
 
 def main(argv=None):
     from .runs.batch import SimulationError
+    from .integrate.faults import MethodRaised
     from .io.output import OutputFailed, UsageError, interrupted_text, release_claims
     from .scene.scene import SceneError
 
@@ -435,7 +436,7 @@ def main(argv=None):
         return args.func(args)
     except (SceneError, UsageError) as exc:
         return _fail(str(exc), 2)
-    except (SimulationError, OutputFailed) as exc:
+    except (SimulationError, OutputFailed, MethodRaised) as exc:
         return _fail(str(exc), 1)
     except FileNotFoundError as exc:
         return _fail(str(exc), 2)

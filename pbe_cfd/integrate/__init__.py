@@ -32,10 +32,11 @@ import numpy as np
 
 from ..physics import parameters as P
 from ..util.threads import run_shares, run_threads
+from . import faults
 from .cell import integrate_cell, integrate_cells_kernel  # noqa: F401
 from .codes import (ACCEPTED, AUTO, EXPLICIT, EXPONENTIAL_STEPS, IMPLICIT,  # noqa: F401
                     IMPLICIT_STEPS, JACOBIANS,
-                    MAX_STEPS_PER_INTERVAL, N_STATS, NOT_FINITE, OK, REJECTED_ERROR,
+                    MAX_STEPS_PER_INTERVAL, METHOD_RAISED, N_STATS, NOT_FINITE, OK, REJECTED_ERROR,
                     REJECTED_REALIZABILITY, REJECTED_SWITCH, RHS_CALLS, SCHEMES,
                     STOKES_EVENTS, STATUS_TEXT, STEP_BELOW_FLOOR,
                     SWITCHES, TOO_MANY_STEPS, UNREALIZABLE_START)
@@ -54,7 +55,9 @@ def integrate_cells(states, cells, aux, params, config, t_start, t_end, steps, r
     kernel); steps (n_cells,) step memory [s] (negative: an auto cell is implicit);
     rtol, atol [-] tolerances on the scaled state; max_steps per cell and call;
     stats (n_cells, N_STATS) counters accumulated; status (n_cells,) int codes and
-    reached (n_cells,) the time [s] each cell got to.
+    reached (n_cells,) the time [s] each cell got to. A cell whose method functions raise an
+    exception (which numba's entry points cannot pass on: ``faults``) is put back to its
+    start with status METHOD_RAISED.
     """
     # the method's functions take C-contiguous rows: another layout runs on a copy
     given = states
@@ -64,10 +67,46 @@ def integrate_cells(states, cells, aux, params, config, t_start, t_end, steps, r
     method, scheme = int(config[P.METHOD]), int(config[P.INTEGRATOR])
     share = kernel(method, scheme, args)
     threads = min(run_threads(), max(1, states.shape[0]))
+    before = tuple(args[i].copy() for i in _WRITTEN)
     # share k: the rows k, k + threads, ...; every share done when this returns
-    run_shares(lambda k: share(k, threads), range(threads), "cells")
+    caught = run_shares(lambda k: faults.watched(share, k, threads), range(threads), "cells")
+    if any(f.count for f in caught):
+        _stop_raising_cells(method, scheme, args, before)
     if states is not given:
         given[...] = states
+
+
+#: positions in integrate_cells' arguments of the arrays it writes (states, steps, stats,
+#: status, reached) and of those with a row per cell (these and the cells' fields)
+_WRITTEN = (0, 7, 11, 12, 13)
+_PER_CELL = (0, 1, 7, 11, 12, 13)
+
+
+def _stop_raising_cells(method, scheme, args, before):
+    """After a call of the kernel in which the method's functions raised (``faults``): every
+    cell integrated again alone from the call's start (``before``: states, steps, stats,
+    status, reached as they were); a cell that raises again is put back to its start with
+    status METHOD_RAISED, the others keep their result (the same as in the shared call: a
+    cell's numbers do not depend on the others)."""
+    written = tuple(args[i] for i in _WRITTEN)
+    for now, then in zip(written, before):
+        now[...] = then
+    raising = []
+    for c in np.flatnonzero(before[3] == OK):
+        one = slice(c, c + 1)
+        row = tuple(a[one] if i in _PER_CELL else a for i, a in enumerate(args))
+        share = kernel(method, scheme, row)
+        if faults.watched(share, 0, 1).count:
+            raising.append(c)
+    if not raising:
+        raise faults.MethodRaised("the method's functions raised an exception inside the integrator "
+                           f"({faults.last_text()}), and no cell raised it again when "
+                           "integrated alone")
+    for c in raising:
+        for now, then in zip(written, before):
+            now[c] = then[c]
+        written[3][c] = METHOD_RAISED
+        written[4][c] = args[5]
 
 
 _KERNELS = {}
@@ -96,6 +135,8 @@ def failure_reason(code, stats, params, config) -> str:
     """Why a cell stopped: STATUS_TEXT of its status code and, for a stalled step controller,
     what the cell's counters (stats row) say about the cause."""
     text = STATUS_TEXT[int(code)]
+    if code == METHOD_RAISED:
+        return f"{text} (it raised {faults.last_text()})"
     if code not in (STEP_BELOW_FLOOR, TOO_MANY_STEPS):
         return text
     if stalled_on_a_jump(code, stats):

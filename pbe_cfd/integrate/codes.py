@@ -20,6 +20,9 @@ STATUS_TABLE = (
     ("TOO_MANY_STEPS", "the step budget of one output interval ran out (the cell's rates are "
                        "far faster than the output interval)"),
     ("UNREALIZABLE_START", "the initial moment set is not realizable"),
+    ("METHOD_RAISED", "the method's functions raised an exception inside the integrator, so "
+                      "its rates were not whole; the cell is kept at the start of the "
+                      "interval"),
 )
 numbered(STATUS_TABLE, globals())
 STATUS_TEXT = {globals()[name]: text for name, text in STATUS_TABLE}

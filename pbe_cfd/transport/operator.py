@@ -50,6 +50,7 @@ import scipy.sparse as sp
 from numba import typeof
 from numba.core import types
 
+from ..integrate import faults
 from ..integrate.kernel_types import addresses_of, layout_key, signatures
 from .solids_flux import (ActiveFlux, circulation_time, restrict_and_correct, upwind_generator,
                           vertical_axis)
@@ -498,7 +499,14 @@ def unrealizable_cells(states, aux, params, config, fix=False):
     changed = np.zeros(states.shape[0])
     args = (states, aux, params, config, changed, np.empty(WORK_SIZE), bool(fix))
     entry, functions = _repair_kernel(int(config[P.METHOD]), args)
-    n = entry(functions.realizable, functions.project, *args)
+    counted = []
+    caught = faults.watched(lambda: counted.append(
+        entry(functions.realizable, functions.project, *args)))
+    if caught.count:
+        raise faults.MethodRaised(
+            f"the method's realizability test or projection raised {caught.first} on "
+            f"{states.shape[0]} transported cell state(s) ({caught.count} time(s))")
+    n = counted[0]
     if fix and n and states is not given:
         given[...] = states
     return int(n), float(changed.max()) if changed.size else 0.0
