@@ -99,9 +99,9 @@ def _stop_raising_cells(method, scheme, args, before):
         if faults.watched(share, 0, 1).count:
             raising.append(c)
     if not raising:
-        raise faults.MethodRaised("the method's functions raised an exception inside the integrator "
-                           f"({faults.last_text()}), and no cell raised it again when "
-                           "integrated alone")
+        raise faults.MethodRaised(
+            "the method's functions raised an exception inside the integrator "
+            f"({faults.last_text()}), and no cell raised it again when integrated alone")
     for c in raising:
         for now, then in zip(written, before):
             now[c] = then[c]

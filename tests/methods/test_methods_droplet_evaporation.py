@@ -249,3 +249,47 @@ def test_sprayed_droplets_evaporate_the_closure_share_before_capture(method):
     assert np.allclose(held + c["liquid_evaporated"], c["liquid_sprayed"], rtol=1e-8,
                        atol=1e-8 * c["liquid_sprayed"][-1])
     assert c["liquid_droplets"][-1] > 0.0 and c["liquid_evaporated"][-1] > 0.0
+
+
+def test_cnmc_sprayed_droplets_dry_from_their_own_spraying():
+    """A constant spray of pure-liquid droplets, none captured, in a box where they are 1% of
+    the particles (n_box = R tau V ~ 40 droplets per box: 40 events per droplet life, against
+    the N / 32 = 125 proposals between two drifts that count events). Each droplet lives
+    the d^2 law from its own spraying, so with ages uniform over [0, min(t, tau)]:
+    n_d = R min(t, tau), L_d = R b0 tau (2/5) (1 - (1 - min(t, tau)/tau)^(5/2)).
+
+    Bounds: the box drifts at least every delta = DRIFT_SHARE b0 / e(b0) = DRIFT_SHARE (2/3)
+    tau (``cnmc.drying``; e(b0) = 3 b0 / (2 tau) by the d^2 law), and a droplet sprayed within
+    a step is dried from the step's start, at most delta too long: L_d falls short by at most
+    R int_0^delta b(a) da <= R b0 delta (relative to the steady L_d: delta / (0.4 tau)), n_d by
+    at most R delta; one droplet more or less in a box is
+    1 / n_box of n_d and at most b0 / (0.4 b0 n_box) of L_d. The mean over the outputs after
+    tau must lie within the sum. (A drift only every 125 events dried every droplet from the
+    last drift, more than its life here: L_d 55% short, n_d 50%.)"""
+    from pbe_cfd.methods.cnmc.drying import DRIFT_SHARE
+    _, tau = _pure_liquid(0.0)
+    b0 = RHO_L * math.pi / 6.0 * D0 ** 3
+    n0, rate, particles = 1.0e11, 1.0e9 / tau, 4000
+    scene = make_scene(scene={"end_time": 4.0 * tau, "output_interval": tau / 4},
+                       material={"density": RHO_S, "binder_density": RHO_L},
+                       initial={"mean_mass": 1e-9, "number_density": n0,
+                                "binder_fraction": 0.0},
+                       aggregation={"kernel": "constant", "rate": 1e-30,
+                                    "droplet_factor": 1e-30},
+                       binder_injection={"rate": rate, "droplet_diameter": D0},
+                       drying={**AIR, "critical_moisture": 0.05},
+                       method={"_replace": True, "name": "cnmc", "particles": particles,
+                               "replicas": 16, "seed": 11})
+    c = run_well_mixed(scene).columns
+    t = c["time_s"]
+    u = np.minimum(t, tau) / tau
+    liquid = rate * b0 * tau * 0.4 * (1.0 - (1.0 - u) ** 2.5)
+    number = rate * np.minimum(t, tau)
+    n_box = particles * number[-1] / (n0 + number[-1])
+    late = t >= tau
+    assert late.sum() >= 12
+    held = np.mean(c["M01"][late] / liquid[late]) - 1.0
+    share = DRIFT_SHARE * 2.0 / 3.0                 # delta / tau
+    assert abs(held) <= share / 0.4 + 1.0 / (0.4 * n_box)
+    count = np.mean(c["droplet_number_density"][late] / number[late]) - 1.0
+    assert abs(count) <= share + 1.0 / n_box

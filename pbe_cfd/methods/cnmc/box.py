@@ -12,25 +12,16 @@ from ...physics.breakage import cell_selection_factor
 from ...physics.kernels import collision_frequency
 from ...physics.rates import aggregation_rate
 from .breakage import breakage_trial, breakage_weights
-from .droplets import capture_rate, new_drying_array
-from .drying import drift_box, drift_due
+from .droplets import DRIFT_STEP, capture_rate, new_drying_array
+from .drying import DRIFT_SHARE, drift_box, drift_due, spray_drying_time
 from .slots import C_D as _C_D
 from .slots import N_BINS, Particles, Slots
 from .slots import d4 as _d4
 from .slots import insert_slot as _insert
 from .slots import remove_slot as _remove
-
-MOMENT_NAMES = ("M00", "M10", "M01", "M20", "M11", "M02")
-QUANTITY_NAMES = MOMENT_NAMES + ("droplet_number_density", "d32_m", "d43_m", "binder_fraction")
-N_QUANTITIES = len(QUANTITY_NAMES)
-
-#: the size-class lattice of the box's mass histogram: edges d_k = 10^(LO + k / PER_DECADE) m,
-#: k = 0 .. PSD_BINS (0.1 um to 1 m); a granule outside it is counted in the end class
-PSD_LOG10_LO = -7.0
-PSD_PER_DECADE = 50
-PSD_BINS = 7 * PSD_PER_DECADE
-#: the mass fractions of the box's exact percentiles (d10, d50, d90)
-PSD_FRACTIONS = (0.1, 0.5, 0.9)
+from .quantities import (MOMENT_NAMES, N_QUANTITIES, PSD_BINS, PSD_FRACTIONS,  # noqa: F401
+                         PSD_LOG10_LO, PSD_PER_DECADE, QUANTITY_NAMES, box_quantities,
+                         box_size_classes, store_output)
 
 # run_box status codes
 STATUS_OK = 0
@@ -117,89 +108,6 @@ def _bound_row(c, lo, hi, table, tabd, alpha, theta, d43, dlo, params, config):
 
 
 @nb.njit(cache=True)
-def box_size_classes(p, b, isdrop, rho, classes, percentiles):
-    """The granules' (isdrop 0) mass and binder mass [kg] per class of the size lattice
-    (PSD_LOG10_LO, PSD_PER_DECADE; ``classes`` (PSD_BINS, 2), overwritten) and their exact
-    mass-based percentiles [m] at PSD_FRACTIONS (``percentiles``, 3): the diameter of the
-    first granule, in order of mass, at which the cumulative mass reaches the fraction.
-    p, b [kg]; rho the particle density [kg/m3]. No granule: percentiles 0."""
-    classes[:, :] = 0.0
-    n_bins = classes.shape[0]
-    total = 0.0
-    for k in range(p.size):
-        if isdrop[k] != 0:
-            continue
-        d = (_C_D * p[k] / rho) ** (1.0 / 3.0)
-        j = int(math.floor((math.log10(d) - PSD_LOG10_LO) * PSD_PER_DECADE))
-        j = min(max(j, 0), n_bins - 1)
-        classes[j, 0] += p[k]
-        classes[j, 1] += b[k]
-        total += p[k]
-    percentiles[:] = 0.0
-    if total <= 0.0:
-        return
-    order = np.argsort(p)
-    acc = 0.0
-    q = 0
-    for i in range(order.size):
-        k = order[i]
-        if isdrop[k] != 0:
-            continue
-        acc += p[k]
-        while q < 3 and acc >= PSD_FRACTIONS[q] * total:
-            percentiles[q] = (_C_D * p[k] / rho) ** (1.0 / 3.0)
-            q += 1
-        if q == 3:
-            break
-
-
-@nb.njit(cache=True)
-def box_quantities(p, b, isdrop, conc, rho, row):
-    """Fill ``row`` (length N_QUANTITIES, order QUANTITY_NAMES) from the box.
-
-    p, b [kg]; isdrop 1 for a free droplet; conc the box's mass concentration M10 [kg/m3],
-    which sets the volume V = sum p / conc [m3]; rho the particle density [kg/m3].
-    Moments are SI per m3 of the whole population (free droplets included).
-    """
-    n = p.size
-    sp = 0.0
-    sb = 0.0
-    spp = 0.0
-    spb = 0.0
-    sbb = 0.0
-    s2 = 0.0
-    s3 = 0.0
-    s4 = 0.0
-    nd = 0
-    for k in range(n):
-        pk = p[k]
-        bk = b[k]
-        sp += pk
-        sb += bk
-        spp += pk * pk
-        spb += pk * bk
-        sbb += bk * bk
-        d = (_C_D * pk / rho) ** (1.0 / 3.0)
-        d2 = d * d
-        s2 += d2
-        s3 += d2 * d
-        s4 += d2 * d2
-        if isdrop[k] != 0:
-            nd += 1
-    vol = sp / conc
-    row[0] = n / vol
-    row[1] = sp / vol
-    row[2] = sb / vol
-    row[3] = spp / vol
-    row[4] = spb / vol
-    row[5] = sbb / vol
-    row[6] = nd / vol
-    row[7] = s3 / s2
-    row[8] = s4 / s3
-    row[9] = sb / sp
-
-
-@nb.njit(cache=True)
 def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
             exponential_dt, max_trials, out):
     """``run_box_with_sizes`` without the size classes and percentiles (arguments and
@@ -216,18 +124,16 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
                        exponential_dt, max_trials, out, classes, percentiles, evaporated):
     """One cNMC replica. Mutates p, b, isdrop (the final box) and fills ``out``.
 
-    p, b: float64 [kg], length N (N >= 2 for aggregation); isdrop: int64 flags, 1 = free
-    droplet (set to 0 unless config[SEPARATE_DROPLETS] == 1); volume0: initial box volume
-    [m3]; output_times [s], non-decreasing, from 0; cell: ALPHA [-], THETA [m2/s2],
-    COLLISION_VELOCITY [m/s], INJECTION [droplets/(m3 s)]; params, config: physics.parameters;
-    rng_seed: seed of numba's generator; exponential_dt: 0 = mean waiting time 1/R per trial
-    (seed 000), 1 = exponential; max_trials: budget of proposals; out: (len(output_times),
-    N_QUANTITIES), columns QUANTITY_NAMES (rows not reached: NaN); classes (n_out, PSD_BINS,
-    2), percentiles (n_out, 3): ``box_size_classes`` per output time; evaporated (n_out): the
-    liquid evaporated by then [kg/m3] (``methods.cnmc.drying``). Returns (trials, accepted,
-    injections, violations, status, t_reached [s], break_trials, splits): aggregation proposals
-    and aggregations, injections, proposals above their majorant (must be 0), a STATUS_* code,
-    breakage proposals and breakages (``methods.cnmc_breakage``)."""
+    p, b: float64 [kg], length N (N >= 2 for aggregation); isdrop: int64, 1 = free droplet
+    (0 unless config[SEPARATE_DROPLETS] == 1); volume0: box volume [m3]; output_times [s],
+    non-decreasing, from 0; cell: ALPHA [-], THETA [m2/s2], COLLISION_VELOCITY [m/s],
+    INJECTION [droplets/(m3 s)]; params, config: physics.parameters; rng_seed: numba's seed;
+    exponential_dt: 0 = mean waiting time 1/R (seed 000), 1 = exponential; max_trials: budget
+    of proposals; out (n_out, N_QUANTITIES) by QUANTITY_NAMES (rows not reached: NaN), classes
+    (n_out, PSD_BINS, 2), percentiles (n_out, 3) (``cnmc.quantities``), evaporated (n_out)
+    [kg/m3]. Returns (trials, accepted, injections, violations, status, t_reached [s],
+    break_trials, splits): aggregation proposals and aggregations, injections, proposals above
+    their majorant (must be 0), a STATUS_* code, breakage proposals and breakages."""
     np.random.seed(rng_seed)
     n, n_out = p.size, output_times.size
     sep = config[P.SEPARATE_DROPLETS] == 1
@@ -239,6 +145,7 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
     members, bcnt, bpos, bin_of, lo, hi, dirty, table, tabd, dlist, dpos, dcnt = cls[:12]
     occ, srow, trow, drow = cls[12:16]
     bbound, brow, dry = np.zeros(N_BINS), np.zeros(N_BINS), new_drying_array(pd, rho)
+    dry[DRIFT_STEP] = DRIFT_SHARE * spray_drying_time(inj, params, config)
     m_ref, ptot, s4 = _fill_classes(p, isdrop, sep, rho, bin_of, bpos, members, bcnt, lo, hi,
                                     dirty, dlist, dpos, dcnt)
     box, slots = Particles(p, b, isdrop, rho, m_ref), Slots(bin_of, bpos, members, bcnt, lo, hi,
@@ -248,60 +155,62 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
                               theta, params, config)
     trials = accepted = injections = violations = break_trials = splits = since_sync = 0
     status, t, w_gg, w_dg, w_br, k_out, n_occ, changed = STATUS_OK, 0.0, 0.0, 0.0, 0.0, 0, 0, True
+    drying, hazard = config[P.DRYING] == 1, 0.0
     while k_out < n_out:
+        if drying and drift_due(dry[2], n, t):      # dry to now, between two events
+            ptot, s4, d43_tab = _dried_and_synced(box, slots, t, conc0, mass_rate, dry, ptot,
+                                                  s4, d43_tab, table, tabd, alpha, theta,
+                                                  params, config)
+            since_sync, changed = 0, True
         if changed:
             changed = False
             n_occ, w_gg, w_dg = _pair_weights(bcnt, table, tabd, occ, srow, trow, drow)
             w_br = breakage_weights(bcnt, lo, hi, occ, n_occ, brk_factor, params, config,
                                     bbound, brow)
         vol = ptot / (conc0 + mass_rate * t - dry[0])
-        nd = dcnt[0]
-        r_gg = 0.5 * w_gg / vol
-        r_dg = nd * w_dg / vol
-        r_inj = inj * vol
+        r_gg, r_dg, r_inj = 0.5 * w_gg / vol, dcnt[0] * w_dg / vol, inj * vol
         r = r_gg + r_dg + r_inj + w_br
         if not (r < np.inf):
             status = STATUS_NONFINITE
             break
-        t_next = _next_event_time(t, r, exponential_dt)
-        k_out, ptot, changed = _store_outputs(k_out, t_next, output_times, box, slots, conc0,
-                                              mass_rate, out, classes, percentiles, evaporated,
-                                              dry, ptot, params, config)
-        since_sync = n - 1 if changed else since_sync    # dried: exact sums and intervals
+        t_next, hazard = _next_event(t, r, hazard, drying, exponential_dt)
+        stop = max(min(output_times[k_out], dry[1] + dry[DRIFT_STEP]), t)
+        if drying and stop < t_next:
+            hazard, k_out, ptot, s4, d43_tab = _dry_to_stop(
+                stop, t, t_next, hazard, k_out, output_times, box, slots, conc0, mass_rate, dry,
+                ptot, s4, d43_tab, table, tabd, alpha, theta, out, classes, percentiles,
+                evaporated, params, config)
+            t, since_sync, changed = stop, 0, True
+            continue
+        # without drying the box does not change between events
+        k_out = _store_outputs_to(t_next, k_out, output_times, box, conc0, mass_rate, out,
+                                  classes, percentiles, evaporated, dry, False)
+        dry[2] += 1.0
+        hazard = 0.0
         if k_out >= n_out:
             break
         if t_next <= t:
             status = STATUS_STALLED
             break
         t = t_next
-
         u = np.random.random() * r
         if u < r_inj or (r_gg <= 0.0 and r_dg <= 0.0 and w_br <= 0.0):
-            injections += 1
+            injections, changed = injections + 1, True
             ptot, s4 = _inject(p, b, isdrop, pd, bd, sep, rho, m_ref, ptot, s4, bin_of, bpos,
                                members, bcnt, lo, hi, dirty, dlist, dpos, dcnt)
-            changed = True
         elif w_br > 0.0 and (u >= r_inj + r_gg + r_dg or (r_gg <= 0.0 and r_dg <= 0.0)):
             break_trials += 1
             ptot, s4, done, above = breakage_trial(w_br, n_occ, occ, brow, bbound, brk_factor, box,
                                                    ptot, s4, slots, params, config)
-            splits += done
-            violations += above
-            changed = changed or done == 1
+            splits, violations, changed = splits + done, violations + above, changed or done == 1
         else:
             trials += 1
-            d43 = _kernel_d43(s4, ptot, nd, dry, rho)
             granules = (u < r_inj + r_gg and r_gg > 0.0) or r_dg <= 0.0
-            i, j, rate, bound = _propose(granules, w_gg, w_dg, n_occ, occ, trow, srow, drow,
-                                         bcnt, table, tabd, members, dlist, nd, p, b, alpha,
-                                         theta, u0, d43, params, config)
-            if rate > bound:
-                violations += 1
-            if np.random.random() * bound < rate:
-                accepted += 1
-                ptot, s4 = _merge(i, j, p, b, isdrop, rho, m_ref, ptot, s4, bin_of, bpos,
-                                  members, bcnt, lo, hi, dirty, dlist, dpos, dcnt)
-                changed = True
+            ptot, s4, merged, above = _aggregation_trial(
+                granules, w_gg, w_dg, n_occ, occ, trow, srow, drow, table, tabd, box, slots,
+                ptot, s4, dry, alpha, theta, u0, params, config)
+            accepted, violations = accepted + merged, violations + above
+            changed = changed or merged == 1
         if trials + break_trials >= max_trials:
             status = STATUS_MAX_TRIALS
             break
@@ -365,33 +274,6 @@ def _initial_bounds(rho, n_free_droplets, dry, ptot, s4, lo, hi, dirty, table, t
 
 
 @nb.njit(cache=True, inline="always")
-def _store_outputs(k_out, t_next, output_times, box, slots, conc0, mass_rate, out, classes,
-                   percentiles, evaporated, dry, ptot, params, config):
-    """Store the box at every output time before t_next [s]; with drying (``dry``: evaporated
-    [kg/m3], last drift [s], proposals since) dry it to each output time first, and to t_next
-    when a drift is due. Returns (next output row, total mass [kg], True if it dried)."""
-    n_out = output_times.size
-    p, b, isdrop, rho = box.p, box.b, box.isdrop, box.rho
-    drying = config[P.DRYING] == 1
-    drifted = False
-    dry[2] += 1.0
-    while k_out < n_out and output_times[k_out] < t_next:
-        if drying:
-            ptot = drift_box(box, slots, output_times[k_out], conc0, mass_rate, dry, ptot,
-                             params)
-            drifted = True
-        box_quantities(p, b, isdrop, conc0 + mass_rate * output_times[k_out] - dry[0], rho,
-                       out[k_out])
-        box_size_classes(p, b, isdrop, rho, classes[k_out], percentiles[k_out])
-        evaporated[k_out] = dry[0]
-        k_out += 1
-    if drying and k_out < n_out and drift_due(dry[2], p.size, t_next):
-        ptot = drift_box(box, slots, t_next, conc0, mass_rate, dry, ptot, params)
-        drifted = True
-    return k_out, ptot, drifted
-
-
-@nb.njit(cache=True, inline="always")
 def _pair_weights(bcnt, table, tabd, occ, srow, trow, drow):
     """Class-pair majorant weights over the occupied classes, O(K_occ^2): fills occ (the
     occupied classes), srow, trow (ordered granule pairs per class) and drow (droplet
@@ -428,6 +310,88 @@ def _next_event_time(t, r, exponential_dt):
     if exponential_dt == 1:
         return t - math.log(1.0 - np.random.random()) / r
     return t + 1.0 / r
+
+
+@nb.njit(cache=True, inline="always")
+def _dry_to_stop(stop, t, t_next, hazard, k_out, output_times, box, slots, conc0, mass_rate,
+                 dry, ptot, s4, d43_tab, table, tabd, alpha, theta, out, classes, percentiles,
+                 evaporated, params, config):
+    """The box, whose next event would come at t_next [s] after t [s], dries to ``stop``
+    [s] (an output time or its longest drift step, before t_next) with its majorants rebuilt
+    (``_dried_and_synced``) and is stored at an output time there (``_store_outputs_to``);
+    the rest of the waiting hazard runs on at the majorants of the dried box. Returns
+    (hazard left, next output row, total mass [kg], sum d^4 [m^4], d43 of the tables [m])."""
+    if t_next < np.inf:
+        hazard *= (t_next - stop) / (t_next - t)
+    ptot, s4, d43_tab = _dried_and_synced(box, slots, stop, conc0, mass_rate, dry, ptot, s4,
+                                          d43_tab, table, tabd, alpha, theta, params, config)
+    k_out = _store_outputs_to(stop, k_out, output_times, box, conc0, mass_rate, out, classes,
+                              percentiles, evaporated, dry, True)
+    return hazard, k_out, ptot, s4, d43_tab
+
+
+@nb.njit(cache=True, inline="always")
+def _store_outputs_to(t, k_out, output_times, box, conc0, mass_rate, out, classes, percentiles,
+                      evaporated, dry, including):
+    """Store the box (``store_output``) at every output time before t [s] (``including``: up
+    to t itself) from row k_out on, at the mass concentration of that time; returns the next
+    row."""
+    while k_out < output_times.size and (output_times[k_out] < t
+                                          or (including and output_times[k_out] <= t)):
+        store_output(k_out, box, conc0 + mass_rate * output_times[k_out] - dry[0], out,
+                     classes, percentiles, evaporated, dry)
+        k_out += 1
+    return k_out
+
+
+@nb.njit(cache=True, inline="always")
+def _aggregation_trial(granules, w_gg, w_dg, n_occ, occ, trow, srow, drow, table, tabd, box,
+                       slots, ptot, s4, dry, alpha, theta, u0, params, config):
+    """One aggregation proposal (``_propose``: a granule pair, or a droplet capture), accepted
+    with probability rate / majorant and then merged. Returns (total mass [kg], sum d^4
+    [m^4], 1 if merged, 1 if the rate exceeded its majorant)."""
+    p, b, rho, nd = box.p, box.b, box.rho, slots.dcnt[0]
+    d43 = _kernel_d43(s4, ptot, nd, dry, rho)
+    i, j, rate, bound = _propose(granules, w_gg, w_dg, n_occ, occ, trow, srow, drow,
+                                 slots.bcnt, table, tabd, slots.members, slots.dlist, nd, p, b,
+                                 alpha, theta, u0, d43, params, config)
+    above = 1 if rate > bound else 0
+    if not np.random.random() * bound < rate:
+        return ptot, s4, 0, above
+    ptot, s4 = _merge(i, j, p, b, box.isdrop, rho, box.m_ref, ptot, s4, slots.bin_of,
+                      slots.bpos, slots.members, slots.bcnt, slots.lo, slots.hi, slots.dirty,
+                      slots.dlist, slots.dpos, slots.dcnt)
+    return ptot, s4, 1, above
+
+
+@nb.njit(cache=True, inline="always")
+def _next_event(t, r, hazard, drying, exponential_dt):
+    """The next event's time [s] after t [s] at the total majorant rate r [1/s], and its
+    waiting hazard. Without drying ``_next_event_time`` (hazard 0). With drying the event
+    comes when the rate integrated since the last event reaches the hazard, 1
+    (exponential_dt == 0, the mean waiting time) or an exponential draw, drawn anew where
+    ``hazard`` is spent (<= 0); what a drift between two events leaves of it is kept (the
+    box's majorants change at a drift, the hazard runs on at the new ones)."""
+    if not drying:
+        return _next_event_time(t, r, exponential_dt), 0.0
+    if not hazard > 0.0:
+        hazard = 1.0 if exponential_dt == 0 else -math.log(1.0 - np.random.random())
+    return (t + hazard / r if r > 0.0 else np.inf), hazard
+
+
+@nb.njit(cache=True, inline="always")
+def _dried_and_synced(box, slots, t, conc0, mass_rate, dry, ptot, s4, d43_tab, table, tabd,
+                      alpha, theta, params, config):
+    """The box dried to t [s] (``drift_box``), then its sums and class intervals recomputed
+    and its majorant tables rebuilt at once (``_refresh_bounds`` at a sync): a drift can move
+    a particle below the mass interval the majorants were built for. Returns (total mass
+    [kg], sum d^4 [m^4], d43 of the tables [m])."""
+    ptot = drift_box(box, slots, t, conc0, mass_rate, dry, ptot, params)
+    _, ptot, s4, d43_tab = _refresh_bounds(box.p.size - 1, box.p, box.rho, slots.dcnt[0], dry,
+                                           ptot, s4, d43_tab, slots.bin_of, slots.lo, slots.hi,
+                                           slots.dirty, table, tabd, alpha, theta, params,
+                                           config)
+    return ptot, s4, d43_tab
 
 
 @nb.njit(cache=True, inline="always")

@@ -25,8 +25,10 @@ from .slots import d4
 from .slots import insert_slot as _insert
 from .slots import remove_slot as _remove
 
-#: entries of the box's drying array: evaporated, last drift, proposals, droplet statistics
-DRY_ENTRIES = 6
+#: entries of the box's drying array: evaporated, last drift, proposals, droplet statistics,
+#: then the longest step between two drifts [s] (``cnmc.drying.DRIFT_SHARE``)
+DRY_ENTRIES = 7
+DRIFT_STEP = 6
 
 
 @nb.njit(cache=True)
@@ -37,6 +39,7 @@ def new_drying_array(pd, rho):
     dry[3] = pd
     dry[4] = pd
     dry[5] = d4(pd, rho)
+    dry[DRIFT_STEP] = np.inf
     return dry
 
 

@@ -51,7 +51,8 @@ accepted 1 trial in 175, with the classes 3 in 4.
   the N old particles gives.
 * Drying (a [drying] table): between events every particle's liquid drifts, free droplets
   too (``methods.cnmc.drying``, ``methods.cnmc.droplets``); the box dries at each output
-  time and after every N / DRIFT_TRIALS proposals, and the evaporated liquid E [kg/m3]
+  time, after every N / DRIFT_TRIALS proposals and at least every DRIFT_SHARE of its
+  drying time, and the evaporated liquid E [kg/m3]
   leaves the mass concentration below.
 * Volume: aggregation conserves mass and injection adds p_d * cell[INJECTION] kg per m3 per s,
   so the exact mass concentration is C(t) = M10(0) + cell[INJECTION] p_d t (- E with drying). The box volume is
