@@ -179,13 +179,33 @@ def node_binder(populations):
     w, p, b = (padded_rows(populations, k) for k in range(3))
     valid = (w > 0) & (p > 0)
     wv = np.where(valid, w, 0.0)
-    same = p[:, :, None] == p[:, None, :]
-    mass = np.einsum("rij,rj->ri", same, wv * p)
-    binder = np.einsum("rij,rj->ri", same, wv * b)
+    mass, binder = _group_sums(p, wv * p, wv * b)
     y = np.where(mass > 0, binder / np.where(mass > 0, mass, 1.0), 0.0)
     x = np.where(valid, p, np.inf)
     order = np.argsort(x, axis=1)
     return np.take_along_axis(x, order, 1), np.take_along_axis(y, order, 1)
+
+
+def _group_sums(key, *values):
+    """Per row of ``key`` (rows, n), each value (rows, n) summed over the entries of its row
+    with an equal key, given back at every entry of the group: O(n log n) per row by sorting
+    (groups in the order of their entries)."""
+    rows, n = key.shape
+    if n == 0:
+        return tuple(np.zeros((rows, 0)) for _ in values)
+    order = np.argsort(key, axis=1, kind="stable")
+    sorted_key = np.take_along_axis(key, order, 1)
+    starts = np.ones((rows, n), dtype=bool)
+    starts[:, 1:] = sorted_key[:, 1:] != sorted_key[:, :-1]
+    group = np.cumsum(starts, axis=1) - 1 + (np.arange(rows) * n)[:, None]
+    out = []
+    for v in values:
+        sums = np.bincount(group.ravel(), weights=np.take_along_axis(v, order, 1).ravel(),
+                           minlength=rows * n)
+        back = np.empty((rows, n))
+        np.put_along_axis(back, order, sums[group], 1)
+        out.append(back)
+    return tuple(out)
 
 
 def gamma_of_populations(populations, rho, bivariate, labels=str) -> GammaFit:

@@ -81,3 +81,37 @@ def test_the_distribution_of_all_rows_at_once_is_the_row_loops(floor):
                             False, I.STATUS_TEXT, floor=np.array(floors))
     d = np.geomspace(5e-5, 5e-3, 30)
     np.testing.assert_allclose(mix.cdf(d), loop.cdf(d), rtol=0.0, atol=1e-9)
+
+
+def test_node_binder_groups_nodes_of_one_mass_as_a_pairwise_comparison_does():
+    """``reconstruct.node_binder`` gives the nodes that share one mass (CQMOM's binder nodes
+    of a size node) their group's mass-mean binder fraction. Against the definition written
+    out pair by pair (sum over j with p_j == p_i), on rows with shared masses, a node of no
+    weight, a negative weight and a zero mass: the masses, sorted, equal to the bit; the
+    binder fractions of the weighted nodes to round-off (16 eps: the group sums are added in
+    another order)."""
+    from pbe_cfd.distribution.reconstruct import node_binder
+    rng = np.random.default_rng(20261206)
+    rows = []
+    for _ in range(40):
+        masses = rng.choice([1e-10, 2e-10, 5e-10, 1e-9], size=9)
+        weights = rng.uniform(0.0, 1e9, 9)
+        weights[rng.integers(9)] = 0.0
+        weights[rng.integers(9)] = -1e8
+        masses[rng.integers(9)] = 0.0
+        rows.append((weights, masses, rng.uniform(0.0, 0.3, 9) * masses))
+    x, y = node_binder(rows)
+    for r, (w, p, b) in enumerate(rows):
+        valid = (w > 0) & (p > 0)
+        wv = np.where(valid, w, 0.0)
+        expect_x = np.sort(np.where(valid, p, np.inf))
+        mean = []
+        for i in range(p.size):
+            group = p == p[i]
+            mass = np.sum(wv[group] * p[group])
+            mean.append(np.sum(wv[group] * b[group]) / mass if mass > 0 else 0.0)
+        order = np.argsort(np.where(valid, p, np.inf), kind="stable")[:valid.sum()]
+        assert np.array_equal(x[r], expect_x)
+        finite = np.isfinite(x[r])                 # the nodes of no weight last, at inf
+        assert np.allclose(y[r][finite], np.array(mean)[order], rtol=16 * np.finfo(float).eps,
+                           atol=0.0)
