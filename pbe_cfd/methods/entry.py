@@ -15,6 +15,15 @@ NOT_INTEGRATED = -1
 WORK_SIZE = 2048
 
 
+class RunStopped(RuntimeError):
+    """A method's own run (``MethodEntry.ensemble``: the cNMC) could not reach its end time;
+    the message says which replica, when and why."""
+
+
+class RateNotFinite(RunStopped, FloatingPointError):
+    """A method's own run stopped on an event rate that is not finite."""
+
+
 class MethodEntry(NamedTuple):
     """One method of the registry (see the module docstring for who calls what).
 

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import model
+from ..methods.entry import RunStopped
 from ..physics.injection import droplet_liquid
 from ..scene import spray
 from .batch import CellBatch, SimulationError, check_physics, output_times
@@ -109,8 +110,11 @@ def _run_ensemble(scene, problem, start, progress) -> RunResult:
     times = problem.times
     outputs = problem.outputs
     cb = (lambda f: progress(f, "")) if progress is not None else None
-    res = problem.method.ensemble(outputs.method_plan, problem.arrays, problem.rows[0], times,
-                                  cb)
+    try:
+        res = problem.method.ensemble(outputs.method_plan, problem.arrays, problem.rows[0],
+                                      times, cb)
+    except RunStopped as exc:
+        raise SimulationError(f"{scene.source}: {exc}") from None
     wall = _time.perf_counter() - start
     columns = {"time_s": times}
     stats = {}

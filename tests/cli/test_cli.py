@@ -423,3 +423,26 @@ def test_every_bed_column_says_what_it_is(coupled_run):
     for name, text in labels.items():
         assert text.split(": ", 1)[-1].strip(), (name, text)
     assert "sum over the cells of M10 times the cell volume" in labels["bed_mass_kg"]
+
+
+def test_a_cnmc_replica_that_stops_is_one_line_exit_1(tmp_path, monkeypatch, capsys):
+    """A cNMC replica that cannot finish (here its box reports a rate above its majorant)
+    ends the run with exit 1 and one line naming the scene, the replica and why, no
+    traceback and no output."""
+    from pbe_cfd.methods.cnmc import ensemble
+    real = ensemble.run_box_with_sizes
+
+    def one_violation(*args):
+        out = real(*args)
+        return (out[0], out[1], out[2], 1) + tuple(out[4:])
+    monkeypatch.setattr(ensemble, "run_box_with_sizes", one_violation)
+    scene = tmp_path / "tiny.toml"
+    text = GOOD.replace('name = "qmom"\nnodes = 2', 'name = "cnmc"\nparticles = 50\nreplicas = 2')
+    assert "cnmc" in text
+    scene.write_text(text)
+    code = main(["run", str(scene), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1
+    assert len(err) == 1 and "tiny.toml" in err[0] and "cNMC replica 0" in err[0]
+    assert "majorant" in err[0] and "Traceback" not in err[0]
+    assert not (tmp_path / "out").exists()

@@ -132,6 +132,7 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.injection import droplet_liquid
+from ..entry import RateNotFinite, RunStopped
 from .drying import evaporated_columns
 from .box import (MAX_TRIALS, MOMENT_NAMES, N_QUANTITIES, PSD_BINS, QUANTITY_NAMES,
                   STATUS_MAX_TRIALS, STATUS_NONFINITE, STATUS_OK, STATUS_STALLED,
@@ -305,19 +306,19 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
                                       box_seed, 0, MAX_TRIALS, data[r], psd.classes, pct,
                                       evaporated[r])
         if violations:
-            raise RuntimeError(f"cNMC replica {r}: {violations} pair rates exceeded the "
-                               "majorant (bound bug)")
+            raise RunStopped(f"cNMC replica {r}: {violations} pair rates exceeded their "
+                             "majorant (a defect of the cNMC's bounds: please report it)")
         if status == STATUS_MAX_TRIALS:
-            raise RuntimeError(f"cNMC replica {r}: {trials} trials reached at t = "
-                               f"{t_reached:.6g} s before the end time "
-                               f"{output_times[-1]:.6g} s; the event rate is running away "
-                               "(gelation?)")
+            raise RunStopped(f"cNMC replica {r}: {trials} trials reached at t = "
+                             f"{t_reached:.6g} s before the end time "
+                             f"{output_times[-1]:.6g} s; the event rate is running away "
+                             "(gelation?)")
         if status == STATUS_NONFINITE:
-            raise FloatingPointError(f"cNMC replica {r}: event rate not finite at t = "
-                                     f"{t_reached:.6g} s (overflow, or alpha >= alpha_max in ktgf)")
+            raise RateNotFinite(f"cNMC replica {r}: event rate not finite at t = "
+                                f"{t_reached:.6g} s (overflow, or alpha >= alpha_max in ktgf)")
         if status == STATUS_STALLED:
-            raise RuntimeError(f"cNMC replica {r}: time step below the resolution of t at "
-                               f"t = {t_reached:.6g} s (event rate too high)")
+            raise RunStopped(f"cNMC replica {r}: time step below the resolution of t at "
+                             f"t = {t_reached:.6g} s (event rate too high)")
         totals += (trials, accepted, injections, break_trials, splits)
         psd.add()
         sizes[r, :, :3] = pct
