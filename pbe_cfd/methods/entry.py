@@ -207,6 +207,9 @@ class MethodPlan:
     density         granule material density [kg/m3] (mean diameters)
     initial         the scene's ``[initial]`` table (SI; a method with a run of its own
                     starts its particles from it)
+    spray           the spray schedule's segments [(t0 [s], t1 [s], rate [droplets/(m3
+                    s)])] (``scene.spray.segments``), empty without a schedule (a method
+                    with a run of its own sprays cell[INJECTION] from t = 0 then)
     """
     method: "MethodEntry"
     options: object
@@ -214,6 +217,7 @@ class MethodPlan:
     separate_droplets: bool
     density: float
     initial: object = None
+    spray: tuple = ()
 
 
 @dataclass(frozen=True)

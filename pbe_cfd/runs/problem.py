@@ -25,6 +25,7 @@ integrates in the same scaled units) and otherwise reads its problems and its
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -100,9 +101,19 @@ def output_plan(scene) -> OutputPlan:
                       spray_zone=(scene.binder_injection.zone
                                   if scene.binder_injection is not None else None),
                       echo=describe(scene), source=scene.source,
-                      dries=scene.drying is not None, method_plan=method_plan(scene),
+                      dries=scene.drying is not None, method_plan=_method_plan(scene),
                       distribution=distribution_plan(scene),
                       cell_psd=scene.output.cell_psd if scene.output is not None else ())
+
+
+def _method_plan(scene) -> MethodPlan:
+    """``methods.registry.method_plan`` with the scene's spray schedule (its segments to the
+    end time, ``scene.spray.segments``; empty without a schedule)."""
+    plan = method_plan(scene)
+    inj = scene.binder_injection
+    if inj is None or not inj.schedule:
+        return plan
+    return dataclasses.replace(plan, spray=tuple(spray.segments(inj, scene.end_time)))
 
 
 @dataclass(frozen=True)

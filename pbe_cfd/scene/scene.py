@@ -539,7 +539,7 @@ def _cross_checks(path, scene: Scene):
         raise SceneError(path, "initial.number_density",
                          "expected a positive number density (or a binder injection)")
     entry = registry.METHODS[scene.method.name]
-    for key, refusal in (spray.spray_refusals(scene, entry, registry.MOMENT_METHODS)
+    for key, refusal in (spray.spray_refusals(scene, entry)
                          + drying_refusals(scene, registry.METHOD_REGISTRY)):
         raise SceneError(path, key, refusal)
     if not entry.integrated and scene.domain.type != "well-mixed":

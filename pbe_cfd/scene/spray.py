@@ -136,11 +136,10 @@ def _schedule(path, t, error, unit=PER_VOLUME):
     return max(r for _, r in out), tuple(out)
 
 
-def spray_refusals(scene, entry, moment_methods):
-    """[(key, refusal)] of a scene's spray against its method (``entry``: its ``MethodEntry``;
-    ``moment_methods``: the names of the integrated methods): binder solids in droplets of
-    their own need a method whose droplets may carry them; a schedule needs a method the
-    per-cell integration runs (the segments of ``segments``)."""
+def spray_refusals(scene, entry):
+    """[(key, refusal)] of a scene's spray against its method (``entry``: its
+    ``MethodEntry``): binder solids in droplets of their own need a method whose droplets may
+    carry them."""
     inj = scene.binder_injection
     if inj is None:
         return []
@@ -148,10 +147,6 @@ def spray_refusals(scene, entry, moment_methods):
         return [("binder_injection.solids_fraction",
                  f"the {entry.name} method's free droplets hold pure liquid: expected 0 with "
                  f"[aggregation] droplet_factor, or another method")]
-    if inj.schedule and not entry.integrated:
-        return [("binder_injection.schedule",
-                 f"the {entry.name} reference sprays at one constant rate: expected "
-                 f"{' or '.join(moment_methods)} for a spray schedule (start, stop)")]
     return []
 
 

@@ -124,10 +124,30 @@ def test_bad_spray_input_names_the_key(injection, key):
     assert err.value.key == key
 
 
-def test_the_cnmc_refuses_a_schedule_it_cannot_run():
-    with pytest.raises(SceneError) as err:
-        _scene({"name": "cnmc"}, rate=RATE, stop=5.0)
-    assert err.value.key == "binder_injection.schedule"
+@pytest.mark.parametrize("schedule", SCHEDULES)
+def test_the_cnmc_follows_a_spray_schedule(schedule):
+    """The cNMC's box sprays at the schedule's rate (``methods.cnmc.spray``): its volume
+    follows the mass concentration, so M10 is the closed form to round-off; M00 and M01 lie
+    within twice the replicas' 95% band (about 4.7 standard deviations of the mean) plus one
+    droplet per box of the injected ones (the box sprays at mean waiting times, so its
+    count of injections is early or late by at most one); nothing is sprayed before the first
+    start (M01 exactly 0)."""
+    particles, replicas = 2000, 8
+    scene = _scene({"name": "cnmc", "particles": particles, "replicas": replicas, "seed": 11},
+                   **SCHEDULES[schedule])
+    c = run_well_mixed(scene).columns
+    t = c["time_s"]
+    m00, m10, m01 = _closed_form(scene.binder_injection, t)
+    assert np.allclose(c["M10"], m10, rtol=1e-12, atol=0.0)
+    injected = np.array([spray.injected(scene.binder_injection, tk) for tk in t])
+    per_droplet = particles / c["M00"]          # particles of a box per particle per m3
+    for name, exact, unit in (("M00", m00, 1.0), ("M01", m01, m01[-1] / injected[-1])):
+        half = 0.5 * (c[name + "_hi"] - c[name + "_lo"])
+        slack = 2.0 * half + unit / per_droplet
+        assert np.all(np.abs(c[name] - exact) <= slack), \
+            (name, np.max(np.abs(c[name] - exact) / slack))
+    before = injected == 0.0
+    assert before[0] and np.all(c["M01"][before & (t < 3.0)] == 0.0)
 
 
 @pytest.mark.parametrize("method", ["qmom", "cqmom", "laguerre", "eqmom"])

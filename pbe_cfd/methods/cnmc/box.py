@@ -19,6 +19,7 @@ from .slots import N_BINS, Particles, Slots
 from .slots import d4 as _d4
 from .slots import insert_slot as _insert
 from .slots import remove_slot as _remove
+from .spray import Spray, next_change, rate_at, sprayed_mass
 from .quantities import (MOMENT_NAMES, N_QUANTITIES, PSD_BINS, PSD_FRACTIONS,  # noqa: F401
                          PSD_LOG10_LO, PSD_PER_DECADE, QUANTITY_NAMES, box_quantities,
                          box_size_classes, store_output)
@@ -110,55 +111,55 @@ def _bound_row(c, lo, hi, table, tabd, alpha, theta, d43, dlo, params, config):
 @nb.njit(cache=True)
 def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
             exponential_dt, max_trials, out):
-    """``run_box_with_sizes`` without the size classes and percentiles (arguments and
-    returns as there)."""
+    """``run_box_with_sizes`` without the size classes and percentiles, at the constant
+    injection cell[INJECTION] (arguments and returns as there)."""
     n_out = output_times.size
+    spray = Spray(np.zeros(1), np.full(1, cell[P.INJECTION]), params[P.DROPLET_MASS])
     return run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config,
                               rng_seed, exponential_dt, max_trials, out,
                               np.zeros((n_out, PSD_BINS, 2)), np.zeros((n_out, 3)),
-                              np.zeros(n_out))
+                              np.zeros(n_out), spray)
 
 
 @nb.njit(cache=True)
 def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
-                       exponential_dt, max_trials, out, classes, percentiles, evaporated):
+                       exponential_dt, max_trials, out, classes, percentiles, evaporated, spray):
     """One cNMC replica. Mutates p, b, isdrop (the final box) and fills ``out``.
 
     p, b: float64 [kg], length N (N >= 2 for aggregation); isdrop: int64, 1 = free droplet
     (0 unless config[SEPARATE_DROPLETS] == 1); volume0: box volume [m3]; output_times [s],
-    non-decreasing, from 0; cell: ALPHA [-], THETA [m2/s2], COLLISION_VELOCITY [m/s],
-    INJECTION [droplets/(m3 s)]; params, config: physics.parameters; rng_seed: numba's seed;
+    non-decreasing, from 0; cell: ALPHA [-], THETA [m2/s2], COLLISION_VELOCITY [m/s]; params,
+    config: physics.parameters; rng_seed: numba's seed;
     exponential_dt: 0 = mean waiting time 1/R (seed 000), 1 = exponential; max_trials: budget
     of proposals; out (n_out, N_QUANTITIES) by QUANTITY_NAMES (rows not reached: NaN), classes
     (n_out, PSD_BINS, 2), percentiles (n_out, 3) (``cnmc.quantities``), evaporated (n_out)
-    [kg/m3]. Returns (trials, accepted, injections, violations, status, t_reached [s],
+    [kg/m3]; spray: the injection (``cnmc.spray``). Returns (trials, accepted, injections,
+    violations, status, t_reached [s],
     break_trials, splits): aggregation proposals and aggregations, injections, proposals above
     their majorant (must be 0), a STATUS_* code, breakage proposals and breakages."""
     np.random.seed(rng_seed)
     n, n_out = p.size, output_times.size
-    sep = config[P.SEPARATE_DROPLETS] == 1
-    rho, pd = params[P.DENSITY], params[P.DROPLET_MASS]
+    sep, rho, pd = config[P.SEPARATE_DROPLETS] == 1, params[P.DENSITY], params[P.DROPLET_MASS]
     bd = droplet_liquid(params) if config[P.BIVARIATE] == 1 else 0.0
-    alpha, theta, u0, inj = cell[P.ALPHA], cell[P.THETA], cell[P.COLLISION_VELOCITY], cell[P.INJECTION]
+    alpha, theta, u0 = cell[P.ALPHA], cell[P.THETA], cell[P.COLLISION_VELOCITY]
     brk_factor = cell_selection_factor(cell, params, config)
-    cls = _new_classes(n)
-    members, bcnt, bpos, bin_of, lo, hi, dirty, table, tabd, dlist, dpos, dcnt = cls[:12]
-    occ, srow, trow, drow = cls[12:16]
+    members, bcnt, bpos, bin_of, lo, hi, dirty, table, tabd, dlist, dpos, dcnt, occ, srow, trow, \
+        drow = _new_classes(n)[:16]
     bbound, brow, dry = np.zeros(N_BINS), np.zeros(N_BINS), new_drying_array(pd, rho)
-    dry[DRIFT_STEP] = DRIFT_SHARE * spray_drying_time(inj, params, config)
     m_ref, ptot, s4 = _fill_classes(p, isdrop, sep, rho, bin_of, bpos, members, bcnt, lo, hi,
                                     dirty, dlist, dpos, dcnt)
     box, slots = Particles(p, b, isdrop, rho, m_ref), Slots(bin_of, bpos, members, bcnt, lo, hi,
                                                             dirty, dlist, dpos, dcnt)
-    conc0, mass_rate = ptot / volume0, inj * pd     # kg/m3; kg/(m3 s) added by injection
+    conc0, inj = ptot / volume0, _spray_now(0.0, spray, dry, params, config)   # kg/m3, 1/(m3 s)
     d43_tab = _initial_bounds(rho, dcnt[0], dry, ptot, s4, lo, hi, dirty, table, tabd, alpha,
                               theta, params, config)
     trials = accepted = injections = violations = break_trials = splits = since_sync = 0
     status, t, w_gg, w_dg, w_br, k_out, n_occ, changed = STATUS_OK, 0.0, 0.0, 0.0, 0.0, 0, 0, True
-    drying, hazard = config[P.DRYING] == 1, 0.0
+    drying, hazard = config[P.DRYING] == 1, 0.0         # stops between events if timed:
+    timed = drying or spray.starts.size > 1 or spray.starts[0] > 0.0
     while k_out < n_out:
         if drying and drift_due(dry[2], n, t):      # dry to now, between two events
-            ptot, s4, d43_tab = _dried_and_synced(box, slots, t, conc0, mass_rate, dry, ptot,
+            ptot, s4, d43_tab = _dried_and_synced(box, slots, t, conc0, spray, dry, ptot,
                                                   s4, d43_tab, table, tabd, alpha, theta,
                                                   params, config)
             since_sync, changed = 0, True
@@ -167,23 +168,24 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
             n_occ, w_gg, w_dg = _pair_weights(bcnt, table, tabd, occ, srow, trow, drow)
             w_br = breakage_weights(bcnt, lo, hi, occ, n_occ, brk_factor, params, config,
                                     bbound, brow)
-        vol = ptot / (conc0 + mass_rate * t - dry[0])
+        vol = ptot / (conc0 + sprayed_mass(t, spray) - dry[0])
         r_gg, r_dg, r_inj = 0.5 * w_gg / vol, dcnt[0] * w_dg / vol, inj * vol
         r = r_gg + r_dg + r_inj + w_br
         if not (r < np.inf):
             status = STATUS_NONFINITE
             break
-        t_next, hazard = _next_event(t, r, hazard, drying, exponential_dt)
-        stop = max(min(output_times[k_out], dry[1] + dry[DRIFT_STEP]), t)
-        if drying and stop < t_next:
-            hazard, k_out, ptot, s4, d43_tab = _dry_to_stop(
-                stop, t, t_next, hazard, k_out, output_times, box, slots, conc0, mass_rate, dry,
-                ptot, s4, d43_tab, table, tabd, alpha, theta, out, classes, percentiles,
+        t_next, hazard = _next_event(t, r, hazard, timed, exponential_dt)
+        stop = max(min(output_times[k_out], dry[1] + dry[DRIFT_STEP], next_change(t, spray)), t)
+        if timed and stop < t_next:
+            hazard, k_out, ptot, s4, d43_tab = _to_stop(
+                stop, t, t_next, hazard, drying, k_out, output_times, box, slots, conc0, spray,
+                dry, ptot, s4, d43_tab, table, tabd, alpha, theta, out, classes, percentiles,
                 evaporated, params, config)
-            t, since_sync, changed = stop, 0, True
+            t, since_sync, changed = stop, 0 if drying else since_sync, changed or drying
+            inj = _spray_now(t, spray, dry, params, config)
             continue
         # without drying the box does not change between events
-        k_out = _store_outputs_to(t_next, k_out, output_times, box, conc0, mass_rate, out,
+        k_out = _store_outputs_to(t_next, k_out, output_times, box, conc0, spray, out,
                                   classes, percentiles, evaporated, dry, False)
         dry[2] += 1.0
         hazard = 0.0
@@ -313,32 +315,45 @@ def _next_event_time(t, r, exponential_dt):
 
 
 @nb.njit(cache=True, inline="always")
-def _dry_to_stop(stop, t, t_next, hazard, k_out, output_times, box, slots, conc0, mass_rate,
-                 dry, ptot, s4, d43_tab, table, tabd, alpha, theta, out, classes, percentiles,
-                 evaporated, params, config):
-    """The box, whose next event would come at t_next [s] after t [s], dries to ``stop``
-    [s] (an output time or its longest drift step, before t_next) with its majorants rebuilt
-    (``_dried_and_synced``) and is stored at an output time there (``_store_outputs_to``);
-    the rest of the waiting hazard runs on at the majorants of the dried box. Returns
-    (hazard left, next output row, total mass [kg], sum d^4 [m^4], d43 of the tables [m])."""
+def _to_stop(stop, t, t_next, hazard, drying, k_out, output_times, box, slots, conc0, spray,
+             dry, ptot, s4, d43_tab, table, tabd, alpha, theta, out, classes, percentiles,
+             evaporated, params, config):
+    """The box, whose next event would come at t_next [s] after t [s], goes to ``stop`` [s]
+    (an output time, a change of the spray or its longest drift step, before t_next): with
+    ``drying`` it dries to it with its majorants rebuilt (``_dried_and_synced``); it is
+    stored at an output time there (``_store_outputs_to``); the rest of the waiting hazard
+    runs on at the rates after the stop. Returns (hazard left, next output row, total mass
+    [kg], sum d^4 [m^4], d43 of the tables [m])."""
     if t_next < np.inf:
         hazard *= (t_next - stop) / (t_next - t)
-    ptot, s4, d43_tab = _dried_and_synced(box, slots, stop, conc0, mass_rate, dry, ptot, s4,
-                                          d43_tab, table, tabd, alpha, theta, params, config)
-    k_out = _store_outputs_to(stop, k_out, output_times, box, conc0, mass_rate, out, classes,
+    if drying:
+        ptot, s4, d43_tab = _dried_and_synced(box, slots, stop, conc0, spray, dry, ptot, s4,
+                                              d43_tab, table, tabd, alpha, theta, params,
+                                              config)
+    k_out = _store_outputs_to(stop, k_out, output_times, box, conc0, spray, out, classes,
                               percentiles, evaporated, dry, True)
     return hazard, k_out, ptot, s4, d43_tab
 
 
 @nb.njit(cache=True, inline="always")
-def _store_outputs_to(t, k_out, output_times, box, conc0, mass_rate, out, classes, percentiles,
+def _spray_now(t, spray, dry, params, config):
+    """The injection rate [droplets/(m3 s)] at t [s] (``cnmc.spray``); sets the box's longest
+    drift step (dry[DRIFT_STEP]) to DRIFT_SHARE of a sprayed droplet's drying time while it
+    is sprayed (inf otherwise: ``cnmc.drying.spray_drying_time``)."""
+    inj = rate_at(t, spray)
+    dry[DRIFT_STEP] = DRIFT_SHARE * spray_drying_time(inj, params, config)
+    return inj
+
+
+@nb.njit(cache=True, inline="always")
+def _store_outputs_to(t, k_out, output_times, box, conc0, spray, out, classes, percentiles,
                       evaporated, dry, including):
     """Store the box (``store_output``) at every output time before t [s] (``including``: up
     to t itself) from row k_out on, at the mass concentration of that time; returns the next
     row."""
     while k_out < output_times.size and (output_times[k_out] < t
                                           or (including and output_times[k_out] <= t)):
-        store_output(k_out, box, conc0 + mass_rate * output_times[k_out] - dry[0], out,
+        store_output(k_out, box, conc0 + sprayed_mass(output_times[k_out], spray) - dry[0], out,
                      classes, percentiles, evaporated, dry)
         k_out += 1
     return k_out
@@ -380,13 +395,13 @@ def _next_event(t, r, hazard, drying, exponential_dt):
 
 
 @nb.njit(cache=True, inline="always")
-def _dried_and_synced(box, slots, t, conc0, mass_rate, dry, ptot, s4, d43_tab, table, tabd,
+def _dried_and_synced(box, slots, t, conc0, spray, dry, ptot, s4, d43_tab, table, tabd,
                       alpha, theta, params, config):
     """The box dried to t [s] (``drift_box``), then its sums and class intervals recomputed
     and its majorant tables rebuilt at once (``_refresh_bounds`` at a sync): a drift can move
     a particle below the mass interval the majorants were built for. Returns (total mass
     [kg], sum d^4 [m^4], d43 of the tables [m])."""
-    ptot = drift_box(box, slots, t, conc0, mass_rate, dry, ptot, params)
+    ptot = drift_box(box, slots, t, conc0, spray, dry, ptot, params)
     _, ptot, s4, d43_tab = _refresh_bounds(box.p.size - 1, box.p, box.rho, slots.dcnt[0], dry,
                                            ptot, s4, d43_tab, slots.bin_of, slots.lo, slots.hi,
                                            slots.dirty, table, tabd, alpha, theta, params,

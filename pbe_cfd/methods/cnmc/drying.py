@@ -12,6 +12,7 @@ from ...physics import parameters as P
 from ...physics.drying import advance_liquid, drying_rate, scene_gas
 from ...physics.injection import droplet_liquid
 from .droplets import droplet_stats, refill_vanished
+from .spray import sprayed_mass
 
 #: the box drifts at every output time and after every N / DRIFT_TRIALS event proposals
 #: (N particles), so an event sees a particle dried to within ~1/DRIFT_TRIALS of the mean
@@ -55,14 +56,15 @@ def drift_due(trials_since, n, t_next):
 
 
 @nb.njit(cache=True, inline="always")
-def drift_box(box, slots, t, conc0, mass_rate, dry, ptot, params):
+def drift_box(box, slots, t, conc0, spray, dry, ptot, params):
     """Dry the box (``box``, ``slots``: ``cnmc.slots``) from its last drift (dry[1] [s]) to t
-    [s] in its volume at t, V = P / (C0 + rate t - E) (``methods.cnmc``, E = dry[0] the
-    evaporated liquid [kg/m3], P = ptot [kg]); adds the loss to E, resets the proposal count
-    dry[2], refills the slots of droplets that vanished and refreshes the droplet statistics
-    dry[3:6] (``cnmc.droplets``); returns the box's total mass [kg]."""
+    [s] in its volume at t, V = P / (C0 + S(t) - E) (``methods.cnmc``; S the mass sprayed per
+    m3 by t, ``cnmc.spray``; E = dry[0] the evaporated liquid [kg/m3]; P = ptot [kg]); adds
+    the loss to E, resets the proposal count dry[2], refills the slots of droplets that
+    vanished and refreshes the droplet statistics dry[3:6] (``cnmc.droplets``); returns the
+    box's total mass [kg]."""
     p, b = box.p, box.b
-    vol = ptot / (conc0 + mass_rate * t - dry[0])
+    vol = ptot / (conc0 + sprayed_mass(t, spray) - dry[0])
     lost = dry_box(p, b, t - dry[1], params)
     dry[0] += lost / vol
     dry[1] = t

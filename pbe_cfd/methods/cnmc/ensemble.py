@@ -54,8 +54,9 @@ accepted 1 trial in 175, with the classes 3 in 4.
   time, after every N / DRIFT_TRIALS proposals and at least every DRIFT_SHARE of its
   drying time, and the evaporated liquid E [kg/m3]
   leaves the mass concentration below.
-* Volume: aggregation conserves mass and injection adds p_d * cell[INJECTION] kg per m3 per s,
-  so the exact mass concentration is C(t) = M10(0) + cell[INJECTION] p_d t (- E with drying). The box volume is
+* Volume: aggregation conserves mass and injection adds p_d * cell[INJECTION] kg per m3 per s
+  (with a schedule, p_d times its rate at t: ``cnmc.spray``), so the exact mass concentration
+  is C(t) = M10(0) + cell[INJECTION] p_d t (- E with drying). The box volume is
   V(t) = P_box / C(t), P_box the total mass in the box. After a refill this is the seed's
   eq. 18, V -> V (P + p_k) / P; for injection it is eq. 19 with the injected mass entering as its
   expectation instead of in Poisson jumps (the number of droplets put into the box stays
@@ -134,6 +135,7 @@ from ...physics import parameters as P
 from ...physics.injection import droplet_liquid
 from ..entry import RateNotFinite, RunStopped
 from .drying import evaporated_columns
+from .spray import constant_spray, scheduled_spray
 from .box import (MAX_TRIALS, MOMENT_NAMES, N_QUANTITIES, PSD_BINS, QUANTITY_NAMES,
                   STATUS_MAX_TRIALS, STATUS_NONFINITE, STATUS_OK, STATUS_STALLED,
                   interval_pair_bound, pair_rate_bounds, run_box, run_box_with_sizes)
@@ -254,8 +256,38 @@ class _ClassSums:
                 "psd_mass_fraction_hi": mean + half, "psd_binder_fraction": binder}
 
 
+def _check_replica(r, violations, status, trials, t_reached, t_end):
+    """Raise RunStopped (RateNotFinite) naming replica r and why it stopped at t_reached
+    [s] before t_end [s] (its ``run_box_with_sizes`` status and counts), if it did."""
+    if violations:
+        raise RunStopped(f"cNMC replica {r}: {violations} pair rates exceeded their "
+                         "majorant (a defect of the cNMC's bounds: please report it)")
+    if status == STATUS_MAX_TRIALS:
+        raise RunStopped(f"cNMC replica {r}: {trials} trials reached at t = {t_reached:.6g} s "
+                         f"before the end time {t_end:.6g} s; the event rate is running away "
+                         "(gelation?)")
+    if status == STATUS_NONFINITE:
+        raise RateNotFinite(f"cNMC replica {r}: event rate not finite at t = "
+                            f"{t_reached:.6g} s (overflow, or alpha >= alpha_max in ktgf)")
+    if status == STATUS_STALLED:
+        raise RunStopped(f"cNMC replica {r}: time step below the resolution of t at "
+                         f"t = {t_reached:.6g} s (event rate too high)")
+
+
+def _spray_of(cell, params, segments):
+    """The box's ``cnmc.spray.Spray``: the schedule's ``segments`` [(t0 [s], t1 [s], rate
+    [droplets/(m3 s)])], or cell[INJECTION] from t = 0 (segments None)."""
+    if segments is None:
+        return constant_spray(cell[P.INJECTION], params[P.DROPLET_MASS])
+    spray = scheduled_spray(segments, params[P.DROPLET_MASS])
+    if np.any(spray.rates < 0) or (np.any(spray.rates > 0) and not params[P.DROPLET_MASS] > 0):
+        raise ValueError("segments: expected rates >= 0 droplets/(m3 s) and, with any spray, "
+                         "params[DROPLET_MASS] > 0")
+    return spray
+
+
 def simulate_ensemble(params, config, cell, initial, output_times, particles, replicas, seed,
-                      progress=None):
+                      progress=None, segments=None):
     """cNMC ensemble: mean and 95% confidence band of the moments at ``output_times``.
 
     params (float64, N_PARAMS), config (int64, N_CONFIG): arrays of physics.parameters;
@@ -264,7 +296,9 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
     "number_density": n0 [1/m3], "mean_mass": p0 [kg], "binder_fraction": y0 [-],
     "droplet_number_density": nd0 [1/m3]}; output_times [s]: 1-D, from 0, non-decreasing;
     particles: N per box; replicas: R independent boxes; seed: int (same seed, same numbers);
-    progress: optional callable(fraction_done) called after each replica.
+    progress: optional callable(fraction_done) called after each replica; segments: the spray
+    schedule [(t0 [s], t1 [s], rate [droplets/(m3 s)])] (``scene.spray.segments``; None: the
+    constant cell[INJECTION] from t = 0).
 
     Returns a dict of numpy arrays: "time_s" [s]; for each name in QUANTITY_NAMES (M00 [1/m3],
     M10 [kg/m3], M01 [kg/m3], M20 [kg2/m3], M11 [kg2/m3], M02 [kg2/m3] of the whole population
@@ -274,13 +308,12 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
     R = 1); the same for the granules' mass-based "d10_m", "d50_m", "d90_m" [m] (exact
     percentiles of each replica's particle list, free droplets excluded) and "span" [-];
     "psd_mass_fraction" (+ "_lo", "_hi"): shape (times, PSD_BINS), each replica's granule mass
-    fraction per class of the size lattice (``cnmc_box.PSD_LOG10_LO``, ``PSD_PER_DECADE``),
-    its ensemble mean and band; "psd_binder_fraction": the pooled binder mass / granule mass
-    per class (0 in an empty class); with drying "liquid_evaporated" [kg/m3] (+ "_lo", "_hi"); "trials", "accepted", "events_injection": totals over the ensemble (int64), and with
-    breakage "trials_breakage" (proposals) and "events_breakage" (splits).
-    Raises RuntimeError if a replica exhausts MAX_TRIALS trials (e.g. a product kernel past
-    gelation), FloatingPointError for an infinite event rate (alpha >= alpha_max).
-    """
+    fraction per class of the size lattice (``cnmc.quantities``), its ensemble mean and band;
+    "psd_binder_fraction": the pooled binder mass / granule mass per class (0 if empty); with
+    drying "liquid_evaporated" [kg/m3] (+ "_lo", "_hi"); "trials", "accepted",
+    "events_injection": totals (int64), with breakage "trials_breakage", "events_breakage".
+    Raises RunStopped if a replica cannot finish (MAX_TRIALS trials, e.g. a product kernel
+    past gelation; RateNotFinite for an infinite event rate, alpha >= alpha_max)."""
     params = np.ascontiguousarray(params, dtype=np.float64)
     config = np.ascontiguousarray(config, dtype=np.int64)
     cell = np.ascontiguousarray(cell, dtype=np.float64).reshape(-1)
@@ -288,6 +321,7 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
     particles = int(particles)
     replicas = int(replicas)
     _validate(params, config, cell, initial, output_times, particles, replicas)
+    spray = _spray_of(cell, params, segments)
 
     n_out = output_times.size
     data = np.empty((replicas, n_out, N_QUANTITIES))
@@ -304,21 +338,8 @@ def simulate_ensemble(params, config, cell, initial, output_times, particles, re
         (trials, accepted, injections, violations, status, t_reached, break_trials,
          splits) = run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config,
                                       box_seed, 0, MAX_TRIALS, data[r], psd.classes, pct,
-                                      evaporated[r])
-        if violations:
-            raise RunStopped(f"cNMC replica {r}: {violations} pair rates exceeded their "
-                             "majorant (a defect of the cNMC's bounds: please report it)")
-        if status == STATUS_MAX_TRIALS:
-            raise RunStopped(f"cNMC replica {r}: {trials} trials reached at t = "
-                             f"{t_reached:.6g} s before the end time "
-                             f"{output_times[-1]:.6g} s; the event rate is running away "
-                             "(gelation?)")
-        if status == STATUS_NONFINITE:
-            raise RateNotFinite(f"cNMC replica {r}: event rate not finite at t = "
-                                f"{t_reached:.6g} s (overflow, or alpha >= alpha_max in ktgf)")
-        if status == STATUS_STALLED:
-            raise RunStopped(f"cNMC replica {r}: time step below the resolution of t at "
-                             f"t = {t_reached:.6g} s (event rate too high)")
+                                      evaporated[r], spray)
+        _check_replica(r, violations, status, trials, t_reached, output_times[-1])
         totals += (trials, accepted, injections, break_trials, splits)
         psd.add()
         sizes[r, :, :3] = pct

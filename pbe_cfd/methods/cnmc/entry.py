@@ -25,7 +25,8 @@ def _ensemble(plan, arrays, cell, times, progress=None):
     m = plan.options
     initial = dataclasses.asdict(plan.initial)     # the keys simulate_ensemble reads
     return simulate_ensemble(arrays.params, arrays.config, cell, initial, times,
-                                  m.particles, m.replicas, m.seed, progress=progress)
+                             m.particles, m.replicas, m.seed, progress=progress,
+                             segments=plan.spray or None)
 
 
 def _population(state, aux, arrays):
