@@ -291,8 +291,8 @@ def qmom_rhs(state, out, cell, aux, params, config, work):
     if config[P.BREAKAGE] == 1:
         add_qmom_breakage(out, nodes, weights, binder, n, cell, params, config)
     if config[P.DRYING] == 1:
-        add_qmom_drying(out, nodes, weights, binder, n, cell_gas(cell, params, config),
-                        params, config)
+        add_qmom_drying(out, nodes, weights, binder, n, state[2 * n_max],
+                        cell_gas(cell, params, config), params, config)
     _droplet_sources(state, out, cell, params, config, nodes, weights, binder, props, n, factor,
                      u0)
 

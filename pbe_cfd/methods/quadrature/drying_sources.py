@@ -42,17 +42,28 @@ def drift_moment_rate(k, l, x, b, rate):
 
 
 @nb.njit(cache=True)
-def add_qmom_drying(out, nodes, weights, binder, n, gas, params, config):
+def add_qmom_drying(out, nodes, weights, binder, n, liquid, gas, params, config):
     """Add the drying drift of the n QMOM nodes (scaled mass, weight, liquid) in the cell's
     ``gas`` (``physics.drying.cell_gas``) to ``out``: the
     size moments M_k0 (entries k < 2N), the binder moments M_k1 (entries 2N + k, k < N), and the
-    evaporated liquid (entry N_STATE - 1 - SEPARATE_DROPLETS)."""
+    evaporated liquid (entry N_STATE - 1 - SEPARATE_DROPLETS).
+
+    Each node dries its liquid clipped to [0, x]. Where the clipping raised the nodes' liquid
+    above the carried M01 (``liquid``, scaled; negative per-node liquid from a binder solve of
+    moments that the error control no longer holds to one another, a trace of liquid below
+    the absolute tolerance), the nodes' liquid is scaled down to M01: the drift then
+    evaporates the liquid the state carries, no more, and M01 falls no faster than its own
+    falling-rate decay."""
     n_max = config[P.ORDER]
     n_size = 2 * n_max
     evaporated = evaporated_entry(config)
+    clipped = 0.0
+    for a in range(n):
+        clipped += weights[a] * min(max(binder[a], 0.0), nodes[a])
+    share = liquid / clipped if clipped > liquid >= 0.0 else 1.0
     for a in range(n):
         x = nodes[a]
-        b = min(max(binder[a], 0.0), x)
+        b = share * min(max(binder[a], 0.0), x)
         rate = weights[a] * point_drying_rate(x, b, gas, params)
         if rate == 0.0:
             continue
