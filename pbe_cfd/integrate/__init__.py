@@ -27,6 +27,7 @@ the method's functions and the small helpers are compiled once each, the integra
 in the kernel, for every method alike (docs/results/first-run.md).
 """
 import time
+from collections import namedtuple
 
 import numpy as np
 
@@ -62,12 +63,12 @@ def integrate_cells(states, cells, aux, params, config, t_start, t_end, steps, r
     # the method's functions take C-contiguous rows: another layout runs on a copy
     given = states
     states, cells = np.ascontiguousarray(states), np.ascontiguousarray(cells)
-    args = (states, cells, aux, params, config, float(t_start), float(t_end), steps,
-            float(rtol), float(atol), int(max_steps), stats, status, reached)
+    args = CallArgs(states, cells, aux, params, config, float(t_start), float(t_end), steps,
+                    float(rtol), float(atol), int(max_steps), stats, status, reached)
     method, scheme = int(config[P.METHOD]), int(config[P.INTEGRATOR])
     share = kernel(method, scheme, args)
     threads = min(run_threads(), max(1, states.shape[0]))
-    before = tuple(args[i].copy() for i in _WRITTEN)
+    before = {name: getattr(args, name).copy() for name in _WRITTEN}
     # share k: the rows k, k + threads, ...; every share done when this returns
     caught = run_shares(lambda k: faults.watched(share, k, threads), range(threads), "cells")
     if any(f.count for f in caught):
@@ -76,37 +77,37 @@ def integrate_cells(states, cells, aux, params, config, t_start, t_end, steps, r
         given[...] = states
 
 
-#: positions in integrate_cells' arguments of the arrays it writes (states, steps, stats,
-#: status, reached) and of those with a row per cell (these and the cells' fields)
-_WRITTEN = (0, 7, 11, 12, 13)
-_PER_CELL = (0, 1, 7, 11, 12, 13)
+#: the arguments of ``integrate_cells_kernel`` from the states on, by name
+CallArgs = namedtuple("CallArgs", "states cells aux params config t_start t_end steps rtol atol "
+                                  "max_steps stats status reached")
+#: the arrays a call writes, and those with a row per cell (these and the cells' fields)
+_WRITTEN = ("states", "steps", "stats", "status", "reached")
+_PER_CELL = _WRITTEN + ("cells",)
 
 
 def _stop_raising_cells(method, scheme, args, before):
-    """After a call of the kernel in which the method's functions raised (``faults``): every
-    cell integrated again alone from the call's start (``before``: states, steps, stats,
-    status, reached as they were); a cell that raises again is put back to its start with
-    status METHOD_RAISED, the others keep their result (the same as in the shared call: a
-    cell's numbers do not depend on the others)."""
-    written = tuple(args[i] for i in _WRITTEN)
-    for now, then in zip(written, before):
-        now[...] = then
+    """After a call of the kernel (``args``: ``CallArgs``) in which the method's functions
+    raised (``faults``): every cell integrated again alone from the call's start (``before``:
+    the written arrays as they were, by name); a cell that raises again is put back to its
+    start with status METHOD_RAISED, the others keep their result (the same as in the shared
+    call: a cell's numbers do not depend on the others)."""
+    for name, then in before.items():
+        getattr(args, name)[...] = then
     raising = []
-    for c in np.flatnonzero(before[3] == OK):
+    for c in np.flatnonzero(before["status"] == OK):
         one = slice(c, c + 1)
-        row = tuple(a[one] if i in _PER_CELL else a for i, a in enumerate(args))
-        share = kernel(method, scheme, row)
-        if faults.watched(share, 0, 1).count:
+        row = args._replace(**{name: getattr(args, name)[one] for name in _PER_CELL})
+        if faults.watched(kernel(method, scheme, row), 0, 1).count:
             raising.append(c)
     if not raising:
         raise faults.MethodRaised(
             "the method's functions raised an exception inside the integrator "
             f"({faults.last_text()}), and no cell raised it again when integrated alone")
     for c in raising:
-        for now, then in zip(written, before):
-            now[c] = then[c]
-        written[3][c] = METHOD_RAISED
-        written[4][c] = args[5]
+        for name, then in before.items():
+            getattr(args, name)[c] = then[c]
+        args.status[c] = METHOD_RAISED
+        args.reached[c] = args.t_start
 
 
 _KERNELS = {}

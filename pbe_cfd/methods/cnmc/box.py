@@ -19,7 +19,7 @@ from .slots import N_BINS, Particles, Slots
 from .slots import d4 as _d4
 from .slots import insert_slot as _insert
 from .slots import remove_slot as _remove
-from .spray import Spray, next_change, rate_at, sprayed_mass
+from .spray import constant_spray, next_change, rate_at, sprayed_mass
 from .quantities import (MOMENT_NAMES, N_QUANTITIES, PSD_BINS, PSD_FRACTIONS,  # noqa: F401
                          PSD_LOG10_LO, PSD_PER_DECADE, QUANTITY_NAMES, box_quantities,
                          box_size_classes, store_output)
@@ -114,7 +114,7 @@ def run_box(p, b, isdrop, volume0, output_times, cell, params, config, rng_seed,
     """``run_box_with_sizes`` without the size classes and percentiles, at the constant
     injection cell[INJECTION] (arguments and returns as there)."""
     n_out = output_times.size
-    spray = Spray(np.zeros(1), np.full(1, cell[P.INJECTION]), params[P.DROPLET_MASS])
+    spray = constant_spray(cell[P.INJECTION], params[P.DROPLET_MASS])
     return run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config,
                               rng_seed, exponential_dt, max_trials, out,
                               np.zeros((n_out, PSD_BINS, 2)), np.zeros((n_out, 3)),
@@ -158,7 +158,7 @@ def run_box_with_sizes(p, b, isdrop, volume0, output_times, cell, params, config
     drying, hazard = config[P.DRYING] == 1, 0.0         # stops between events if timed:
     timed = drying or spray.starts.size > 1 or spray.starts[0] > 0.0
     while k_out < n_out:
-        if drying and drift_due(dry[2], n, t):      # dry to now, between two events
+        if drying and drift_due(dry[2], n):      # dry to now, between two events
             ptot, s4, d43_tab = _dried_and_synced(box, slots, t, conc0, spray, dry, ptot,
                                                   s4, d43_tab, table, tabd, alpha, theta,
                                                   params, config)

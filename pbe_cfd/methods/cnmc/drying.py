@@ -49,10 +49,10 @@ def dry_box(p, b, dt, params):
 
 
 @nb.njit(cache=True)
-def drift_due(trials_since, n, t_next):
-    """True if the box should drift before the event at t_next [s]: N / DRIFT_TRIALS event
-    proposals since its last drift, and an event to come."""
-    return trials_since * DRIFT_TRIALS >= n and t_next < 1e300
+def drift_due(trials_since, n):
+    """True if a box of n particles should drift now, between two events: N / DRIFT_TRIALS
+    event proposals since its last drift."""
+    return trials_since * DRIFT_TRIALS >= n
 
 
 @nb.njit(cache=True, inline="always")

@@ -10,9 +10,10 @@ import numpy as np
 Spray = namedtuple("Spray", "starts rates droplet_mass")
 
 
+@nb.njit(cache=True)
 def constant_spray(rate, droplet_mass):
     """One rate [droplets/(m3 s)] from t = 0 on, droplets of ``droplet_mass`` [kg]."""
-    return Spray(np.zeros(1), np.array([float(rate)]), float(droplet_mass))
+    return Spray(np.zeros(1), np.full(1, float(rate)), float(droplet_mass))
 
 
 def scheduled_spray(segments, droplet_mass):
