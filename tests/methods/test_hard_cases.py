@@ -365,6 +365,35 @@ def test_laguerre_next_to_packing_reports_its_support(theta):
         run_well_mixed(scene)
 
 
+# the issue's hard cell under the friction cap (study-ktgf: alpha 0.6199, cap 0.5, k0 1e-3,
+# 1e4 x the seed injection, the sharp Stokes step) with the ROM whose support follows the
+# wet class: its aggregation and capture on the point measures, every wet row
+# (docs/physics.md 9.2); with the tensors' rows of order 3 and 4 ("points") it stopped at its
+# step floor at 0.086 s (Theta 2) and 4.5 ms (Theta 10), docs/results/hard-cases.md
+@pytest.mark.slow
+@pytest.mark.parametrize("theta", [2.0, 10.0])
+def test_following_laguerre_finishes_the_hard_cell_under_the_cap(theta):
+    """Finite output, M10 growing at the injected binder mass rate to 1e-10, M01 <= M10, and
+    M20 M00 >= M10^2 at every output over 0.2 s, in which d43 grows 2.9-7.6-fold
+    (docs/results/hard-cases.md)."""
+    scene = load_scene("study-ktgf")
+    dom = dataclasses.replace(scene.domain, solids_fraction=0.6199, granular_temperature=theta)
+    method = load_scene("seed-wurster-laguerre").method.replaced(
+        following_support=True, following_growth=1e3)
+    scene = dataclasses.replace(
+        scene, domain=dom, end_time=0.2, output_interval=0.02,
+        aggregation=dataclasses.replace(scene.aggregation, rate=1e-3),
+        binder_injection=dataclasses.replace(scene.binder_injection, rate=1e4 * SEED_RATE),
+        method=dataclasses.replace(method, rtol=1e-8, atol=1e-14))
+    c = run_well_mixed(scene).columns
+    assert c["time_s"][-1] == pytest.approx(0.2, rel=1e-12, abs=0)
+    assert_invariants(c, injected_mass_rate=1e4 * SEED_RATE * droplet_mass(60e-6, 1000.0))
+    assert np.all((c["M01"] >= 0) & (c["M01"] <= c["M10"]))
+    # the output columns hold the free droplets too: one positive population
+    assert np.all(c["M20"] * c["M00"] >= c["M10"] ** 2 * (1 - 1e-12))
+    assert c["d43_m"][-1] > 2.0 * c["d43_m"][0]
+
+
 # ------------------------------------------------------------------ property-based
 positive = st.floats(min_value=1e-3, max_value=1e3)
 

@@ -88,14 +88,18 @@ HEADER = (
     ("AUX_CAPTURE_MOMENTS", "1: Cd holds int k_d A_f phi~_k, the moments of the granules that "
                             "capture, mapped at the RHS's droplet point (evaporating droplets); "
                             "0: the wet gain at the sprayed droplet (p_d, b_d)"),
-    ("AUX_NUMBER_POINTS", "the rows of order <= 2 of aggregation and capture (NUMBER_CLOSURES): "
-                          "0 the tensors', 1 the point measures' (number_points)"),
+    ("AUX_NUMBER_POINTS", "the rows of aggregation and capture (NUMBER_CLOSURES): 0 the "
+                          "tensors', 1 those of order <= 2 on the point measures "
+                          "(number_points), 2 every wet row on them"),
 )
 AUX_HEADER = numbered(HEADER, globals())
 AUX_LAYOUT_VERSION = 9.0
 
 #: ``[method] number_closure`` -> aux[AUX_NUMBER_POINTS] (docs/physics.md 9.2)
-NUMBER_CLOSURES = {"tensor": 0.0, "points": 1.0}
+NUMBER_CLOSURES = {"tensor": 0.0, "points": 1.0, "points-all": 2.0}
+#: aux[AUX_NUMBER_POINTS] of the closure that takes every wet row of aggregation and capture
+#: from the point measures
+EVERY_ROW_ON_POINTS = 2.0
 
 TABLE_III = dict(weights=dict(c=1e-9, d=1e-9, lam=1.0, gam=0.2),
                  support=dict(p_max=1e-8, b_max=4e-9, n_p=20, n_b=20))

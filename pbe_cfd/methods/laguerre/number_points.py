@@ -1,6 +1,8 @@
-"""The rows of order <= 2 of aggregation and droplet capture on the classes' point measures
-(``[method] number_closure = "points"``; docs/physics.md section 9.2, "The rows of order 0-2
-on the point measures").
+"""The rows of aggregation and droplet capture on the classes' point measures: those of order
+<= 2 (``[method] number_closure = "points"``; docs/physics.md section 9.2, "The rows of order
+0-2 on the point measures"), or every wet row (``"points-all"``, ``every_row``: the same pair
+sums of every moment W_ij, expanded binomially without cancellation; "Every wet row on the
+point measures").
 
 Aggregation alone lowers the granule number: for any positive population
 d(M00)/dt = -1/2 of the double integral of beta psi n n <= 0. The tensors apply the kernel to
@@ -72,6 +74,118 @@ def dry_points(state, m):
 
 
 @nb.njit(cache=True)
+def dry_powers(state, m, dry_mass, dry_weights, out):
+    """Write out[r, e] [scaled]: the e-th powers of the dry points' masses, the factors of the
+    dry rows D_e that a dry point's collisions remove; returns ``out`` (2 x m). Where the rule
+    has one node (a class at one mass, or past it by round-off: variance not positive) the
+    rows e < DRY_POINT_ORDERS take the carried D_e / D0 instead of x^e, so that a loss removes
+    the same share of each carried moment and keeps D0 D2 / D1^2 (x^2 = (D1 / D0)^2 would
+    remove D0-proportional amounts from a D2 below D1^2 / D0, and the class would leave the
+    realizable set as it empties)."""
+    K = m * m
+    for r in range(2):
+        v = 1.0
+        for e in range(m):
+            out[r, e] = v
+            v *= dry_mass[r]
+    if dry_weights[1] == 0.0 and state[K] > 0.0:
+        for e in range(min(m, DRY_POINT_ORDERS)):
+            out[0, e] = max(state[K + e], 0.0) / state[K]
+    return out
+
+
+@nb.njit(cache=True)
+def _powers_into(values, m, out, first):
+    """out[first + q, k] = values[q]^k for k < m (scaled masses or liquids of the points)."""
+    for q in range(len(values)):
+        v = 1.0
+        for k in range(m):
+            out[first + q, k] = v
+            v *= values[q]
+
+
+@nb.njit(cache=True, inline="always")
+def _merged_gain(i, j, xs, bs, xt, bt, choose):
+    """(x_s + x_t)^i (b_s + b_t)^j - x_s^i b_s^j - x_t^i b_t^j [scaled], expanded without
+    cancellation: the binomial terms of both partners' shares. xs[k] = x_s^k and so on;
+    choose[n, k] = C(n, k)."""
+    gain = 0.0
+    for k in range(i + 1):
+        for l in range(j + 1):
+            if (k == i and l == j) or (k == 0 and l == 0):
+                continue
+            gain += choose[i, k] * choose[j, l] * xs[k] * bs[l] * xt[i - k] * bt[j - l]
+    return gain
+
+
+@nb.njit(cache=True)
+def _choose_into(m, out, first):
+    """out[first + n, k] = C(n, k) for n, k < m."""
+    for n in range(m):
+        for k in range(m):
+            out[first + n, k] = 0.0
+        out[first + n, 0] = 1.0
+        for k in range(1, n + 1):
+            out[first + n, k] = out[first + n, k - 1] * (n - k + 1) / k
+
+
+#: rows of the table ``point_tables`` fills (each of length m): the wet points' mass powers,
+#: their liquid powers, the droplet's mass and liquid powers, the dry points' powers
+#: (``dry_powers``), then C(n, k) (m rows)
+TAB_MASS = 0
+TAB_LIQUID = N_POINTS
+TAB_DROPLET_MASS = 2 * N_POINTS
+TAB_DROPLET_LIQUID = 2 * N_POINTS + 1
+TAB_DRY = 2 * N_POINTS + 2
+TAB_CHOOSE = 2 * N_POINTS + 4
+
+
+@nb.njit(cache=True)
+def point_tables(m, mass, liquid):
+    """The table of powers and binomial coefficients the every-row sums read (rows TAB_*;
+    the droplet's and the dry points' rows are filled where they are known)."""
+    tab = np.ones((TAB_CHOOSE + m, m))
+    _powers_into(mass, m, tab, TAB_MASS)
+    _powers_into(liquid, m, tab, TAB_LIQUID)
+    _choose_into(m, tab, TAB_CHOOSE)
+    return tab
+
+
+@nb.njit(cache=True)
+def _wet_wet_every_row(out, m, props, weights, tab, rows, factor, u0, own, config):
+    """The wet-wet aggregation's every wet row over the wet points: W00 loses 1/2 sum w_s
+    w_t beta_st, each row of order >= 2 gains the merged pairs' moments less the partners'
+    (``_merged_gain``); the rows of order 1 do not change. tab: ``point_tables``; rows: K
+    entries of scratch."""
+    K = m * m
+    choose = tab[TAB_CHOOSE:TAB_CHOOSE + m]
+    rows[:K] = 0.0
+    number = 0.0
+    for s in range(N_POINTS):
+        ws = weights[s]
+        if ws == 0.0:
+            continue
+        for t in range(s, N_POINTS):
+            wt = weights[t]
+            if wt == 0.0:
+                continue
+            f = (0.5 if t == s else 1.0) * ws * wt * pair_rate(props, s, t, factor, u0, own,
+                                                                 config)
+            number += f
+            xs, bs = tab[TAB_MASS + s], tab[TAB_LIQUID + s]
+            xt, bt = tab[TAB_MASS + t], tab[TAB_LIQUID + t]
+            for i in range(m):
+                for j in range(m):
+                    if i + j >= 2:
+                        rows[i * m + j] += f * _merged_gain(i, j, xs, bs, xt, bt, choose)
+    nref = own[P.NUMBER_SCALE]
+    out[0] += min(-nref * number, 0.0)
+    for a in range(K):
+        if rows[a] != 0.0:
+            out[a] += max(nref * rows[a], 0.0)
+
+
+@nb.njit(cache=True)
 def _wet_wet(out, m, props, mass, liquid, weights, factor, u0, own, config):
     """The wet-wet rows W00, W20, W11, W02 over the wet points (module docstring)."""
     number = 0.0                        # each sum: 1/2 of the ordered double sum
@@ -100,11 +214,11 @@ def _wet_wet(out, m, props, mass, liquid, weights, factor, u0, own, config):
 
 
 @nb.njit(cache=True)
-def _dry_wet(out, m, props, dry_mass, dry_weights, mass, liquid, weights, factor, u0, own,
+def _dry_wet(out, m, props, dry_pow, dry_weights, mass, liquid, weights, factor, u0, own,
              config):
     """Dry + wet -> wet over the dry x wet points: dD_e = -sum w_r w_s beta x_r^e (e < 3),
     dW10 = -dD_1, dW20 = sum w_r w_s beta (x_r^2 + 2 x_r x_s), dW11 = sum w_r w_s beta x_r b_s
-    (W00, W01, W02 unchanged)."""
+    (W00, W01, W02 unchanged; x_r^e: ``dry_powers``)."""
     K = m * m
     nref = own[P.NUMBER_SCALE]
     number = 0.0
@@ -116,7 +230,8 @@ def _dry_wet(out, m, props, dry_mass, dry_weights, mass, liquid, weights, factor
         wr = dry_weights[r]
         if wr == 0.0:
             continue
-        xr = dry_mass[r]
+        xr = dry_pow[r, 1]
+        xr2 = dry_pow[r, 2] if m > 2 else xr * xr
         for s in range(N_POINTS):
             ws = weights[s]
             if ws == 0.0:
@@ -124,8 +239,8 @@ def _dry_wet(out, m, props, dry_mass, dry_weights, mass, liquid, weights, factor
             f = nref * wr * ws * pair_rate(props, DRY_ROW + r, s, factor, u0, own, config)
             number += f
             first += f * xr
-            second += f * xr * xr
-            gain20 += f * (xr * xr + 2.0 * xr * mass[s])
+            second += f * xr2
+            gain20 += f * (xr2 + 2.0 * xr * mass[s])
             gain11 += f * xr * liquid[s]
     if not (number > 0.0 and first > 0.0):
         return
@@ -139,25 +254,24 @@ def _dry_wet(out, m, props, dry_mass, dry_weights, mass, liquid, weights, factor
 
 
 @nb.njit(cache=True)
-def _dry_capture_on_points(out, m, props, dry_mass, dry_weights, xd, xl, kd, factor, u0, own,
+def _dry_capture_on_points(out, m, props, dry_pow, dry_weights, xd, xl, kd, factor, u0, own,
                            config):
-    """Dry + droplet -> wet: L_e = kd sum_r w_r beta_rd x_r^e (e < 3) leaves D_e and enters
-    every wet row as sum_e C(i, e) x_d^(i - e) x_l^j L_e; returns L_0, the droplets lost."""
+    """Dry + droplet -> wet: L_e = kd sum_r w_r beta_rd x_r^e (e < 3; x_r^e: ``dry_powers``)
+    leaves D_e and enters every wet row as sum_e C(i, e) x_d^(i - e) x_l^j L_e; returns L_0,
+    the droplets lost."""
     K = m * m
     lost = 0.0
     for r in range(2):
         wr = dry_weights[r]
         if wr == 0.0:
             continue
-        xr = dry_mass[r]
         f = kd * wr * pair_rate(props, DRY_ROW + r, DROPLET_ROW, factor, u0, own, config)
         lost += f
-        xe = 1.0
         for e in range(min(m, DRY_POINT_ORDERS)):
+            xe = dry_pow[r, e]
             out[K + e] -= f * xe
             out[e * m] += f * xe
             capture_gain(out, f * xe, e * m, m, xd, xl, 0)
-            xe *= xr
     return lost
 
 
@@ -191,7 +305,83 @@ def _wet_capture_on_points(out, m, props, mass, liquid, weights, xd, xl, kd, fac
 
 
 @nb.njit(cache=True)
-def add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd, cross):
+def _dry_wet_every_row(out, m, props, dry_weights, weights, tab, rows, factor, u0, own,
+                       config):
+    """Dry + wet -> wet over the dry x wet points, every wet row: a wet row (i, j) with
+    i >= 1 gains sum w_r w_s beta [(x_r + x_s)^i - x_s^i] b_s^j (its binomial terms with
+    x_r^k, k >= 1), the rows i = 0 do not change; the dry rows e < DRY_POINT_ORDERS lose
+    sum w_r w_s beta x_r^e (x_r^e: ``dry_powers``, rows TAB_DRY of tab). rows: K + m entries
+    of scratch."""
+    K = m * m
+    nref = own[P.NUMBER_SCALE]
+    choose = tab[TAB_CHOOSE:TAB_CHOOSE + m]
+    rows[:K + m] = 0.0
+    for r in range(2):
+        wr = dry_weights[r]
+        if wr == 0.0:
+            continue
+        xr = tab[TAB_DRY + r]
+        for s in range(N_POINTS):
+            ws = weights[s]
+            if ws == 0.0:
+                continue
+            f = nref * wr * ws * pair_rate(props, DRY_ROW + r, s, factor, u0, own, config)
+            for e in range(m):
+                rows[K + e] += f * xr[e]
+            for i in range(1, m):
+                for k in range(1, i + 1):
+                    g = f * choose[i, k] * xr[k] * tab[TAB_MASS + s, i - k]
+                    for j in range(m):
+                        rows[i * m + j] += g * tab[TAB_LIQUID + s, j]
+    if not (rows[K] > 0.0 and rows[K + 1] > 0.0):
+        return
+    for e in range(min(m, DRY_POINT_ORDERS)):
+        out[K + e] -= rows[K + e]
+    out[m] += rows[K + 1]
+    for i in range(1, m):
+        for j in range(m):
+            if i + j >= 2:
+                out[i * m + j] += max(rows[i * m + j], 0.0)
+
+
+@nb.njit(cache=True)
+def _wet_capture_every_row(out, m, props, weights, tab, rows, xd, xl, kd, factor, u0, own,
+                           config):
+    """Wet + droplet -> wet, every wet row: (x_s + x_d)^i (b_s + x_l)^j - x_s^i b_s^j
+    (binomial terms without cancellation), kd sum_s w_s beta_sd per row; returns the droplets
+    lost (0 where the sum is not positive: then nothing is added). tab: ``point_tables`` with
+    the droplet's rows; rows: K entries of scratch."""
+    K = m * m
+    choose = tab[TAB_CHOOSE:TAB_CHOOSE + m]
+    dp = tab[TAB_DROPLET_MASS]
+    lp = tab[TAB_DROPLET_LIQUID]
+    rows[:K] = 0.0
+    lost = 0.0
+    for s in range(N_POINTS):
+        ws = weights[s]
+        if ws == 0.0:
+            continue
+        f = kd * ws * pair_rate(props, s, DROPLET_ROW, factor, u0, own, config)
+        lost += f
+        xs, bs = tab[TAB_MASS + s], tab[TAB_LIQUID + s]
+        for i in range(m):
+            for j in range(m):
+                if i + j >= 2:
+                    rows[i * m + j] += f * (_merged_gain(i, j, xs, bs, dp, lp, choose)
+                                            + dp[i] * lp[j])
+    if not lost > 0.0:
+        return 0.0
+    out[m] += lost * xd
+    out[1] += lost * xl
+    for a in range(K):
+        if rows[a] != 0.0:
+            out[a] += max(rows[a], 0.0)
+    return lost
+
+
+@nb.njit(cache=True)
+def add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd, cross,
+                    every_row=False):
     """Add the rows of order <= 2 of aggregation and droplet capture on the point measures
     [scaled moments per s] to ``out``; return the droplets captured [scaled per s]. state:
     scaled moments; cell: the cell's row (ALPHA [-], THETA [m2/s2], COLLISION_VELOCITY [m/s]:
@@ -228,7 +418,14 @@ def add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd, cros
     for q in range(N_POINTS):
         if weights[q] != 0.0:
             particle_properties(mass[q] * pref, liquid[q] * pref, own, config, props, q)
-    _wet_wet(out, m, props, mass, liquid, weights, factor, u0, own, config)
+    if every_row:
+        tab = point_tables(m, mass, liquid)
+        rows = np.empty(m * m + m)
+        _wet_wet_every_row(out, m, props, weights, tab, rows, factor, u0, own, config)
+    else:
+        tab = np.ones((TAB_CHOOSE + m, m))
+        rows = tab[0]
+        _wet_wet(out, m, props, mass, liquid, weights, factor, u0, own, config)
     if not cross:
         return 0.0
     dx1, dx2, da1, da2 = dry_points(state, m)
@@ -237,15 +434,26 @@ def add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd, cros
     for r in range(2):
         if dry_weights[r] != 0.0:
             particle_properties(dry_mass[r] * pref, 0.0, own, config, props, DRY_ROW + r)
-    _dry_wet(out, m, props, dry_mass, dry_weights, mass, liquid, weights, factor, u0, own,
-             config)
+    dry_pow = dry_powers(state, m, dry_mass, dry_weights, tab[TAB_DRY:TAB_DRY + 2])
+    if every_row:
+        _dry_wet_every_row(out, m, props, dry_weights, weights, tab, rows, factor, u0, own,
+                           config)
+    else:
+        _dry_wet(out, m, props, dry_pow, dry_weights, mass, liquid, weights, factor, u0,
+                 own, config)
     if not (nd > 0.0 and pd > 0.0 and config[P.SEPARATE_DROPLETS] == 1):
         return 0.0
     particle_properties(pd, bd, own, config, props, DROPLET_ROW)
     kd = own[P.NUMBER_SCALE] * nd * own[P.DROPLET_FACTOR]   # [1/s per (m3/s) of pair rate]
     xd = pd / pref
     xl = bd / pref
-    lost = _dry_capture_on_points(out, m, props, dry_mass, dry_weights, xd, xl, kd, factor,
+    lost = _dry_capture_on_points(out, m, props, dry_pow, dry_weights, xd, xl, kd, factor,
                                   u0, own, config)
+    if every_row:
+        for k in range(1, m):
+            tab[TAB_DROPLET_MASS, k] = tab[TAB_DROPLET_MASS, k - 1] * xd
+            tab[TAB_DROPLET_LIQUID, k] = tab[TAB_DROPLET_LIQUID, k - 1] * xl
+        return lost + _wet_capture_every_row(out, m, props, weights, tab, rows, xd, xl, kd,
+                                             factor, u0, own, config)
     return lost + _wet_capture_on_points(out, m, props, mass, liquid, weights, xd, xl, kd,
                                          factor, u0, own, config)

@@ -164,7 +164,7 @@ class NumberWatch:
         """Evaluate the cells at output time t [s]; True if any was flagged. With the wet
         number row on the point measure (aux[AUX_NUMBER_POINTS] = 1) the RHS's rate is not
         positive by construction: nothing to watch."""
-        if aux[AUX_NUMBER_POINTS] == 1.0:
+        if aux[AUX_NUMBER_POINTS] != 0.0:
             return False
         rel, flag = number_rates(np.ascontiguousarray(states, dtype=np.float64),
                                  np.ascontiguousarray(rows, dtype=np.float64), aux,

@@ -9,9 +9,9 @@ class LaguerreOptions:
     shapes [-], the quadrature support support_mass [kg], support_binder [kg] on grid_mass x
     grid_binder points, the dry class of granules without binder (its weight
     dry_weight_mean_mass [kg] and shape, dry_grid_mass points), adaptive wet weights and the
-    following support, and the closure of the rows of order <= 2 of aggregation and droplet
-    capture (number_closure: the tensors, or the classes' point measures; docs/physics.md
-    section 9.2)."""
+    following support, and the closure of the rows of aggregation and droplet capture
+    (number_closure: the tensors, or the classes' point measures; docs/physics.md section
+    9.2)."""
     order: int = 3
     consistent: bool = True
     weight_mean_mass: float = 1.0e-9
@@ -34,6 +34,7 @@ class LaguerreOptions:
     following_support: bool = False               # the support follows the wet class
     following_growth: float = 1000.0              # its range: up to this x the initial mean mass
     following_shape: bool = True                  # the weight's shape follows the variance
-    # the rows of order <= 2 of aggregation and droplet capture: "tensor" or "points" (unset:
-    # "points" with the following support, "tensor" with the fixed one; docs/physics.md 9.2)
+    # the rows of aggregation and droplet capture: "tensor", "points" (order <= 2 on the
+    # point measures) or "points-all" (every wet row on them) (unset: "points-all" with the
+    # following support, "tensor" with the fixed one; docs/physics.md 9.2)
     number_closure: str | None = None

@@ -23,7 +23,8 @@ class's liquid balance (``quadrature.drying_sources.add_droplet_class_terms``),
 
 with aux[AUX_NUMBER_POINTS] = 1 (``[method] number_closure = "points"``) the Q form's rows of
 order 0 and 2 (W00, W20, W11, W02), the X, XL, Cd and Cdd rows of order <= 2 and the droplets
-lost replaced by pair sums over the classes' point measures (``number_points``),
+lost replaced by pair sums over the classes' point measures (``number_points``), and with
+aux[AUX_NUMBER_POINTS] = EVERY_ROW_ON_POINTS (``"points-all"``) every wet row of Q, X and Cd,
 
 mult = k0 N_ref F_cell, F_cell = g0(alpha) sqrt(Theta) d43^(3/2) for the ktgf kernel (1
 otherwise); d43 [m] from the reconstruction: d43 = (6 / (pi rho_s))^(1/3) int p^(4/3) n /
@@ -55,6 +56,7 @@ from .drying import add_linear_terms
 from .layout import (AUX_CAPTURE_MOMENTS, AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NWD,
                      AUX_OFF_CAPMAP, AUX_OFF_CD, AUX_OFF_CD0, AUX_OFF_CDD, AUX_OFF_Q,
                      AUX_NUMBER_POINTS, AUX_OFF_QDD, AUX_OFF_X, AUX_OFF_XL, AUX_ORDER,
+                     EVERY_ROW_ON_POINTS,
                      AUX_SEPARATE, _corner,
                      droplet_number_entry, state_names, state_size,  # noqa: F401
                      N_CORNERS, weight_corner)
@@ -220,6 +222,8 @@ WITHOUT_POINT_ROWS = 4
 #: also leave out the dry-wet aggregation's and the capture's wet rows of order <= 2, dry rows
 #: e < DRY_POINT_ORDERS and droplets lost, which ``number_points`` then gives
 WITHOUT_CROSS_ROWS = 8
+#: with both above: leave out every wet row of these terms (the points give them all)
+WITHOUT_ANY_WET_ROW = 16
 
 
 @nb.njit(cache=True)
@@ -239,6 +243,9 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
     aggregation = (terms & AGGREGATION_TERMS) != 0
     skip = points_rows(m) if (terms & WITHOUT_POINT_ROWS) != 0 else 0
     low = low_rows(m) if (terms & WITHOUT_CROSS_ROWS) != 0 else 0
+    if (terms & WITHOUT_ANY_WET_ROW) != 0:
+        skip = (1 << (m * m)) - 1
+        low = skip
     dry_low = min(m, DRY_POINT_ORDERS) if low != 0 else 0
     at_point = aux[AUX_CAPTURE_MOMENTS] == 1.0
     loss = 0.0
@@ -347,8 +354,10 @@ def laguerre_rhs(state, out, cell, aux, params, config, work=None):
         xd = pd / params[P.MASS_SCALE]
         xl = bd / params[P.MASS_SCALE]
         skip = 0
-        if aux[AUX_NUMBER_POINTS] == 1.0 and m >= 3:
+        if aux[AUX_NUMBER_POINTS] != 0.0 and m >= 3:
             skip = WITHOUT_POINT_ROWS | WITHOUT_CROSS_ROWS
+            if aux[AUX_NUMBER_POINTS] == EVERY_ROW_ON_POINTS:
+                skip |= WITHOUT_ANY_WET_ROW
         shift = binder_shift(state, aux, m) if wet else 0.0
         if shift == 0.0:
             loss = _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry,
@@ -362,7 +371,7 @@ def laguerre_rhs(state, out, cell, aux, params, config, work=None):
                                           shift, work, skip)
         if skip != 0:
             loss += add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd,
-                                    True)
+                                    True, (skip & WITHOUT_ANY_WET_ROW) != 0)
         if separate:
             out[droplets] = -loss
     if config[P.BREAKAGE] == 1 or config[P.DRYING] == 1:     # laguerre_breakage, _drying

@@ -381,12 +381,15 @@ def aux_for_scene(scene, arrays, theta_grid=None, cache_dir=None):
 
 
 def number_closure(following, given=None):
-    """The closure of the rows of order <= 2 ("tensor" or "points"): ``given``, or by
-    default "points" with the following support (measured on the batch proxies, the bed
-    batch and the held-out suite, docs/results/laguerre.md: the tensors' number row turns
-    positive for a broad class, their capture pushes a class born at one mass outside) and
-    "tensor" with the fixed seed support (where the tensors are exact or within 1.5%)."""
-    return given or ("points" if following else "tensor")
+    """The closure of the rows of aggregation and droplet capture ("tensor", "points": the
+    rows of order <= 2 on the point measures, "points-all": every wet row on them):
+    ``given``, or by default "points-all" with the following support (measured on the batch
+    proxies, the bed batch, the held-out suite and the hard cell next to packing,
+    docs/results/laguerre.md: the tensors' number row turns positive for a broad class,
+    their capture pushes a class born at one mass outside, their rows of order 3 and 4 turn
+    negative next to packing) and "tensor" with the fixed seed support (where the tensors are
+    exact or within 1.5%)."""
+    return given or ("points-all" if following else "tensor")
 
 
 def following_spec(scene, arrays):
@@ -456,7 +459,7 @@ def scene_keys(t, defaults):
     kw["following_growth"] = t.number("following_growth", defaults.following_growth,
                                       low=2.0, high=1e9)
     kw["following_shape"] = t.boolean("following_shape", defaults.following_shape)
-    # the rows of order <= 2; not given: ``number_closure`` decides with the following support
+    # the rows on the point measures; not given: ``number_closure`` decides with the support
     if t.has("number_closure"):
         kw["number_closure"] = t.choice("number_closure", tuple(NUMBER_CLOSURES))
     return kw
