@@ -1,11 +1,13 @@
-"""Gamma-EQMOM moment sources and the integrator's hooks (rhs, realizable, project,
-conserved) with the signatures of ``methods.dispatch``.
+"""EQMOM moment sources (gamma or lognormal kernels) and the integrator's hooks (rhs,
+realizable, project, conserved) with the signatures of ``methods.dispatch``.
 
 The sources are QMOM's integrals evaluated on the secondary particles (X_j, W_j, B_j) of the
 kernels (``state``): aggregation over each unordered pair of particles (and a particle with
 itself), breakage per particle, droplet capture per particle and injection as in QMOM. With
 N + 2 secondary nodes per kernel they are exact over the reconstruction for the constant and
-sum kernels and for the power-law selection with a <= 2 (see ``state.secondary_nodes``).
+sum kernels and for the power-law selection with a <= 2 (see ``state.secondary_nodes``); the
+lognormal kernels' 20 Gauss-Hermite particles are exact for no power, within ~1e-7 of the
+reconstruction for the orders these sources use (docs/physics.md section 16).
 Units: scaled moments per s (``state``); rates from ``physics`` in SI.
 """
 import math

@@ -1,4 +1,6 @@
-"""Gamma-EQMOM inversion (Yuan, Laurent and Fox 2012, J. Aerosol Sci. 51, 1-23).
+"""EQMOM inversion (Yuan, Laurent and Fox 2012, J. Aerosol Sci. 51, 1-23): gamma kernels, and
+lognormal ones through ``family`` = LOGNORMAL (``lognormal_kernels``: their moments, star moments
+and sigma range replace the gamma kernels' below; the search and the fallbacks are the same).
 
 The number density in granule mass x (scaled: x = p / p_ref) is a sum of N gamma kernels of a
 common width sigma,
