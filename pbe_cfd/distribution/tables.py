@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import kernel_mixture
+from . import kernel_mixture, lognormal_mixture
 from . import reconstruct as R
 from ..methods.registry import method_of
 from .quantiles import FRACTIONS, DistributionError, check_grid_covers, log_grid
@@ -115,7 +115,8 @@ def reconstruction_of(plan: DistributionPlan, arrays, states, aux, populations, 
         return R.laguerre_table(states, aux, arrays, bivariate, labels)
     floor = plan.floor
     if kind == "kernel_mixture" and floor == 0.0:         # the EQMOM's own kernels
-        return kernel_mixture.of_states(states, aux, arrays, rho, bivariate, labels)
+        own = lognormal_mixture if lognormal_mixture.is_lognormal(aux) else kernel_mixture
+        return own.of_states(states, aux, arrays, rho, bivariate, labels)
     return kernel_mixture.of_nodes(populations, rho, bivariate, labels, floor=floor,
                                    kernels=plan.kernels,
                                    signed=kind == "laguerre_density")

@@ -1,5 +1,6 @@
-"""Gamma extended quadrature method of moments (EQMOM; Yuan, Laurent and Fox 2012) in granule
-mass, binder per kernel (docs/physics.md, section "EQMOM").
+"""Extended quadrature method of moments (EQMOM; Yuan, Laurent and Fox 2012) in granule mass
+with gamma kernels, or lognormal ones (``[method] kernel = "lognormal"``; Madadi-Kandjani and
+Passalacqua 2015), binder per kernel (docs/physics.md, section "EQMOM").
 
 ``inversion``: the N-kernel fit to M00 .. M(2N)0 and its fallbacks; ``state``: the state and
 work layouts, the binder fractions per kernel and the secondary particles; ``sources``: the

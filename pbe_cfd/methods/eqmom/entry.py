@@ -13,7 +13,7 @@ from ...physics import parameters as P
 from ..entry import MethodEntry
 import pbe_cfd.methods.quadrature.gamma_inversion as I
 import pbe_cfd.methods.eqmom.state as S
-from .options import EqmomOptions
+from .options import KERNELS, EqmomOptions
 from .sources import eqmom_conserved, eqmom_project, eqmom_realizable, eqmom_rhs
 
 #: config[P.METHOD] of the EQMOM
@@ -21,8 +21,10 @@ CODE = 3
 
 
 def scene_keys(t, defaults):
-    """The ``[method]`` keys of EQMOM: ``nodes`` (kernels N, 1..5)."""
-    return {"nodes": t.number("nodes", defaults.nodes, integer=True, low=1, high=I.MAX_KERNELS)}
+    """The ``[method]`` keys of EQMOM: ``nodes`` (kernels N, 1..5) and ``kernel`` (their
+    family: "gamma" or "lognormal")."""
+    return {"nodes": t.number("nodes", defaults.nodes, integer=True, low=1, high=I.MAX_KERNELS),
+            "kernel": t.choice("kernel", KERNELS, defaults.kernel)}
 
 
 def state_names(scene):
@@ -32,8 +34,9 @@ def state_names(scene):
 
 
 def aux(scene, arrays, theta_grid=None):
-    """[secondary Gauss nodes per kernel] (``state.secondary_nodes``)."""
-    return np.array([float(S.secondary_nodes(scene.method.options.nodes))])
+    """[secondary nodes per kernel, kernel family, (lognormal) Gauss-Hermite points and
+    weights] (``state.aux_array``)."""
+    return S.aux_array(scene.method.options.nodes, scene.method.options.kernel)
 
 
 def population(state, aux_, arrays):
@@ -43,26 +46,29 @@ def population(state, aux_, arrays):
 
 
 def kernels_si(state, aux_, arrays):
-    """(sigma [kg], centres [kg], number weights [1/m3], binder fractions [-], status) of one
-    scaled state."""
+    """(sigma [kg] (gamma) or [-] (lognormal: of ln p), centres [kg] (lognormal: medians),
+    number weights [1/m3], binder fractions [-], status) of one scaled state."""
     sigma, x, w, y, status = S.kernels_of(state, arrays.config, aux_)
-    return (sigma * arrays.mass_scale, x * arrays.mass_scale, w * arrays.number_scale, y,
-            status)
+    lognormal = S.kernel_family(np.asarray(aux_, float)) == I.LOGNORMAL
+    return (sigma if lognormal else sigma * arrays.mass_scale, x * arrays.mass_scale,
+            w * arrays.number_scale, y, status)
 
 
 def plan_line(scene):
     """The method's line of ``pbe-cfd plan``."""
-    n = scene.method.options.nodes
-    return (f"gamma EQMOM with {n} kernels ({S.secondary_nodes(n)} secondary "
-            f"Gauss nodes each, binder fraction per kernel); state "
+    n, kernel = scene.method.options.nodes, scene.method.options.kernel
+    rule = "Gauss-Hermite" if kernel == "lognormal" else "Gauss"
+    return (f"{kernel} EQMOM with {n} kernels ({S.secondary_nodes(n, kernel)} secondary "
+            f"{rule} nodes each, binder fraction per kernel); state "
             f"{', '.join(state_names(scene))}; rtol {scene.method.rtol:g}")
 
 
 def failure_hint(plan, arrays, state, aux_):
     """What the inversion made of a stopped cell's state."""
-    sigma, x, w, y, status = S.kernels_of(state, arrays.config, aux_)
+    sigma, x, w, y, status = kernels_si(state, aux_, arrays)
+    unit = "" if S.kernel_family(np.asarray(aux_, float)) == I.LOGNORMAL else " kg"
     return (f" (EQMOM inversion: {I.STATUS_TEXT[status]}, {len(x)} kernels, "
-            f"sigma = {sigma * arrays.mass_scale:.3g} kg)")
+            f"sigma = {sigma:.3g}{unit})")
 
 
 def fallback_counts(states, aux_, arrays):
@@ -98,7 +104,8 @@ ENTRY = MethodEntry(
     bench_quick=("3",), bench_full=("2", "3"),
     distribution="kernel_mixture",
     distributions=("support", "semi-infinite"),
-    distribution_text="the EQMOM's own density: N gamma kernels in granule mass fitted to the "
+    distribution_text="the EQMOM's own density: N gamma (kernel = \"lognormal\": lognormal) "
+                      "kernels in granule mass fitted to the "
                       "carried M00 .. M(2N)0; binder fraction per size class from the kernels' "
                       "binder fractions",
     moments_text="from the EQMOM kernels' secondary Gauss nodes (binder fraction per kernel)",

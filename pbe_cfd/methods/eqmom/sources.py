@@ -1,11 +1,13 @@
-"""Gamma-EQMOM moment sources and the integrator's hooks (rhs, realizable, project,
-conserved) with the signatures of ``methods.dispatch``.
+"""EQMOM moment sources (gamma or lognormal kernels) and the integrator's hooks (rhs,
+realizable, project, conserved) with the signatures of ``methods.dispatch``.
 
 The sources are QMOM's integrals evaluated on the secondary particles (X_j, W_j, B_j) of the
 kernels (``state``): aggregation over each unordered pair of particles (and a particle with
 itself), breakage per particle, droplet capture per particle and injection as in QMOM. With
 N + 2 secondary nodes per kernel they are exact over the reconstruction for the constant and
-sum kernels and for the power-law selection with a <= 2 (see ``state.secondary_nodes``).
+sum kernels and for the power-law selection with a <= 2 (see ``state.secondary_nodes``); the
+lognormal kernels' 20 Gauss-Hermite particles are exact for no power, within ~1e-7 of the
+reconstruction for the orders these sources use (docs/physics.md section 16).
 Units: scaled moments per s (``state``); rates from ``physics`` in SI.
 """
 import math
@@ -202,8 +204,9 @@ def eqmom_conserved(config, params, pivots, coefs):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _project_into(state, target, config, work):
-    """Moments of the reconstruction (kernels, fractions in ``work``) into target."""
+def _project_into(state, target, config, work, family):
+    """Moments of the reconstruction (kernels of the ``family``, fractions in ``work``) into
+    target."""
     n_max = config[P.ORDER]
     n = int(work[S.KERNELS])
     sigma = work[S.SIGMA]
@@ -215,10 +218,10 @@ def _project_into(state, target, config, work):
         w = work[S.off_weights(n_max) + a]
         y = work[S.off_fraction(n_max) + a]
         for k in range(n_size):
-            mu = I.kernel_moment(x, sigma, k)
+            mu = I.family_moment(x, sigma, k, family)
             target[k] += w * mu
             if config[P.BIVARIATE] == 1 and k < n_max:
-                target[n_size + k] += w * y * I.kernel_moment(x, sigma, k + 1)
+                target[n_size + k] += w * y * I.family_moment(x, sigma, k + 1, family)
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -252,7 +255,7 @@ def eqmom_realizable(state, aux, params, config, work):
     target = work[S.off_scratch(n_max):S.off_scratch(n_max) + n_size + n_max]
     status = int(work[S.STATUS])
     if status == I.REDUCED:
-        _project_into(state, target, config, work)
+        _project_into(state, target, config, work, S.kernel_family(aux))
         for k in range(n_size):
             if abs(target[k] - state[k]) > S.PROJECTION_TOLERANCE * abs(state[k]):
                 return False
@@ -260,7 +263,7 @@ def eqmom_realizable(state, aux, params, config, work):
         m01 = state[n_size]
         if m01 < 0.0 or m01 > state[1] * (1.0 + S.PROJECTION_TOLERANCE):
             return False
-        _project_into(state, target, config, work)
+        _project_into(state, target, config, work, S.kernel_family(aux))
         for k in range(n_max):
             i = n_size + k
             if abs(target[i] - state[i]) > S.BINDER_TOLERANCE * abs(state[k + 1]):
@@ -285,7 +288,7 @@ def eqmom_project(state, aux, params, config, work):
     bivariate = config[P.BIVARIATE] == 1
     if status != I.REDUCED and status != I.CLOSEST and status != I.FEWER and not bivariate:
         return
-    _project_into(state, target, config, work)
+    _project_into(state, target, config, work, S.kernel_family(aux))
     if status == I.REDUCED:
         for k in range(2, n_size):
             state[k] = target[k]

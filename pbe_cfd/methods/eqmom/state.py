@@ -1,4 +1,5 @@
-"""Gamma-EQMOM of one cell: state layout, work layout, inversion with binder per kernel.
+"""EQMOM of one cell (gamma or lognormal kernels): state layout, work layout, inversion with
+binder per kernel.
 
 State of one cell (scaled like QMOM's: SI moment / (N_ref p_ref^(i+j))):
 
@@ -8,13 +9,15 @@ State of one cell (scaled like QMOM's: SI moment / (N_ref p_ref^(i+j))):
 
 Binder per kernel: every granule of kernel a holds the binder fraction y_a (binder in
 proportion to mass inside a kernel, as breakage leaves it), so M_k1 = sum_a w_a y_a mu_a,(k+1),
-mu_a,k the k-th moment of the kernel (``inversion.kernel_moment``): N linear equations for the
+mu_a,k the k-th moment of the kernel (``gamma_inversion.family_moment``): N linear equations for the
 N fractions, solved with 0 <= y_a <= 1 enforced (active set). At sigma = 0 this is QMOM's
-binder per node (b_a = y_a x_a). The kernels' secondary Gauss rules (``inversion.gamma_rule``,
+binder per node (b_a = y_a x_a). The kernels' secondary rules (gamma: Gauss rules,
+``inversion.gamma_rule``; lognormal: Gauss-Hermite in ln x, ``lognormal_kernels``;
 aux[AUX_SECONDARY] nodes each) give the weighted particles (X, W, B = y_a X) the sources
 integrate over.
 
-aux: [secondary nodes per kernel]. Work: ``work_size``; the result slots at its front.
+aux (``aux_array``): [secondary nodes per kernel, kernel family, (lognormal) Gauss-Hermite
+points and weights]. Work: ``work_size``; the result slots at its front.
 """
 import math
 
@@ -25,9 +28,16 @@ from ...physics import parameters as P
 from ...physics.kernels import kernel_small_size_exponent
 from ...physics.properties import N_PROPS
 import pbe_cfd.methods.quadrature.gamma_inversion as I
+import pbe_cfd.methods.quadrature.lognormal_kernels as L
 
 #: aux slot: secondary Gauss nodes per kernel
 AUX_SECONDARY = 0
+#: aux slot: the kernel family (I.GAMMA, I.LOGNORMAL; an aux without it: gamma)
+AUX_FAMILY = 1
+#: aux slots of the lognormal kernels' Gauss-Hermite rule: n points, then n weights
+AUX_HERMITE = 2
+#: the most secondary particles per kernel (gamma: I.MAX_SECONDARY; lognormal: L.MAX_HERMITE)
+MAX_PER_KERNEL = max(I.MAX_SECONDARY, L.MAX_HERMITE)
 #: re-projection mismatch (relative) up to which a reduced fit still represents the state
 PROJECTION_TOLERANCE = 1.0e-8
 #: binder moments reproduced by the bounded fractions within this share of M_(k+1)0 (QMOM's
@@ -36,7 +46,7 @@ PROJECTION_TOLERANCE = 1.0e-8
 BINDER_TOLERANCE = 1.0e-6
 
 # ---- result slots (front of work) -------------------------------------------------------------
-SIGMA = 0          # kernel width sigma (scaled mass)
+SIGMA = 0          # kernel width sigma (gamma: scaled mass; lognormal: of ln x, [-])
 STATUS = 1         # inversion.FIT, DISCRETE, ...
 KERNELS = 2        # kernel count n
 TARGET = 3         # J at the result
@@ -69,7 +79,7 @@ def off_particles(n_max):
 
 @nb.njit(cache=True, inline="always")
 def max_particles(n_max):
-    return n_max * I.MAX_SECONDARY
+    return n_max * MAX_PER_KERNEL
 
 
 @nb.njit(cache=True, inline="always")
@@ -114,11 +124,35 @@ def state_names(nodes, bivariate, separate_droplets, drying=False):
     return names
 
 
-def secondary_nodes(nodes):
-    """Secondary Gauss nodes per kernel for N kernels: N + 2, the fewest that integrate the
-    sum kernel's sources of M_2N (degree 2N + 1) and the power-law selection with a = 2
-    (degree 2N + 2) exactly over the reconstruction."""
+def secondary_nodes(nodes, kernel="gamma"):
+    """Secondary Gauss nodes per kernel for N kernels. Gamma: N + 2, the fewest that integrate
+    the sum kernel's sources of M_2N (degree 2N + 1) and the power-law selection with a = 2
+    (degree 2N + 2) exactly over the reconstruction. Lognormal: Gauss-Hermite in ln x, exact
+    for no moment: L.MAX_HERMITE = 20, whose error on the moment of order q of a kernel,
+    that of the rule on e^(q sigma t), is below 1e-7 up to q sigma = 4 (the sources of M_2N
+    use q <= 2N + 2; the fits have sigma <= 0.7; docs/physics.md section 16)."""
+    if kernel == "lognormal":
+        return L.MAX_HERMITE
     return min(nodes + 2, I.MAX_SECONDARY)
+
+
+def aux_array(nodes, kernel="gamma"):
+    """The EQMOM's aux: [secondary nodes per kernel, family] and, for lognormal kernels, the
+    Gauss-Hermite points and weights of ``lognormal_kernels.hermite_rule``."""
+    n_sec = secondary_nodes(nodes, kernel)
+    if kernel != "lognormal":
+        return np.array([float(n_sec), float(I.GAMMA)])
+    points, weights = np.zeros(n_sec), np.zeros(n_sec)
+    if not L.hermite_rule(n_sec, points, weights, np.zeros(2 * n_sec)):
+        raise RuntimeError(f"Gauss-Hermite rule of {n_sec} nodes did not converge")
+    order = np.argsort(points)
+    return np.concatenate([[float(n_sec), float(I.LOGNORMAL)], points[order], weights[order]])
+
+
+@nb.njit(cache=True, inline="always")
+def kernel_family(aux):
+    """The kernel family of an EQMOM aux (I.GAMMA where aux has no family slot)."""
+    return int(aux[AUX_FAMILY]) if aux.shape[0] > AUX_FAMILY else I.GAMMA
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -158,9 +192,10 @@ def _solve_dense(mat, rhs, sol, n, w):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def solve_fractions(binder_moments, nodes, weights, sigma, n, frac, scratch):
+def solve_fractions(binder_moments, nodes, weights, sigma, n, frac, scratch, family=I.GAMMA):
     """Binder fraction y_a per kernel with 0 <= y_a <= 1 from the binder moments M_k1, k < n
-    (scaled; ``binder_moments`` indexable 0..n-1), the kernels' centres, weights and width.
+    (scaled; ``binder_moments`` indexable 0..n-1), the kernels' centres, weights and width
+    (``family``: I.GAMMA or I.LOGNORMAL).
     Active set: the free kernels solve the first n_free equations less what the bounded ones
     hold; a fraction leaving [0, 1] is put on that bound and the rest solved again. Rows are
     scaled by mean^(k+1). Returns the number of bounded kernels."""
@@ -192,11 +227,13 @@ def solve_fractions(binder_moments, nodes, weights, sigma, n, frac, scratch):
             value = binder_moments[k]
             for a in range(n):
                 if fixed[a] != 0.0:
-                    value -= weights[a] * I.kernel_moment(nodes[a], sigma, k + 1) * frac[a]
+                    value -= (weights[a] * I.family_moment(nodes[a], sigma, k + 1, family)
+                              * frac[a])
             rhs[k] = value / scale
             for f in range(n_free):
                 a = int(idx[f])
-                mat[k * n_free + f] = weights[a] * I.kernel_moment(nodes[a], sigma, k + 1) / scale
+                mu = I.family_moment(nodes[a], sigma, k + 1, family)
+                mat[k * n_free + f] = weights[a] * mu / scale
             scale *= mean
         if not _solve_dense(mat, rhs, sol, n_free, w):
             share = 0.0
@@ -266,14 +303,17 @@ def invert(state, aux, config, work):
             work[STATUS] = I.FAILED
             return 0
         scale *= mean
-    # a kernel of shape below the aggregation kernel's small-size exponent has infinite
-    # sources: the inversion does not use such a fit (docs/physics.md, EQMOM)
-    min_shape = kernel_small_size_exponent(config[P.KERNEL])
-    status, n = I.invert_normalised(u, n_max, nodes, weights, inv_work, result, min_shape)
+    family = kernel_family(aux)
+    # a gamma kernel of shape below the aggregation kernel's small-size exponent has infinite
+    # sources: the inversion does not use such a fit (docs/physics.md, EQMOM); a lognormal
+    # kernel has every power moment finite (0: the fallbacks on, every kernel usable)
+    min_shape = 0.0 if family == I.LOGNORMAL else kernel_small_size_exponent(config[P.KERNEL])
+    status, n = I.invert_normalised(u, n_max, nodes, weights, inv_work, result, min_shape,
+                                    family)
     work[STATUS] = status
     if n == 0:
         return 0
-    sigma = result[0] * mean
+    sigma = result[0] if family == I.LOGNORMAL else result[0] * mean
     work[SIGMA] = sigma
     work[TARGET] = result[1]
     work[KERNELS] = n
@@ -284,8 +324,12 @@ def invert(state, aux, config, work):
         nodes[a] = 0.0
         weights[a] = 0.0
     if config[P.BIVARIATE] == 1:
-        solve_fractions(state[2 * n_max + 1:], nodes, weights, sigma, n, frac, inv_work)
-    fill_particles(work, n_max, n, n_sec, sigma, inv_work)
+        solve_fractions(state[2 * n_max + 1:], nodes, weights, sigma, n, frac, inv_work,
+                        family)
+    if family == I.LOGNORMAL:
+        fill_lognormal_particles(work, n_max, n, n_sec, sigma, aux)
+    else:
+        fill_particles(work, n_max, n, n_sec, sigma, inv_work)
     return n
 
 
@@ -321,13 +365,40 @@ def fill_particles(work, n_max, n, n_sec, sigma, scratch):
 
 
 @nb.njit(cache=True, error_model="numpy")
+def fill_lognormal_particles(work, n_max, n, n_sec, sigma, aux):
+    """The secondary particles (X, W, B) of n lognormal kernels of log-width sigma in
+    ``work``: x_a exp(sigma t_j) of weight w_a h_j, (t_j, h_j) the Gauss-Hermite rule in aux
+    (``aux_array``); one node at the centre where sigma = 0."""
+    nodes = work[off_nodes(n_max):off_nodes(n_max) + n_max]
+    weights = work[off_weights(n_max):off_weights(n_max) + n_max]
+    frac = work[off_fraction(n_max):off_fraction(n_max) + n_max]
+    o = off_particles(n_max)
+    m_max = max_particles(n_max)
+    count = 0
+    for a in range(n):
+        if sigma > 0.0 and n_sec > 1:
+            for j in range(n_sec):
+                x = nodes[a] * math.exp(sigma * aux[AUX_HERMITE + j])
+                work[o + count] = x
+                work[o + m_max + count] = weights[a] * aux[AUX_HERMITE + n_sec + j]
+                work[o + 2 * m_max + count] = frac[a] * x
+                count += 1
+        else:
+            work[o + count] = nodes[a]
+            work[o + m_max + count] = weights[a]
+            work[o + 2 * m_max + count] = frac[a] * nodes[a]
+            count += 1
+    work[PARTICLES] = count
+
+
+@nb.njit(cache=True, error_model="numpy")
 def invert_work(state, aux, config, work):
     """``invert``, remembered: a call with a bit-identical state, key and result slots
     reuses the last inversion (the integrator checks a stage and then evaluates its RHS)."""
     n_max = config[P.ORDER]
     n_state = config[P.N_STATE]
-    key = float(n_state * 100000 + n_max * 1000 + config[P.BIVARIATE] * 100
-                + int(aux[AUX_SECONDARY]))
+    key = float(kernel_family(aux) * 100000000 + n_state * 100000 + n_max * 1000
+                + config[P.BIVARIATE] * 100 + int(aux[AUX_SECONDARY]))
     c = off_memo(n_max)
     s0 = c + 4
     if work[c] == _MEMO_TAG and work[c + 1] == key:

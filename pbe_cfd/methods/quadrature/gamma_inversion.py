@@ -1,4 +1,6 @@
-"""Gamma-EQMOM inversion (Yuan, Laurent and Fox 2012, J. Aerosol Sci. 51, 1-23).
+"""EQMOM inversion (Yuan, Laurent and Fox 2012, J. Aerosol Sci. 51, 1-23): gamma kernels, and
+lognormal ones through ``family`` = LOGNORMAL (``lognormal_kernels``: their moments, star moments
+and sigma range replace the gamma kernels' below; the search and the fallbacks are the same).
 
 The number density in granule mass x (scaled: x = p / p_ref) is a sum of N gamma kernels of a
 common width sigma,
@@ -48,6 +50,7 @@ import numba as nb
 import numpy as np
 
 from .gauss import tridiagonal_eigen, wheeler_nodes
+from . import lognormal_kernels as L
 
 #: the most kernels a scene may ask for (Stirling tables below go to order 2 MAX_KERNELS)
 MAX_KERNELS = 5
@@ -65,6 +68,10 @@ SCAN_POINTS = 8
 #: iterations of the Illinois refinement and of the golden-section fallback
 ROOT_ITERATIONS = 80
 GOLDEN_ITERATIONS = 60
+
+#: kernel families (``family`` of the functions below): gamma in x, lognormal in x
+GAMMA = 0
+LOGNORMAL = 1
 
 FIT = 0
 DISCRETE = 1
@@ -124,12 +131,33 @@ def kernel_moment(x, sigma, k):
     return value
 
 
+@nb.njit(cache=True, inline="always")
+def family_moment(x, sigma, k, family):
+    """k-th moment of a unit kernel of the family (GAMMA: ``kernel_moment``, sigma in units
+    of x; LOGNORMAL: ``lognormal_kernels.kernel_moment``, x the median, sigma of ln x)."""
+    if family == LOGNORMAL:
+        return L.kernel_moment(x, sigma, k)
+    return kernel_moment(x, sigma, k)
+
+
+@nb.njit(cache=True, inline="always")
+def sigma_limit(u, family):
+    """The largest sigma of normalised moments u (u_0 = u_1 = 1): one kernel of the mean and
+    variance, u_2 - 1 (GAMMA) or sqrt(ln u_2) (LOGNORMAL)."""
+    if family == LOGNORMAL:
+        return L.sigma_max(u[2])
+    return u[2] - 1.0
+
+
 @nb.njit(cache=True, error_model="numpy")
-def _target(u, sigma, n_max, nodes, weights, work):
+def _target(u, sigma, n_max, nodes, weights, work, family):
     """J(sigma) (module docstring) of normalised moments u[0 .. 2 n_max]; the Gauss rule of
     the star moments into nodes, weights; returns (J, node count)."""
     star = work[0:2 * n_max + 1]
-    star_moments(u, sigma, 2 * n_max, star)
+    if family == LOGNORMAL:
+        L.star_moments(u, sigma, 2 * n_max, star)
+    else:
+        star_moments(u, sigma, 2 * n_max, star)
     n = wheeler_nodes(star, n_max, nodes, weights, work[2 * n_max + 1:])
     if n == 0:
         return math.nan, 0
@@ -139,34 +167,34 @@ def _target(u, sigma, n_max, nodes, weights, work):
         for k in range(2 * n, 2 * n_max):
             pred = 0.0
             for a in range(n):
-                pred += weights[a] * kernel_moment(nodes[a], sigma, k)
+                pred += weights[a] * family_moment(nodes[a], sigma, k, family)
             if not (abs(pred - u[k]) <= REPRODUCTION_TOLERANCE * abs(u[k])):
                 return math.nan, n
     top = u[2 * n_max]
     pred = 0.0
     for a in range(n):
-        pred += weights[a] * kernel_moment(nodes[a], sigma, 2 * n_max)
+        pred += weights[a] * family_moment(nodes[a], sigma, 2 * n_max, family)
     return (top - pred) / top, n
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _closest(u, lo, hi, n_max, nodes, weights, work):
+def _closest(u, lo, hi, n_max, nodes, weights, work, family):
     """sigma in [lo, hi] minimising |J| by golden-section search."""
     g = 0.5 * (math.sqrt(5.0) - 1.0)
     a, b = lo, hi
     c = b - g * (b - a)
     d = a + g * (b - a)
-    fc = _abs_or_inf(_target(u, c, n_max, nodes, weights, work)[0])
-    fd = _abs_or_inf(_target(u, d, n_max, nodes, weights, work)[0])
+    fc = _abs_or_inf(_target(u, c, n_max, nodes, weights, work, family)[0])
+    fd = _abs_or_inf(_target(u, d, n_max, nodes, weights, work, family)[0])
     for _ in range(GOLDEN_ITERATIONS):
         if not (fc <= fd):
             a, c, fc = c, d, fd
             d = a + g * (b - a)
-            fd = _abs_or_inf(_target(u, d, n_max, nodes, weights, work)[0])
+            fd = _abs_or_inf(_target(u, d, n_max, nodes, weights, work, family)[0])
         else:
             b, d, fd = d, c, fc
             c = b - g * (b - a)
-            fc = _abs_or_inf(_target(u, c, n_max, nodes, weights, work)[0])
+            fc = _abs_or_inf(_target(u, c, n_max, nodes, weights, work, family)[0])
     return 0.5 * (a + b)
 
 
@@ -176,7 +204,7 @@ def _abs_or_inf(f):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _root(u, lo, f_lo, hi, f_hi, n_max, nodes, weights, work):
+def _root(u, lo, f_lo, hi, f_hi, n_max, nodes, weights, work, family):
     """Illinois regula falsi for J = 0 on [lo, hi] with f_lo > 0 >= f_hi; returns sigma."""
     side = 0
     best, f_best = hi, f_hi
@@ -184,7 +212,7 @@ def _root(u, lo, f_lo, hi, f_hi, n_max, nodes, weights, work):
         s = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
         if not (s > lo and s < hi):
             s = 0.5 * (lo + hi)
-        f = _target(u, s, n_max, nodes, weights, work)[0]
+        f = _target(u, s, n_max, nodes, weights, work, family)[0]
         if not math.isfinite(f):
             f = -1.0            # past the star moments' realizable range: treat as overshoot
         if abs(f) < abs(f_best):
@@ -205,16 +233,16 @@ def _root(u, lo, f_lo, hi, f_hi, n_max, nodes, weights, work):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _search(u, n_max, f0, nodes, weights, work, result):
+def _search(u, n_max, f0, nodes, weights, work, result, family):
     """Root of J (n_max kernels, J(0) = f0 > 0) on (0, sigma_max]: the scan and the Illinois
     refinement. Found: result = (sigma, J), returns (True, node count); not found: result =
     (the scan's sigma of smallest |J|, that J), returns (False, 0)."""
-    sigma_max = u[2] - 1.0
+    sigma_max = sigma_limit(u, family)
     lo, f_lo = 0.0, f0
     best, f_best = 0.0, f0
     for j in range(1, SCAN_POINTS + 1):
         s = sigma_max * j / SCAN_POINTS
-        f, nj = _target(u, s, n_max, nodes, weights, work)
+        f, nj = _target(u, s, n_max, nodes, weights, work, family)
         if not math.isfinite(f):
             continue
         if abs(f) <= ROOT_TOLERANCE:
@@ -224,8 +252,8 @@ def _search(u, n_max, f0, nodes, weights, work, result):
         if abs(f) < abs(f_best):
             best, f_best = s, f
         if f < 0.0:
-            s = _root(u, lo, f_lo, s, f, n_max, nodes, weights, work)
-            f, nj = _target(u, s, n_max, nodes, weights, work)
+            s = _root(u, lo, f_lo, s, f, n_max, nodes, weights, work, family)
+            f, nj = _target(u, s, n_max, nodes, weights, work, family)
             if abs(f) <= 1.0e3 * ROOT_TOLERANCE:
                 result[0] = s
                 result[1] = f
@@ -238,16 +266,17 @@ def _search(u, n_max, f0, nodes, weights, work, result):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _closest_fit(u, n_max, best, f_best, nodes, weights, work, result):
+def _closest_fit(u, n_max, best, f_best, nodes, weights, work, result, family):
     """The closest-sigma fit around the scan's best sigma (``_closest``) into nodes, weights,
     result = (sigma, J); returns its node count."""
-    sigma_max = u[2] - 1.0
+    sigma_max = sigma_limit(u, family)
     h = sigma_max / SCAN_POINTS
-    s = _closest(u, max(best - h, 0.0), min(best + h, sigma_max), n_max, nodes, weights, work)
-    f, nj = _target(u, s, n_max, nodes, weights, work)
+    s = _closest(u, max(best - h, 0.0), min(best + h, sigma_max), n_max, nodes, weights, work,
+                 family)
+    f, nj = _target(u, s, n_max, nodes, weights, work, family)
     if not (abs(f) <= abs(f_best)):
         s = best
-        f, nj = _target(u, s, n_max, nodes, weights, work)
+        f, nj = _target(u, s, n_max, nodes, weights, work, family)
     result[0] = s
     result[1] = f
     return nj
@@ -263,19 +292,19 @@ def _usable(nodes, n, sigma, min_shape):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _fewer(u, n_max, min_shape, nodes, weights, work, result):
+def _fewer(u, n_max, min_shape, nodes, weights, work, result, family):
     """The fewer-kernel fallback: the first n = n_max - 1, n_max - 2, ... 1 for which the
     n-kernel J of u[0 .. 2n] has a root sigma > 0 (J(0) > ROOT_TOLERANCE; the same search as
     n_max kernels, the golden-section search's result accepted where |J| <= 1e3
     ROOT_TOLERANCE) with every shape above min_shape (n = 1: any shape; it always has the
     root sigma = sigma_max). Returns the node count of that fit (0: none)."""
     for n in range(n_max - 1, 0, -1):
-        f0, n0 = _target(u, 0.0, n, nodes, weights, work)
+        f0, n0 = _target(u, 0.0, n, nodes, weights, work, family)
         if not (f0 > ROOT_TOLERANCE) or n0 < n:
             continue
-        found, nj = _search(u, n, f0, nodes, weights, work, result)
+        found, nj = _search(u, n, f0, nodes, weights, work, result, family)
         if not found:
-            nj = _closest_fit(u, n, result[0], result[1], nodes, weights, work, result)
+            nj = _closest_fit(u, n, result[0], result[1], nodes, weights, work, result, family)
             found = abs(result[1]) <= 1.0e3 * ROOT_TOLERANCE
         if found and nj > 0 and result[0] > 0.0 and \
                 (n == 1 or _usable(nodes, nj, result[0], min_shape)):
@@ -284,14 +313,16 @@ def _fewer(u, n_max, min_shape, nodes, weights, work, result):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def invert_normalised(u, n_max, nodes, weights, work, result, min_shape=-1.0):
+def invert_normalised(u, n_max, nodes, weights, work, result, min_shape=-1.0, family=GAMMA):
     """Gamma-EQMOM of normalised moments u[0 .. 2 n_max] (u_0 = u_1 = 1): nodes, weights
     (normalised) of the kernels' centres; result[0] = sigma (normalised), result[1] = J at
     the result. ``min_shape`` >= 0 (EQMOM's own inversion): a root with a kernel of shape
     x_a / sigma <= min_shape is not used, a closest sigma of |J| <= 1e3 ROOT_TOLERANCE is a
     root, and where there is no root to use, the fewer-kernel fit (FEWER) is taken unless the
     closest sigma is usable and misses m_2N by no more than the fewer-kernel fit misses the
-    moments it drops (module docstring); < 0: neither. Returns (status, kernel count)."""
+    moments it drops (module docstring); < 0: neither. ``family``: GAMMA (sigma normalised by
+    the mean) or LOGNORMAL (sigma of ln x, nodes the kernels' medians; ``lognormal_kernels``).
+    Returns (status, kernel count)."""
     n = wheeler_nodes(u, n_max, nodes, weights, work)
     result[0] = 0.0
     result[1] = 0.0
@@ -299,7 +330,7 @@ def invert_normalised(u, n_max, nodes, weights, work, result, min_shape=-1.0):
         return FAILED, 0
     if n < n_max:
         return REDUCED, n
-    f0, n0 = _target(u, 0.0, n_max, nodes, weights, work)
+    f0, n0 = _target(u, 0.0, n_max, nodes, weights, work, family)
     result[1] = f0
     if not math.isfinite(f0):
         return FAILED, 0
@@ -308,35 +339,35 @@ def invert_normalised(u, n_max, nodes, weights, work, result, min_shape=-1.0):
     if f0 < 0.0:                       # m_2N below the Gauss rule's: not realizable
         return FAILED, 0
     fewer = min_shape >= 0.0
-    found, nj = _search(u, n_max, f0, nodes, weights, work, result)
+    found, nj = _search(u, n_max, f0, nodes, weights, work, result, family)
     if found and (not fewer or _usable(nodes, nj, result[0], min_shape)):
         return FIT, nj
     best, f_best = result[0], result[1]
     closest_miss = math.inf            # the closest sigma's miss of m_2N, where usable
     if not found:
-        nj = _closest_fit(u, n_max, best, f_best, nodes, weights, work, result)
+        nj = _closest_fit(u, n_max, best, f_best, nodes, weights, work, result, family)
         if fewer and nj > 0 and _usable(nodes, nj, result[0], min_shape):
             closest_miss = abs(result[1])
             if closest_miss <= 1.0e3 * ROOT_TOLERANCE and result[0] > 0.0:
                 return FIT, nj
     if fewer:
-        nf = _fewer(u, n_max, min_shape, nodes, weights, work, result)
-        if nf > 0 and _miss(u, n_max, nf, nodes, weights, result[0]) < closest_miss:
+        nf = _fewer(u, n_max, min_shape, nodes, weights, work, result, family)
+        if nf > 0 and _miss(u, n_max, nf, nodes, weights, result[0], family) < closest_miss:
             return FEWER, nf
-        nj = _closest_fit(u, n_max, best, f_best, nodes, weights, work, result)
+        nj = _closest_fit(u, n_max, best, f_best, nodes, weights, work, result, family)
     if nj == 0:
         return FAILED, 0
     return CLOSEST, nj
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _miss(u, n_max, n, nodes, weights, sigma):
+def _miss(u, n_max, n, nodes, weights, sigma, family):
     """Largest relative miss of u[2n + 1 .. 2 n_max] by n kernels (the moments they drop)."""
     worst = 0.0
     for k in range(2 * n + 1, 2 * n_max + 1):
         pred = 0.0
         for a in range(n):
-            pred += weights[a] * kernel_moment(nodes[a], sigma, k)
+            pred += weights[a] * family_moment(nodes[a], sigma, k, family)
         worst = max(worst, abs(pred - u[k]) / abs(u[k]))
     return worst
 

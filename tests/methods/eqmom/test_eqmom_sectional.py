@@ -53,7 +53,9 @@ CI_CASES = [("constant", 1.0 / 3.0, "uniform"), ("constant", 1.0, "equal"),
             ("eke", 1.0 / 3.0, "equal"), ("eke", 2.0, "uniform")]
 
 
-#: cases where EQMOM N = 3 misses too (measured, docs/results/eqmom.md; not tuned away)
+#: cases where EQMOM N = 3 misses too (measured, docs/results/eqmom.md; not tuned away). The
+#: lognormal kernels miss both as well (13.35% and 3.61%; ``table()``), so none is asserted
+#: for them
 KNOWN_MISSES = {
     ("eke", 1.0 / 3.0, "uniform"): "EQMOM N = 3 misses M00 by 11.5% (QMOM N = 3: 25%)",
     ("eke", 1.0, "uniform"): "EQMOM N = 3 misses M00 by 3.08% (+0.18% reference error)",
@@ -81,7 +83,7 @@ def reference(case):
     return (4.0 * fine - coarse) / 3.0, np.abs(fine - coarse) / 3.0 / np.abs(fine)
 
 
-def method_moments(case, method, nodes):
+def method_moments(case, method, nodes, family=None):
     kernel, a, daughters = case
     agg = {"kernel": kernel, "rate": RATES[kernel]}
     if kernel == "eke":
@@ -93,20 +95,25 @@ def method_moments(case, method, nodes):
                        aggregation=agg,
                        breakage={"selection": "power", "rate": S0, "exponent": a,
                                  "reference_mass": P0, "daughters": daughters},
-                       method={"_replace": True, "name": method, "nodes": nodes})
+                       method={"_replace": True, "name": method, "nodes": nodes,
+                               **({"kernel": family} if family else {})})
     c = run_well_mixed(scene).columns
     assert np.allclose(c["time_s"], TIMES, rtol=0, atol=1e-9)
     return np.column_stack([c[m] for m in MOMENTS])
 
 
-def errors(case):
-    """{'ref_error', 'qmom3', 'eqmom3', 'eqmom2'}: the largest relative deviation per moment
+#: the runs of ``errors``: label -> (method, nodes, [method] kernel); LOGNORMAL's too in table()
+RUNS = {"qmom3": ("qmom", 3, None), "eqmom3": ("eqmom", 3, None), "eqmom2": ("eqmom", 2, None)}
+LOGNORMAL = {"lognormal3": ("eqmom", 3, "lognormal"), "lognormal2": ("eqmom", 2, "lognormal")}
+
+
+def errors(case, runs=RUNS):
+    """{'ref_error', and a label of ``runs`` each}: the largest relative deviation per moment
     over the output times after the start (arrays of 4)."""
     ref, ref_err = reference(case)
     out = {"ref_error": ref_err[1:].max(axis=0)}
-    for label, method, nodes in (("qmom3", "qmom", 3), ("eqmom3", "eqmom", 3),
-                                 ("eqmom2", "eqmom", 2)):
-        got = method_moments(case, method, nodes)
+    for label, (method, nodes, family) in runs.items():
+        got = method_moments(case, method, nodes, family)
         out[label] = np.abs(got[1:] / ref[1:] - 1.0).max(axis=0)
     return out
 
@@ -145,13 +152,13 @@ def test_eqmom_within_3_percent_where_qmom_misses_full_set(case):
 def table():
     """Markdown rows of every case (python tests/methods/eqmom/test_eqmom_sectional.py)."""
     print("| case | reference error % | QMOM N=3 % (M00 M10 M20 M30) | EQMOM N=3 % | "
-          "EQMOM N=2 % |")
-    print("|---|---|---|---|---|")
+          "EQMOM N=2 % | lognormal EQMOM N=3 % | lognormal EQMOM N=2 % |")
+    print("|---|---|---|---|---|---|---|")
     for case in ALL_CASES:
-        e = errors(case)
+        e = errors(case, {**RUNS, **LOGNORMAL})
         fmt = lambda v: " ".join(f"{100 * x:.2f}" for x in v)  # noqa: E731
-        print(f"| {case_id(case)} | {100 * e['ref_error'].max():.2g} | {fmt(e['qmom3'])} | "
-              f"{fmt(e['eqmom3'])} | {fmt(e['eqmom2'])} |", flush=True)
+        print(f"| {case_id(case)} | {100 * e['ref_error'].max():.2g} | "
+              + " | ".join(fmt(e[k]) for k in (*RUNS, *LOGNORMAL)) + " |", flush=True)
 
 
 if __name__ == "__main__":
