@@ -23,7 +23,8 @@ from ..physics.injection import droplet_liquid, droplet_mass, droplet_moment
 from ..physics.kernels import KERNEL_BY_NAME
 from ..physics.kernels import collision_velocity as _collision_velocity
 from ..util.population import (DERIVED, columns_from_particle_rows, columns_from_particles,
-                               mean_diameters, mean_diameters_rows, moment_columns)
+                               mean_diameters, mean_diameters_rows, moment_columns,
+                               moment_orders)
 
 __all__ = ["Arrays", "scales", "pack", "well_mixed_cell", "collision_velocity", "size_moment",
            "initial_moments", "product_gel_time", "moment_outputs", "droplet_mass"]
@@ -205,7 +206,7 @@ def initial_moments(scene, arrays: Arrays, names) -> np.ndarray:
             state[idx] = nd0 * droplet_liquid(arrays.params) / (arrays.number_scale
                                                                  * arrays.mass_scale)
             continue
-        i, j = int(name[1]), int(name[2])
+        i, j = moment_orders(name)
         value = size_moment(scene, i, j)
         if not scene.separate_droplets and nd0 > 0.0:
             value += nd0 * droplet_moment(pd, droplet_liquid(arrays.params), i, j)
@@ -253,10 +254,10 @@ def _outputs_by_row(out, rows, states, names, cols, nd, pd, bd, n_ref, p_ref, rh
         state = states[r]
         estimated = columns_from_particles(w, p, b, cols)
         for c in cols:
-            k = int(c[1]) + int(c[2])
-            value = (state[names.index(c)] * n_ref * p_ref ** k if c in names
+            i, j = moment_orders(c)
+            value = (state[names.index(c)] * n_ref * p_ref ** (i + j) if c in names
                      else estimated[c])
-            out[c][r] = value + nd[r] * droplet_moment(pd[r], bd[r], int(c[1]), int(c[2]))
+            out[c][r] = value + nd[r] * droplet_moment(pd[r], bd[r], i, j)
         ww = np.append(w, nd[r]) if nd[r] > 0 else w
         pp = np.append(p, pd[r]) if nd[r] > 0 else p
         out["d32_m"][r], out["d43_m"][r] = mean_diameters(ww, pp, rho)
@@ -325,13 +326,12 @@ def moment_outputs(plan, arrays: Arrays, states: np.ndarray, aux,
         estimated = columns_from_particle_rows(w_all, p_all, b_all,
                                                [c for c in cols if c not in names])
         for c in cols:
-            k = int(c[1]) + int(c[2])
-            value = (states[:, names.index(c)] * n_ref * p_ref ** k if c in names
+            i, j = moment_orders(c)
+            value = (states[:, names.index(c)] * n_ref * p_ref ** (i + j) if c in names
                      else estimated[c])
-            out[c][:] = value + nd * (droplet_moment(pd, droplet_liquid(arrays.params),
-                                                     int(c[1]), int(c[2]))
+            out[c][:] = value + nd * (droplet_moment(pd, droplet_liquid(arrays.params), i, j)
                                       if "droplet_liquid" not in names
-                                      else pd_rows ** int(c[1]) * bd_rows ** int(c[2]))
+                                      else pd_rows ** i * bd_rows ** j)
         with_droplets = nd > 0
         for sel in (with_droplets, ~with_droplets):
             if not np.any(sel):

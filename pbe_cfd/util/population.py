@@ -8,6 +8,7 @@ mean diameters, come from that description.
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 
@@ -54,13 +55,25 @@ def mean_diameters_rows(weights, p, density):
     return d32, d43
 
 
+def moment_orders(name):
+    """(i, j) of a moment named "M<i><j>" (M_ij [kg^(i+j)/m3]): j the last digit (binder
+    orders stay below 10), i the digits before it (mass orders reach 10: EQMOM with five
+    kernels carries "M100")."""
+    return int(name[1:-1]), int(name[-1])
+
+
+def is_moment_name(name):
+    """True for a moment name "M<i><j>" (see ``moment_orders``)."""
+    return re.fullmatch(r"M[0-9]{2,3}", name) is not None
+
 def columns_from_particle_rows(weights, p, b, names):
     """``columns_from_particles`` of every row of (rows, particles) arrays: name -> (rows,)
     moments M_ij [kg^(i+j)/m3], the same arithmetic row by row."""
     w = np.asarray(weights, dtype=float)
     p = np.asarray(p, dtype=float)
     b = np.asarray(b, dtype=float)
-    return {name: np.sum(w * p ** int(name[1]) * b ** int(name[2]), axis=1) for name in names}
+    return {name: np.sum(w * p ** moment_orders(name)[0] * b ** moment_orders(name)[1], axis=1)
+            for name in names}
 
 
 def columns_from_particles(weights, p, b, names):
@@ -70,6 +83,6 @@ def columns_from_particles(weights, p, b, names):
     b = np.asarray(b, dtype=float)
     out = {}
     for name in names:
-        i, j = int(name[1]), int(name[2])
+        i, j = moment_orders(name)
         out[name] = float(np.sum(w * p ** i * b ** j))
     return out

@@ -9,6 +9,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from ..util.population import is_moment_name, moment_orders  # noqa: E402
 from .figure_parts import PICTURE_UNITS  # noqa: E402
 
 UNITS = {"M00": "1/m3", "M10": "kg/m3", "M01": "kg/m3", "M20": "kg2/m3", "M11": "kg2/m3",
@@ -21,8 +22,8 @@ def _unit(name):
         return UNITS[name]
     if name.endswith("_m"):                          # a diameter column, SI metres
         return "m"
-    if name.startswith("M") and len(name) == 3:
-        order = int(name[1]) + int(name[2])
+    if is_moment_name(name):
+        order = sum(moment_orders(name))
         return f"kg{order}/m3" if order > 1 else ("kg/m3" if order == 1 else "1/m3")
     return ""
 

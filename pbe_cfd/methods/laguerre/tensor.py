@@ -21,6 +21,7 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.injection import droplet_liquid, droplet_moment
+from ...util.population import moment_orders
 from .basis import (GRADED, SPACINGS, basis_values, gamma_weight, mass_nodes,  # noqa: F401
                     fraction_basis_values, moment_index, projection_matrix,
                     quadrature, univariate_values)
@@ -514,7 +515,7 @@ def output_columns(states, aux, arrays, bivariate, density, populations=None):
         nd, pd, bd = (float(x[r]) for x in droplets)
         estimated = columns_from_particles(w, p, b, [c for c in cols if c not in carried])
         for c in cols:
-            i, j = int(c[1]), int(c[2])
+            i, j = moment_orders(c)
             if c in carried:
                 value = state[i * m + j] + (state[K + i] if j == 0 else 0.0)
                 value *= n_ref * p_ref ** (i + j)

@@ -61,7 +61,7 @@ def carried(columns, nodes):
 def assert_moments(c, nodes, exact):
     t = c["time_s"]
     for name in carried(c, nodes):
-        i, j = int(name[1]), int(name[2])
+        i, j = int(name[1:-1]), int(name[-1])             # "M100": M_(10)0
         err = np.max(np.abs(c[name] / (Y0 ** j * exact(i + j, t)) - 1.0))
         assert err < TOL, (name, err)
     assert np.max(np.abs(c["M10"] / (N0 * P0) - 1.0)) < EXACT
@@ -69,7 +69,7 @@ def assert_moments(c, nodes, exact):
 
 
 @pytest.mark.parametrize("kernel", KERNELS)
-@pytest.mark.parametrize("nodes", [2, 3])
+@pytest.mark.parametrize("nodes", [2, 3, 5])
 def test_constant_aggregation(nodes, kernel):
     K = 1.0e-10                                  # K N0 = 1 /s: N falls to N0 / 6 by 10 s
 
