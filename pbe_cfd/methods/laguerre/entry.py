@@ -61,8 +61,8 @@ def _plan(scene):
     return (f"Laguerre ROM of order {m.order} "
             f"({'moment-consistent' if m.consistent else 'plain projection'}"
             f"{', dry class' if m.dry_class else ''}"
-            f"{', adaptive weights' if m.adaptive_weights else ''}, rows of order <= 2: "
-            f"{number_closure(m.following_support, m.number_closure)}), "
+            f"{', adaptive weights' if m.adaptive_weights else ''}, aggregation and capture "
+            f"rows: {number_closure(m.following_support, m.number_closure, m.order)}), "
             f"support p <= {m.support_mass:g} kg, b <= {m.support_binder:g} kg, grid "
             f"{m.grid_mass} x {m.grid_binder}; {n_state} states")
 

@@ -35,6 +35,7 @@ class LaguerreOptions:
     following_growth: float = 1000.0              # its range: up to this x the initial mean mass
     following_shape: bool = True                  # the weight's shape follows the variance
     # the rows of aggregation and droplet capture: "tensor", "points" (order <= 2 on the
-    # point measures) or "points-all" (every wet row on them) (unset: "points-all" with the
-    # following support, "tensor" with the fixed one; docs/physics.md 9.2)
+    # point measures) or "points-all" (every wet row on them) (unset: with the following
+    # support "points-all" for order 3, "points" above; "tensor" with the fixed one;
+    # docs/physics.md 9.2)
     number_closure: str | None = None

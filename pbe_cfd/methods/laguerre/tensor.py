@@ -377,20 +377,27 @@ def aux_for_scene(scene, arrays, theta_grid=None, cache_dir=None):
                     adaptive=adaptive)
     options = scene.method.options
     aux[AUX_NUMBER_POINTS] = NUMBER_CLOSURES[number_closure(
-        getattr(options, "following_support", False), getattr(options, "number_closure", None))]
+        getattr(options, "following_support", False), getattr(options, "number_closure", None),
+        options.order)]
     return aux
 
 
-def number_closure(following, given=None):
+def number_closure(following, given=None, order=3):
     """The closure of the rows of aggregation and droplet capture ("tensor", "points": the
     rows of order <= 2 on the point measures, "points-all": every wet row on them):
-    ``given``, or by default "points-all" with the following support (measured on the batch
-    proxies, the bed batch, the held-out suite and the hard cell next to packing,
+    ``given``, or by default with the following support "points-all" for order 3 (measured on
+    the batch proxies, the bed batch, the held-out suite and the hard cell next to packing,
     docs/results/laguerre.md: the tensors' number row turns positive for a broad class,
     their capture pushes a class born at one mass outside, their rows of order 3 and 4 turn
-    negative next to packing) and "tensor" with the fixed seed support (where the tensors are
-    exact or within 1.5%)."""
-    return given or ("points-all" if following else "tensor")
+    negative next to packing) and "points" for a higher order (the points' two mass nodes
+    reproduce W00, W10, W20, the moments in mass an order-3 class carries, not W30 and up:
+    every row on them would set aside moments the class carries; not measured), and "tensor"
+    with the fixed seed support (where the tensors are exact or within 1.5%)."""
+    if given:
+        return given
+    if not following:
+        return "tensor"
+    return "points-all" if order <= 3 else "points"
 
 
 def following_spec(scene, arrays):
