@@ -60,6 +60,10 @@ METHODS = (("QMOM N = 2", "study-ktgf", {"nodes": 2}),
            ("CQMOM 3 x 3", "seed-wurster-cqmom", {"nodes": 3, "binder_nodes": 3}),
            ("EQMOM N = 3", "study-ktgf", {"name": EQMOM.name}),
            ("Laguerre m = 3", "seed-wurster-laguerre", {}),
+           # the ROM whose weight and support follow the wet class (its range: the granules'
+           # mass grows up to ~1e5-fold next to packing, docs/results/hard-cases.md)
+           ("Laguerre m = 3 following", "seed-wurster-laguerre",
+            {"following_support": True, "following_growth": 1e6}),
            ("cNMC", "seed-wurster-cnmc", {"particles": CNMC_PARTICLES,
                                           "replicas": CNMC_REPLICAS}))
 METHOD_LABELS = tuple(m[0] for m in METHODS)

@@ -104,20 +104,6 @@ def _powers_into(values, m, out, first):
             v *= values[q]
 
 
-@nb.njit(cache=True, inline="always")
-def _merged_gain(i, j, xs, bs, xt, bt, choose):
-    """(x_s + x_t)^i (b_s + b_t)^j - x_s^i b_s^j - x_t^i b_t^j [scaled], expanded without
-    cancellation: the binomial terms of both partners' shares. xs[k] = x_s^k and so on;
-    choose[n, k] = C(n, k)."""
-    gain = 0.0
-    for k in range(i + 1):
-        for l in range(j + 1):
-            if (k == i and l == j) or (k == 0 and l == 0):
-                continue
-            gain += choose[i, k] * choose[j, l] * xs[k] * bs[l] * xt[i - k] * bt[j - l]
-    return gain
-
-
 @nb.njit(cache=True)
 def _choose_into(m, out, first):
     """out[first + n, k] = C(n, k) for n, k < m."""
@@ -152,15 +138,52 @@ def point_tables(m, mass, liquid):
 
 
 @nb.njit(cache=True)
-def _wet_wet_every_row(out, m, props, weights, tab, rows, factor, u0, own, config):
-    """The wet-wet aggregation's every wet row over the wet points: W00 loses 1/2 sum w_s
-    w_t beta_st, each row of order >= 2 gains the merged pairs' moments less the partners'
-    (``_merged_gain``); the rows of order 1 do not change. tab: ``point_tables``; rows: K
-    entries of scratch."""
+def _point_moment_rates(m, weights, tab, rates, scratch):
+    """scratch[a * K + c] = sum_s sum_t rates[s, t] P_s(a) P_t(c) for the wet moments a, c (a
+    = i m + j, P_s(a) = x_s^i b_s^j); rates: N_POINTS x N_POINTS, symmetric."""
     K = m * m
-    choose = tab[TAB_CHOOSE:TAB_CHOOSE + m]
-    rows[:K] = 0.0
+    for s in range(N_POINTS):               # G[s, c] = sum_t rates[s, t] P_t(c)
+        for c in range(K):
+            scratch[K * K + s * K + c] = 0.0
+        if weights[s] == 0.0:
+            continue
+        for t in range(N_POINTS):
+            r = rates[s, t]
+            if r == 0.0:
+                continue
+            for i in range(m):
+                xi = r * tab[TAB_MASS + t, i]
+                for j in range(m):
+                    scratch[K * K + s * K + i * m + j] += xi * tab[TAB_LIQUID + t, j]
+    for a in range(K):                      # R[a, c] = sum_s P_s(a) G[s, c]
+        for c in range(K):
+            scratch[a * K + c] = 0.0
+    for s in range(N_POINTS):
+        if weights[s] == 0.0:
+            continue
+        for i in range(m):
+            for j in range(m):
+                ps = tab[TAB_MASS + s, i] * tab[TAB_LIQUID + s, j]
+                a = i * m + j
+                for c in range(K):
+                    scratch[a * K + c] += ps * scratch[K * K + s * K + c]
+
+
+@nb.njit(cache=True)
+def _wet_wet_every_row(out, m, props, weights, tab, rows, scratch, factor, u0, own, config):
+    """The wet-wet aggregation's every wet row over the wet points: W00 loses 1/2 sum w_s
+    w_t beta_st, each row (i, j) of order >= 2 gains 1/2 sum_(a,c) C(i,a) C(j,c) R[(a,c),
+    (i-a,j-c)] over (a, c) other than (0, 0) and (i, j), R the pair-rate-weighted products of
+    the points' moments (``_point_moment_rates``): the merged pairs' moments less the
+    partners'; the rows of order 1 do not change. tab: ``point_tables``; rows: K entries,
+    scratch: N_POINTS^2 + N_POINTS K + K^2 entries of scratch."""
+    K = m * m
+    rates = scratch[K * K + N_POINTS * K:K * K + N_POINTS * K
+                    + N_POINTS * N_POINTS].reshape((N_POINTS, N_POINTS))
     number = 0.0
+    for s in range(N_POINTS):
+        for t in range(N_POINTS):
+            rates[s, t] = 0.0
     for s in range(N_POINTS):
         ws = weights[s]
         if ws == 0.0:
@@ -169,20 +192,27 @@ def _wet_wet_every_row(out, m, props, weights, tab, rows, factor, u0, own, confi
             wt = weights[t]
             if wt == 0.0:
                 continue
-            f = (0.5 if t == s else 1.0) * ws * wt * pair_rate(props, s, t, factor, u0, own,
-                                                                 config)
-            number += f
-            xs, bs = tab[TAB_MASS + s], tab[TAB_LIQUID + s]
-            xt, bt = tab[TAB_MASS + t], tab[TAB_LIQUID + t]
-            for i in range(m):
-                for j in range(m):
-                    if i + j >= 2:
-                        rows[i * m + j] += f * _merged_gain(i, j, xs, bs, xt, bt, choose)
+            f = ws * wt * pair_rate(props, s, t, factor, u0, own, config)
+            rates[s, t] = f
+            rates[t, s] = f
+            number += (0.5 if t == s else 1.0) * f
+    _point_moment_rates(m, weights, tab, rates, scratch)
     nref = own[P.NUMBER_SCALE]
     out[0] += min(-nref * number, 0.0)
-    for a in range(K):
-        if rows[a] != 0.0:
-            out[a] += max(nref * rows[a], 0.0)
+    choose = tab[TAB_CHOOSE:TAB_CHOOSE + m]
+    for i in range(m):
+        for j in range(m):
+            if i + j < 2:
+                continue
+            gain = 0.0
+            for a in range(i + 1):
+                for c in range(j + 1):
+                    if (a == 0 and c == 0) or (a == i and c == j):
+                        continue
+                    gain += (choose[i, a] * choose[j, c]
+                             * scratch[(a * m + c) * K + (i - a) * m + (j - c)])
+            if gain != 0.0:
+                out[i * m + j] += max(0.5 * nref * gain, 0.0)
 
 
 @nb.njit(cache=True)
@@ -347,15 +377,17 @@ def _dry_wet_every_row(out, m, props, dry_weights, weights, tab, rows, factor, u
 @nb.njit(cache=True)
 def _wet_capture_every_row(out, m, props, weights, tab, rows, xd, xl, kd, factor, u0, own,
                            config):
-    """Wet + droplet -> wet, every wet row: (x_s + x_d)^i (b_s + x_l)^j - x_s^i b_s^j
-    (binomial terms without cancellation), kd sum_s w_s beta_sd per row; returns the droplets
-    lost (0 where the sum is not positive: then nothing is added). tab: ``point_tables`` with
-    the droplet's rows; rows: K entries of scratch."""
+    """Wet + droplet -> wet, every wet row: (x_s + x_d)^i (b_s + x_l)^j - x_s^i b_s^j, i.e.
+    sum over (a, c) other than (i, j) of C(i,a) C(j,c) x_d^(i-a) x_l^(j-c) V_ac, V_ac = kd
+    sum_s w_s beta_sd x_s^a b_s^c (no term cancels); returns the droplets lost (0 where the
+    sum is not positive: then nothing is added). tab: ``point_tables`` with the droplet's
+    rows; rows: K entries of scratch."""
     K = m * m
     choose = tab[TAB_CHOOSE:TAB_CHOOSE + m]
     dp = tab[TAB_DROPLET_MASS]
     lp = tab[TAB_DROPLET_LIQUID]
-    rows[:K] = 0.0
+    for a in range(K):
+        rows[a] = 0.0
     lost = 0.0
     for s in range(N_POINTS):
         ws = weights[s]
@@ -363,19 +395,27 @@ def _wet_capture_every_row(out, m, props, weights, tab, rows, xd, xl, kd, factor
             continue
         f = kd * ws * pair_rate(props, s, DROPLET_ROW, factor, u0, own, config)
         lost += f
-        xs, bs = tab[TAB_MASS + s], tab[TAB_LIQUID + s]
         for i in range(m):
+            fx = f * tab[TAB_MASS + s, i]
             for j in range(m):
-                if i + j >= 2:
-                    rows[i * m + j] += f * (_merged_gain(i, j, xs, bs, dp, lp, choose)
-                                            + dp[i] * lp[j])
+                rows[i * m + j] += fx * tab[TAB_LIQUID + s, j]
     if not lost > 0.0:
         return 0.0
     out[m] += lost * xd
     out[1] += lost * xl
-    for a in range(K):
-        if rows[a] != 0.0:
-            out[a] += max(rows[a], 0.0)
+    for i in range(m):
+        for j in range(m):
+            if i + j < 2:
+                continue
+            gain = 0.0
+            for a in range(i + 1):
+                for c in range(j + 1):
+                    if a == i and c == j:
+                        continue
+                    gain += (choose[i, a] * choose[j, c] * dp[i - a] * lp[j - c]
+                             * rows[a * m + c])
+            if gain != 0.0:
+                out[i * m + j] += max(gain, 0.0)
     return lost
 
 
@@ -420,8 +460,11 @@ def add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd, cros
             particle_properties(mass[q] * pref, liquid[q] * pref, own, config, props, q)
     if every_row:
         tab = point_tables(m, mass, liquid)
-        rows = np.empty(m * m + m)
-        _wet_wet_every_row(out, m, props, weights, tab, rows, factor, u0, own, config)
+        K = m * m
+        scratch = np.empty(K * K + N_POINTS * K + N_POINTS * N_POINTS + K + m)
+        rows = scratch[K * K + N_POINTS * K + N_POINTS * N_POINTS:]
+        _wet_wet_every_row(out, m, props, weights, tab, rows, scratch, factor, u0, own,
+                           config)
     else:
         tab = np.ones((TAB_CHOOSE + m, m))
         rows = tab[0]

@@ -261,8 +261,8 @@ def _aggregation_and_capture(state, out, aux, m, mult, nd, wet, dry, wpos, i0, t
             if capture:
                 loss += _dry_capture(state, out, aux, m, int(aux[AUX_OFF_CDD]) + s * m * m,
                                      mult * ws * nd, at_point, xd, xl, dry_low)
-        if not wet:
-            continue
+        if not wet or (low == (1 << K) - 1 and dry_low >= m):
+            continue                    # the points give every wet row (and the dry ones)
         for q in range(N_CORNERS):
             w, fw = weight_corner(q, wpos, nwc, nwd)
             f = ws * fw
