@@ -333,6 +333,16 @@ def invert(state, aux, config, work):
     return n
 
 
+@nb.njit(cache=True, inline="always")
+def _centre_particle(work, o, m_max, count, node, weight, fraction):
+    """Write one secondary particle at a kernel's centre (its sigma = 0) as particle
+    ``count`` of the (X, W, B) block at work[o]; return the next count."""
+    work[o + count] = node
+    work[o + m_max + count] = weight
+    work[o + 2 * m_max + count] = fraction * node
+    return count + 1
+
+
 @nb.njit(cache=True, error_model="numpy")
 def fill_particles(work, n_max, n, n_sec, sigma, scratch):
     """The secondary particles (X, W, B) of the n kernels in ``work``: n_sec Gauss nodes of
@@ -357,10 +367,7 @@ def fill_particles(work, n_max, n, n_sec, sigma, scratch):
                 work[o + 2 * m_max + count] = frac[a] * x
                 count += 1
         else:
-            work[o + count] = nodes[a]
-            work[o + m_max + count] = weights[a]
-            work[o + 2 * m_max + count] = frac[a] * nodes[a]
-            count += 1
+            count = _centre_particle(work, o, m_max, count, nodes[a], weights[a], frac[a])
     work[PARTICLES] = count
 
 
@@ -384,10 +391,7 @@ def fill_lognormal_particles(work, n_max, n, n_sec, sigma, aux):
                 work[o + 2 * m_max + count] = frac[a] * x
                 count += 1
         else:
-            work[o + count] = nodes[a]
-            work[o + m_max + count] = weights[a]
-            work[o + 2 * m_max + count] = frac[a] * nodes[a]
-            count += 1
+            count = _centre_particle(work, o, m_max, count, nodes[a], weights[a], frac[a])
     work[PARTICLES] = count
 
 

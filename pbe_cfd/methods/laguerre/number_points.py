@@ -138,6 +138,29 @@ def point_tables(m, mass, liquid):
 
 
 @nb.njit(cache=True)
+def _wet_pair_rates(props, weights, factor, u0, own, config, rates):
+    """Fill rates[s, t] = w_s w_t beta_st over the wet points (symmetric; 0 for a point of no
+    weight) and return the number the pairs remove, 1/2 the ordered double sum [scaled]."""
+    number = 0.0
+    for s in range(N_POINTS):
+        for t in range(N_POINTS):
+            rates[s, t] = 0.0
+    for s in range(N_POINTS):
+        ws = weights[s]
+        if ws == 0.0:
+            continue
+        for t in range(s, N_POINTS):
+            wt = weights[t]
+            if wt == 0.0:
+                continue
+            f = ws * wt * pair_rate(props, s, t, factor, u0, own, config)
+            rates[s, t] = f
+            rates[t, s] = f
+            number += (0.5 if t == s else 1.0) * f
+    return number
+
+
+@nb.njit(cache=True)
 def _point_moment_rates(m, weights, tab, rates, scratch):
     """scratch[a * K + c] = sum_s sum_t rates[s, t] P_s(a) P_t(c) for the wet moments a, c (a
     = i m + j, P_s(a) = x_s^i b_s^j); rates: N_POINTS x N_POINTS, symmetric."""
@@ -180,22 +203,7 @@ def _wet_wet_every_row(out, m, props, weights, tab, rows, scratch, factor, u0, o
     K = m * m
     rates = scratch[K * K + N_POINTS * K:K * K + N_POINTS * K
                     + N_POINTS * N_POINTS].reshape((N_POINTS, N_POINTS))
-    number = 0.0
-    for s in range(N_POINTS):
-        for t in range(N_POINTS):
-            rates[s, t] = 0.0
-    for s in range(N_POINTS):
-        ws = weights[s]
-        if ws == 0.0:
-            continue
-        for t in range(s, N_POINTS):
-            wt = weights[t]
-            if wt == 0.0:
-                continue
-            f = ws * wt * pair_rate(props, s, t, factor, u0, own, config)
-            rates[s, t] = f
-            rates[t, s] = f
-            number += (0.5 if t == s else 1.0) * f
+    number = _wet_pair_rates(props, weights, factor, u0, own, config, rates)
     _point_moment_rates(m, weights, tab, rates, scratch)
     nref = own[P.NUMBER_SCALE]
     out[0] += min(-nref * number, 0.0)
@@ -218,21 +226,16 @@ def _wet_wet_every_row(out, m, props, weights, tab, rows, scratch, factor, u0, o
 @nb.njit(cache=True)
 def _wet_wet(out, m, props, mass, liquid, weights, factor, u0, own, config):
     """The wet-wet rows W00, W20, W11, W02 over the wet points (module docstring)."""
-    number = 0.0                        # each sum: 1/2 of the ordered double sum
-    pp = 0.0
+    rates = np.empty((N_POINTS, N_POINTS))
+    number = _wet_pair_rates(props, weights, factor, u0, own, config, rates)
+    pp = 0.0                            # each sum: 1/2 of the ordered double sum
     pb = 0.0
     bb = 0.0
     for s in range(N_POINTS):
-        ws = weights[s]
-        if ws == 0.0:
-            continue
         for t in range(s, N_POINTS):
-            wt = weights[t]
-            if wt == 0.0:
+            f = (0.5 if t == s else 1.0) * rates[s, t]
+            if f == 0.0:
                 continue
-            f = (0.5 if t == s else 1.0) * ws * wt * pair_rate(props, s, t, factor, u0, own,
-                                                                 config)
-            number += f
             pp += f * mass[s] * mass[t]
             pb += f * (mass[s] * liquid[t] + mass[t] * liquid[s])
             bb += f * liquid[s] * liquid[t]
