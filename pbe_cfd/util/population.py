@@ -72,8 +72,8 @@ def columns_from_particle_rows(weights, p, b, names):
     w = np.asarray(weights, dtype=float)
     p = np.asarray(p, dtype=float)
     b = np.asarray(b, dtype=float)
-    return {name: np.sum(w * p ** moment_orders(name)[0] * b ** moment_orders(name)[1], axis=1)
-            for name in names}
+    orders = [moment_orders(name) for name in names]
+    return {name: np.sum(w * p ** i * b ** j, axis=1) for name, (i, j) in zip(names, orders)}
 
 
 def columns_from_particles(weights, p, b, names):

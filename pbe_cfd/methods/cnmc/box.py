@@ -380,14 +380,15 @@ def _aggregation_trial(granules, w_gg, w_dg, n_occ, occ, trow, srow, drow, table
 
 
 @nb.njit(cache=True, inline="always")
-def _next_event(t, r, hazard, drying, exponential_dt):
+def _next_event(t, r, hazard, timed, exponential_dt):
     """The next event's time [s] after t [s] at the total majorant rate r [1/s], and its
-    waiting hazard. Without drying ``_next_event_time`` (hazard 0). With drying the event
-    comes when the rate integrated since the last event reaches the hazard, 1
-    (exponential_dt == 0, the mean waiting time) or an exponential draw, drawn anew where
-    ``hazard`` is spent (<= 0); what a drift between two events leaves of it is kept (the
-    box's majorants change at a drift, the hazard runs on at the new ones)."""
-    if not drying:
+    waiting hazard. Without stops between events (``timed`` False: no drying and a spray at
+    one rate from t = 0) ``_next_event_time`` (hazard 0). With them the event comes when the
+    rate integrated since the last event reaches the hazard, 1 (exponential_dt == 0, the mean
+    waiting time) or an exponential draw, drawn anew where ``hazard`` is spent (<= 0); what a
+    stop between two events leaves of it is kept (the box's majorants change at a drift or a
+    change of the spray, the hazard runs on at the new ones)."""
+    if not timed:
         return _next_event_time(t, r, exponential_dt), 0.0
     if not hazard > 0.0:
         hazard = 1.0 if exponential_dt == 0 else -math.log(1.0 - np.random.random())

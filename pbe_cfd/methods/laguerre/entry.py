@@ -36,7 +36,7 @@ def _keys(t, defaults):
         kw[key] = t.number(key, getattr(defaults, key), integer=True, low=4, high=400)
     kw["grid_spacing"] = t.choice("grid_spacing", ("fraction", "uniform"), defaults.grid_spacing)
     kw.update(scene_keys(t, defaults))
-    if kw.get("number_closure") in ("points", "points-all") and kw["order"] < 3:
+    if kw.get("number_closure") not in (None, "tensor") and kw["order"] < 3:
         t.fail("number_closure", f'"{kw["number_closure"]}" needs order >= 3 (it gives W20, '
                                  f'W11, W02), got order = {kw["order"]}')
     return kw

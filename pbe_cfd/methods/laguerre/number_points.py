@@ -193,16 +193,14 @@ def _point_moment_rates(m, weights, tab, rates, scratch):
 
 
 @nb.njit(cache=True)
-def _wet_wet_every_row(out, m, props, weights, tab, rows, scratch, factor, u0, own, config):
+def _wet_wet_every_row(out, m, props, weights, tab, rates, scratch, factor, u0, own, config):
     """The wet-wet aggregation's every wet row over the wet points: W00 loses 1/2 sum w_s
     w_t beta_st, each row (i, j) of order >= 2 gains 1/2 sum_(a,c) C(i,a) C(j,c) R[(a,c),
     (i-a,j-c)] over (a, c) other than (0, 0) and (i, j), R the pair-rate-weighted products of
     the points' moments (``_point_moment_rates``): the merged pairs' moments less the
-    partners'; the rows of order 1 do not change. tab: ``point_tables``; rows: K entries,
-    scratch: N_POINTS^2 + N_POINTS K + K^2 entries of scratch."""
+    partners'; the rows of order 1 do not change. tab: ``point_tables``; rates: N_POINTS x
+    N_POINTS, scratch: K^2 + N_POINTS K entries of scratch, apart."""
     K = m * m
-    rates = scratch[K * K + N_POINTS * K:K * K + N_POINTS * K
-                    + N_POINTS * N_POINTS].reshape((N_POINTS, N_POINTS))
     number = _wet_pair_rates(props, weights, factor, u0, own, config, rates)
     _point_moment_rates(m, weights, tab, rates, scratch)
     nref = own[P.NUMBER_SCALE]
@@ -224,9 +222,9 @@ def _wet_wet_every_row(out, m, props, weights, tab, rows, scratch, factor, u0, o
 
 
 @nb.njit(cache=True)
-def _wet_wet(out, m, props, mass, liquid, weights, factor, u0, own, config):
-    """The wet-wet rows W00, W20, W11, W02 over the wet points (module docstring)."""
-    rates = np.empty((N_POINTS, N_POINTS))
+def _wet_wet(out, m, props, mass, liquid, weights, rates, factor, u0, own, config):
+    """The wet-wet rows W00, W20, W11, W02 over the wet points (module docstring); rates:
+    N_POINTS x N_POINTS of scratch."""
     number = _wet_pair_rates(props, weights, factor, u0, own, config, rates)
     pp = 0.0                            # each sum: 1/2 of the ordered double sum
     pb = 0.0
@@ -461,17 +459,17 @@ def add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd, cros
     for q in range(N_POINTS):
         if weights[q] != 0.0:
             particle_properties(mass[q] * pref, liquid[q] * pref, own, config, props, q)
+    tab = point_tables(m, mass, liquid)         # the dry points' powers go in it too
+    K = m * m
+    scratch = np.empty(K * K + N_POINTS * K + N_POINTS * N_POINTS + K + m)
+    rates = scratch[K * K + N_POINTS * K:K * K + N_POINTS * K
+                    + N_POINTS * N_POINTS].reshape((N_POINTS, N_POINTS))
+    rows = scratch[K * K + N_POINTS * K + N_POINTS * N_POINTS:]
     if every_row:
-        tab = point_tables(m, mass, liquid)
-        K = m * m
-        scratch = np.empty(K * K + N_POINTS * K + N_POINTS * N_POINTS + K + m)
-        rows = scratch[K * K + N_POINTS * K + N_POINTS * N_POINTS:]
-        _wet_wet_every_row(out, m, props, weights, tab, rows, scratch, factor, u0, own,
+        _wet_wet_every_row(out, m, props, weights, tab, rates, scratch, factor, u0, own,
                            config)
     else:
-        tab = np.ones((TAB_CHOOSE + m, m))
-        rows = tab[0]
-        _wet_wet(out, m, props, mass, liquid, weights, factor, u0, own, config)
+        _wet_wet(out, m, props, mass, liquid, weights, rates, factor, u0, own, config)
     if not cross:
         return 0.0
     dx1, dx2, da1, da2 = dry_points(state, m)
