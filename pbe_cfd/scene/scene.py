@@ -570,7 +570,7 @@ def resolve_scene_path(source) -> Path:
 
 def describe(scene: Scene) -> dict[str, Any]:
     """The scene as plain data (for summary.json); the method as its flat ``[method]`` table
-    (the common keys, then the method's own)."""
+    (the common keys, then the method's own, with the values in effect)."""
     out = dataclasses.asdict(scene) | {"raw": None}
     if out["output"] is None:          # no [output] table: the echo without its key
         del out["output"]
@@ -578,5 +578,9 @@ def describe(scene: Scene) -> dict[str, Any]:
         for key in ("slip_velocity_source", "air_temperature_source"):
             if out["drying"][key] == "scene":
                 del out["drying"][key]
-    out["method"] = out["method"] | out["method"].pop("options")
+    options = scene.method.options
+    # the values in effect where an option is set by others when unset (``in_effect``)
+    own = options.in_effect() if hasattr(options, "in_effect") else out["method"]["options"]
+    out["method"].pop("options")
+    out["method"] = out["method"] | own
     return out

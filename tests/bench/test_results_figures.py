@@ -87,6 +87,10 @@ SEED_ROWS = {
     "QMOM N = 3": ("seed-wurster", {"name": "qmom", "nodes": 3}),
     "Laguerre m = 3, consistent": ("seed-wurster-laguerre", {"order": 3, "consistent": True}),
     "Laguerre m = 4, consistent": ("seed-wurster-laguerre", {"order": 4, "consistent": True}),
+    "Laguerre m = 3, following support (the default without support keys)": (
+        "seed-wurster-laguerre", {"order": 3, "following_support": True}),
+    "Laguerre m = 4, following support": ("seed-wurster-laguerre",
+                                          {"order": 4, "following_support": True}),
     "Laguerre m = 3, plain (seed's projection)": ("seed-wurster-laguerre",
                                                    {"order": 3, "consistent": False}),
     "Laguerre m = 4, plain": ("seed-wurster-laguerre", {"order": 4, "consistent": False}),

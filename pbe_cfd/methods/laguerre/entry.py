@@ -2,6 +2,7 @@
 line and its numba functions (``methods.registry`` lists it)."""
 from ...physics import parameters as P
 from ..entry import MethodEntry
+from .build import FOLLOWING_SPAN
 from .guard import output_check
 from .number_watch import output_watch
 from .options import LaguerreOptions
@@ -36,6 +37,9 @@ def _keys(t, defaults):
         kw[key] = t.number(key, getattr(defaults, key), integer=True, low=4, high=400)
     kw["grid_spacing"] = t.choice("grid_spacing", ("fraction", "uniform"), defaults.grid_spacing)
     kw.update(scene_keys(t, defaults))
+    if kw.get("following_support") and kw["order"] < 3:
+        t.fail("following_support", "the following support needs order >= 3 (its weight "
+                                    f"follows W20 / W10), got order = {kw['order']}")
     if kw.get("number_closure") not in (None, "tensor") and kw["order"] < 3:
         t.fail("number_closure", f'"{kw["number_closure"]}" needs order >= 3 (it gives W20, '
                                  f'W11, W02), got order = {kw["order"]}')
@@ -62,14 +66,24 @@ def _plan(scene):
             f"({'moment-consistent' if m.consistent else 'plain projection'}"
             f"{', dry class' if m.dry_class else ''}"
             f"{', adaptive weights' if m.adaptive_weights else ''}, aggregation and capture "
-            f"rows: {number_closure(m.following_support, m.number_closure, m.order)}), "
-            f"support p <= {m.support_mass:g} kg, b <= {m.support_binder:g} kg, grid "
-            f"{m.grid_mass} x {m.grid_binder}; {n_state} states")
+            f"rows: {number_closure(m.follows, m.number_closure, m.order)}), "
+            f"{_support_text(scene)}, grid {m.grid_mass} x {m.grid_binder}; {n_state} states")
+
+
+def _support_text(scene):
+    """The plan's words for the ROM's support (docs/physics.md 9.2)."""
+    m = scene.method.options
+    if m.follows:
+        c_dry = m.dry_weight_mean_mass or scene.initial.mean_mass
+        return (f"support following the wet class (up to {m.following_growth:g} x the initial "
+                f"mean mass), dry class p <= {max(m.mass_support, FOLLOWING_SPAN * c_dry):.3g} kg")
+    return f"fixed support p <= {m.mass_support:g} kg, b <= {m.binder_support:g} kg"
 
 
 def _accuracy_knobs(quick):
     """The accuracy study's settings: order x tensor grid (coarse, fine) x consistent or
-    plain projection (the quick study leaves out the fine plain ones)."""
+    plain projection (the quick study leaves out the fine plain ones), on the seed's fixed
+    support, whose tensors the grid resolves (the seed scenes set it)."""
     grids = {"coarse": 8, "fine": 12} if quick else {"coarse": 20, "fine": 40}
     out = []
     for m in ((2, 3) if quick else (2, 3, 4)):
@@ -79,7 +93,8 @@ def _accuracy_knobs(quick):
                     continue
                 kind = "consistent" if consistent else "plain"
                 out.append((f"m={m} {gname} {kind}", {"order": m, "consistent": consistent,
-                                                      "grid_mass": g, "grid_binder": g}))
+                                                      "grid_mass": g, "grid_binder": g,
+                                                      "following_support": False}))
     return tuple(out)
 
 

@@ -323,9 +323,6 @@ def support_advice(aux, parts=None):
 
 
 # ---- scene-level helpers (called by the orchestration) -------------------------------------
-#: the dry class's gamma shape in p when the scene sets following_support and no
-#: dry_weight_shape_mass (docs/results/laguerre.md, the held-out suite)
-FOLLOWING_DRY_SHAPE = 2.0
 # quadrature spacing for scenes that do not name one ([method] grid_spacing): "fraction" -- on
 # the seed scenario it brings the consistent ROM from 10-13 % to within 3-9 % of the cNMC at
 # table III's 20 x 20 points; "uniform" reproduces table III's increments literally.
@@ -340,8 +337,8 @@ def scene_weights_support(scene):
     weights = dict(c=m.weight_mean_mass, d=m.weight_mean_binder, lam=m.weight_shape_mass,
                    gam=m.weight_shape_binder,
                    c_dry=getattr(m, "dry_weight_mean_mass", None) or scene.initial.mean_mass,
-                   lam_dry=getattr(m, "dry_weight_shape_mass", None) or m.weight_shape_mass)
-    support = dict(p_max=m.support_mass, b_max=m.support_binder, n_p=m.grid_mass,
+                   lam_dry=m.dry_weight_shape_mass)
+    support = dict(p_max=m.mass_support, b_max=m.binder_support, n_p=m.grid_mass,
                    n_b=m.grid_binder, spacing=getattr(m, "grid_spacing", SCENE_SPACING),
                    n_dry=getattr(m, "dry_grid_mass", None) or m.grid_mass)
     return weights, support
@@ -368,7 +365,7 @@ def aux_for_scene(scene, arrays, theta_grid=None, cache_dir=None):
         u0 = None
     points = int(getattr(scene.method.options, "adaptive_points", 0) or 0)
     adaptive = dict(points=points) if getattr(scene.method.options, "adaptive_weights", False) else None
-    if getattr(scene.method.options, "following_support", False):
+    if scene.method.options.follows:
         adaptive = following_spec(scene, arrays)
         support["p_max"] = max(support["p_max"], FOLLOWING_SPAN * weights["c_dry"])
     aux = build_aux(arrays.params, arrays.config, scene.method.options.order, weights=weights,
@@ -377,27 +374,23 @@ def aux_for_scene(scene, arrays, theta_grid=None, cache_dir=None):
                     adaptive=adaptive)
     options = scene.method.options
     aux[AUX_NUMBER_POINTS] = NUMBER_CLOSURES[number_closure(
-        getattr(options, "following_support", False), getattr(options, "number_closure", None),
-        options.order)]
+        options.follows, options.number_closure, options.order)]
     return aux
 
 
 def number_closure(following, given=None, order=3):
     """The closure of the rows of aggregation and droplet capture ("tensor", "points": the
     rows of order <= 2 on the point measures, "points-all": every wet row on them):
-    ``given``, or by default with the following support "points-all" for order 3 (measured on
-    the batch proxies, the bed batch, the held-out suite and the hard cell next to packing,
+    ``given``, or by default "points-all" with the following support (measured on the batch
+    proxies, the bed batch, the held-out suite and the hard cell next to packing,
     docs/results/laguerre.md: the tensors' number row turns positive for a broad class,
     their capture pushes a class born at one mass outside, their rows of order 3 and 4 turn
-    negative next to packing) and "points" for a higher order (the points' two mass nodes
-    reproduce W00, W10, W20, the moments in mass an order-3 class carries, not W30 and up:
-    every row on them would set aside moments the class carries; not measured), and "tensor"
-    with the fixed seed support (where the tensors are exact or within 1.5%)."""
+    negative next to packing; at m = 4 "points" stops at its step floor on both seed
+    scenarios, at 217 and 227 s, where "points-all" finishes), and "tensor" with the fixed
+    seed support (where the tensors are exact or within 1.5%)."""
     if given:
         return given
-    if not following:
-        return "tensor"
-    return "points-all" if order <= 3 else "points"
+    return "points-all" if following else "tensor"
 
 
 def following_spec(scene, arrays):
@@ -451,19 +444,16 @@ def scene_keys(t, defaults):
     kw = {"dry_class": t.boolean("dry_class", defaults.dry_class)}
     if t.has("dry_weight_mean_mass"):
         kw["dry_weight_mean_mass"] = t.number("dry_weight_mean_mass", positive=True, unit="kg")
-    # the dry class's shape: 10 (narrow, at the primary particles) by default; with the
-    # following support 2 (measured on the held-out suite, docs/results/laguerre.md: with 10
-    # the sum- and eke-kernel droplet cases stop, with 2 they finish)
-    following = t.boolean("following_support", defaults.following_support)
-    kw["dry_weight_shape_mass"] = t.number(
-        "dry_weight_shape_mass", FOLLOWING_DRY_SHAPE if following
-        else defaults.dry_weight_shape_mass, positive=True)
+    kw["dry_weight_shape_mass"] = t.number("dry_weight_shape_mass",
+                                           defaults.dry_weight_shape_mass, positive=True)
     kw["dry_grid_mass"] = t.number("dry_grid_mass", defaults.dry_grid_mass, integer=True,
                                    low=4, high=4000)
     kw["adaptive_weights"] = t.boolean("adaptive_weights", defaults.adaptive_weights)
     kw["adaptive_points"] = t.number("adaptive_points", defaults.adaptive_points, integer=True,
                                      low=2, high=33)
-    kw["following_support"] = t.boolean("following_support", defaults.following_support)
+    # unset: the following support for order >= 3 unless support_mass or support_binder is set
+    if t.has("following_support"):
+        kw["following_support"] = t.boolean("following_support", False)
     kw["following_growth"] = t.number("following_growth", defaults.following_growth,
                                       low=2.0, high=1e9)
     kw["following_shape"] = t.boolean("following_shape", defaults.following_shape)

@@ -453,10 +453,12 @@ def test_escaped_mass_share(cache):
 
 
 def test_scene_helpers(tmp_path):
-    """aux_for_scene / population_for_output / escaped_share_report on the bundled seed scene."""
+    """aux_for_scene / population_for_output / escaped_share_report on the bundled seed scene
+    with the fixed support (the seed's)."""
     from pbe_cfd.runs import model
     from pbe_cfd.scene.scene import load_scene, resolve_scene_path
-    scene = load_scene(resolve_scene_path("seed-wurster")).with_method(name="laguerre", order=3)
+    scene = load_scene(resolve_scene_path("seed-wurster")).with_method(
+        name="laguerre", order=3, following_support=False)
     arrays = model.pack(scene)
     aux = LT.aux_for_scene(scene, arrays, cache_dir=str(tmp_path))
     assert aux[LT.AUX_U0_FIXED] == pytest.approx(5.5, rel=1e-12, abs=0)

@@ -49,9 +49,7 @@ def riccati_m0(t):
 
 
 def scene(following, order=3):
-    method = {"name": "laguerre", "order": order}
-    if following:
-        method["following_support"] = True
+    method = {"name": "laguerre", "order": order, "following_support": bool(following)}
     return breakage_scene(method, {"selection": "power", "rate": S0, "exponent": 1.0,
                                    "daughters": "uniform"}, END, outputs=4,
                           aggregation={"kernel": "constant", "rate": K_AGG})

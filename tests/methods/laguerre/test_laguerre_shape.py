@@ -140,19 +140,6 @@ def test_mass_and_binder_rates_are_exactly_zero_over_a_full_simplex(built):
     assert out[3] == 0.0 and out[1] == 0.0
 
 
-def test_the_following_support_defaults_the_dry_shape_to_2():
-    """The dry class's shape: 2 with the following support unless the scene sets it (the
-    held-out suite's droplet cases stop with 10, finish with 2), 10 without it."""
-    from conftest import make_scene
-    follow = {"name": "laguerre", "order": 3, "following_support": True}
-    scene = make_scene(method=dict(follow, _replace=True))
-    assert scene.method.options.dry_weight_shape_mass == 2.0
-    set10 = dict(follow, dry_weight_shape_mass=10.0, _replace=True)
-    assert make_scene(method=set10).method.options.dry_weight_shape_mass == 10.0
-    fixed = {"name": "laguerre", "order": 3, "_replace": True}
-    assert make_scene(method=fixed).method.options.dry_weight_shape_mass == 10.0
-
-
 def test_the_simplex_blend_is_exact_for_linear_functions():
     """weight_corner with a shape axis: four non-negative weights summing to one whose blend
     of the corners' grid coordinates is the point itself (exact for any function linear in
