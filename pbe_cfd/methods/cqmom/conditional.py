@@ -93,6 +93,48 @@ def gauss2_unit_interval(mu1, mu2, mu3, nodes, weights):
     return 2
 
 
+#: Half-width H of the continued pair of a near-degenerate conditional set, as a share of its
+#: mean binder fraction (``continued_fraction_points``), ours, the Laguerre ROM's value: wide
+#: enough that the pair's sums keep 10 digits apart from the centre's (they differ by ~(H / c)^2
+#: = 1e-6 relative), narrow against any spread a population carries.
+CONTINUE_SPREAD = 1.0e-3
+
+
+@nb.njit(cache=True, error_model="numpy")
+def continued_fraction_points(mu1, mu2, ys, rs):
+    """Points of a conditional set near the degenerate boundary, for the drift (docs/physics.md
+    section 15, "CQMOM's drift near a monodisperse binder"): where the variance v = mu2 - mu1^2
+    of the binder fraction lies below H^2, H = min(CONTINUE_SPREAD mu1, 1 - mu1), the pair
+    mu1 -+ H of weight t / 2 each and the point mu1 of weight 1 - t, t = v / H^2 down to
+    t = -1/2 and -1/2 + tanh(2 t + 1) / 2 below (carried moments outside the realizable set: a
+    negative weight on the pair, above -1; value and two derivatives continuous at -1/2).
+    Returns 3 (ys, rs in increasing ys), or 0 where v >= H^2 or mu1 is not inside (0, 1): the
+    node's own rule applies.
+
+    Every sum over these points is the centre's plus t times the pair's excess, linear in v
+    from -H^2 / 2 to H^2, so it reproduces mu0, mu1, mu2 there, and twice differentiable in the
+    state across v = 0, the boundary a monodisperse binder sits on. A step's stage lands
+    outside it (by (h e / 2 p)^2 from the constant-rate closed form); the one-point rule there
+    would put the gap into the drift's relative rates, and the two-node rule just inside reads
+    the noise of mu3 (nodes c + q / 2 -+ (q^2 / 4 + v)^(1/2), q = third central moment / v)."""
+    if not (mu1 > 0.0) or not (mu1 < 1.0):
+        return 0
+    h = min(CONTINUE_SPREAD * mu1, 1.0 - mu1)
+    var = mu2 - mu1 * mu1
+    if not (var < h * h) or not (h * h > 0.0):
+        return 0
+    t = var / (h * h)
+    if t < -0.5:                  # held smoothly above -1 (value and two derivatives at -1/2)
+        t = -0.5 + 0.5 * math.tanh(2.0 * t + 1.0)
+    ys[0] = mu1 - h
+    ys[1] = mu1
+    ys[2] = mu1 + h
+    rs[0] = 0.5 * t
+    rs[1] = 1.0 - t
+    rs[2] = 0.5 * t
+    return 3
+
+
 #: A three-node rule is accepted with nodes up to this far outside [0, 1] (round-off of an atom
 #: on an end point: dry granules, y = 0), and clipped onto it; beyond, the principal
 #: representation with an atom on that end point.

@@ -25,9 +25,10 @@ from ...physics.properties import (BINDER_LAYER, DIAMETER, EKE_CBRT, EKE_INV, IN
 from ...physics.rates import particle_properties
 from ..quadrature.breakage_sources import cell_selection_factor, node_selection_rate
 from ..quadrature.drying_sources import (add_droplet_class_terms, drift_moment_rate,
-                                         droplet_point, point_drying_rate)
-from .cqmom import (invert_cached, mixed_index, off_acc, off_bpowers, off_counts, off_points,
-                    off_powers, props_view)
+                                         droplet_point, point_drying_rate, tail_entries)
+from .conditional import FREE, continued_fraction_points
+from .cqmom import (invert_cached, mixed_index, off_acc, off_bpowers, off_cond, off_counts,
+                    off_points, off_powers, off_scratch, props_view)
 
 
 @nb.njit(cache=True, inline="always")
@@ -325,47 +326,70 @@ def _breakage(out, state, work, n_max, m, n, cell, params, config, bivariate):
 @nb.njit(cache=True, error_model="numpy")
 def _drying(out, state, work, n_max, m, n, gas, params, config, bivariate):
     """Drying drift of the points (scaled moments per s) in the cell's ``gas``
-    (``physics.drying.cell_gas``): a point (x, b) of weight w loses liquid at e(x, b) (``quadrature.drying_sources.point_drying_rate``, b clipped to [0, x]),
-    so M_kl gains G_kl = -sum w e (k x^(k-1) b^l + l x^k b^(l-1)) and the evaporated liquid
-    (entry N_STATE - 1 - SEPARATE_DROPLETS) sum w e.
+    (``physics.drying.cell_gas``): a point (x, b) of weight w loses liquid at e(x, b)
+    (``quadrature.drying_sources.point_drying_rate``, b clipped to [0, x]), so M_kl gains
+    G_kl = -sum w e (k x^(k-1) b^l + l x^k b^(l-1)) and the evaporated liquid (entry
+    N_STATE - 1 - SEPARATE_DROPLETS) sum w e.
 
-    The size moments, M10 and M01 take G_kl as it is (the points reproduce them exactly, so
-    M10 + E and M01 + E stay invariant); every other mixed moment takes its carried value
-    times the points' relative rate, M_kl G_kl / sum w x^k b^l (as ``_breakage``): the same
-    where the points reproduce M_kl, and a carried moment the points do not reproduce (the
-    closure's gap, ``cqmom_realizable``) then decays with its own value instead of being
-    driven through zero by a drift it does not hold (the falling rate is linear in b)."""
+    The points are the nodes' conditional points, except at a node whose conditional set lies
+    within H^2 of the degenerate boundary (a near-monodisperse binder,
+    ``conditional.continued_fraction_points``): there the centre and the continued pair, so the
+    drift is smooth across that boundary. The size moments, M10 and M01 take G_kl as it is (the
+    points reproduce them exactly, so M10 + E and M01 + E stay invariant); every other mixed
+    moment takes its carried value times the points' relative rate, M_kl G_kl / sum w x^k b^l
+    (as ``_breakage``): the same where the points reproduce M_kl, and a carried moment the
+    points do not reproduce (the closure's gap, ``cqmom_realizable``) then decays with its own
+    value instead of being driven through zero by a drift it does not hold (the falling rate is
+    linear in b)."""
     op = off_points(n_max)
     npt = n_max * m
     counts = off_counts(n_max, m)
-    rates = off_acc(n_max, m)             # w e of each point (n m <= 12 m accumulators)
+    oc = off_cond(n_max, m)
     evaporated = evaporated_entry(config)
     lmax = 2 * m if bivariate else 1
+    # the inversion's scratch (not part of its memo): G_kl and sum w x^k b^l in state order,
+    # then the continued points' fractions and weights
+    n_mom = config[P.N_STATE] - tail_entries(config)
+    s = off_scratch(n_max, m)
+    gain = work[s:s + n_mom]
+    held = work[s + n_mom:s + 2 * n_mom]
+    ys = work[s + 2 * n_mom:s + 2 * n_mom + 3]
+    rs = work[s + 2 * n_mom + 3:s + 2 * n_mom + 6]
+    for i in range(n_mom):
+        gain[i] = 0.0
+        held[i] = 0.0
     for a in range(n):
-        for q in range(int(work[counts + a])):
-            i = a * m + q
-            x = work[op + i]
-            work[rates + i] = work[op + 2 * npt + i] * point_drying_rate(
-                x, min(max(work[op + npt + i], 0.0), x), gas, params)
-            out[evaporated] += work[rates + i]
+        row = oc + a * 2 * m
+        cnt = 0
+        if bivariate and m > 1 and work[counts + n_max + a] == FREE:
+            cnt = continued_fraction_points(work[row + 1], work[row + 2], ys, rs)
+        continued = cnt > 0
+        if not continued:
+            cnt = int(work[counts + a])
+        for q in range(cnt):
+            if continued:
+                x = work[a]
+                b = ys[q] * x
+                w = work[n_max + a] * rs[q]
+            else:
+                i = a * m + q
+                x = work[op + i]
+                b = min(max(work[op + npt + i], 0.0), x)
+                w = work[op + 2 * npt + i]
+            rate = w * point_drying_rate(x, b, gas, params)
+            out[evaporated] += rate
+            for l in range(lmax):
+                for k in range(2 * n_max if l == 0 else n_max):
+                    i = k if l == 0 else mixed_index(n_max, k, l)
+                    gain[i] += drift_moment_rate(k, l, x, b, rate)
+                    held[i] += w * x ** k * b ** l
     for l in range(lmax):
         for k in range(2 * n_max if l == 0 else n_max):
-            gain = 0.0
-            held = 0.0
-            for a in range(n):
-                for q in range(int(work[counts + a])):
-                    i = a * m + q
-                    x = work[op + i]
-                    b = min(max(work[op + npt + i], 0.0), x)
-                    gain += drift_moment_rate(k, l, x, b, work[rates + i])
-                    held += work[op + 2 * npt + i] * x ** k * b ** l
-            if l == 0:
-                out[k] += gain
-            elif k == 0 and l == 1:
-                out[mixed_index(n_max, 0, 1)] += gain
-            elif held > 0.0:
-                i = mixed_index(n_max, k, l)
-                out[i] += state[i] * (gain / held)
+            i = k if l == 0 else mixed_index(n_max, k, l)
+            if l == 0 or (k == 0 and l == 1):
+                out[i] += gain[i]
+            elif held[i] > 0.0:
+                out[i] += state[i] * (gain[i] / held[i])
 
 
 @nb.njit(cache=True, error_model="numpy")
