@@ -177,9 +177,10 @@ def variant_for(method, knob):
         orders = list(range(orders[0], orders[-1] + 1))
         grids = [int(g) for g in re.findall(r"(\d+)\^2", knob)] or [20, 40]
         kind = "consistent" if consistent else "plain"
+        # the tensor grid's rows: the seed's fixed support, which the grid resolves
         return [V("laguerre", f"m={m} {g} {kind}", {"name": "laguerre", "order": m,
                                              "consistent": consistent, "grid_mass": g,
-                                             "grid_binder": g})
+                                             "grid_binder": g, "following_support": False})
                 for m in orders for g in grids]
     if method == "CQMOM":
         n1, n2 = (int(x) for x in re.search(r"=\s*(\d+)\s*x\s*(\d+)", knob).groups())
