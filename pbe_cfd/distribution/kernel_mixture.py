@@ -298,13 +298,16 @@ BELOW_FLOOR = ("mean mass not above the support's floor: kernels on [0, inf) ins
                "[floor, inf)")
 
 
-def _size_nodes(w, p, signed=False):
-    """(masses [kg], number weights [1/m3]) of one row's distinct size nodes (CQMOM's binder
-    nodes of one size node merged), nodes with w <= 0 (``signed``: w = 0) or p <= 0 left
-    out."""
-    ok = ((w != 0) if signed else (w > 0)) & (p > 0)
-    masses, inverse = np.unique(p[ok], return_inverse=True)
-    return masses, np.bincount(inverse, weights=w[ok], minlength=masses.size)
+def _size_nodes(w_all, p_all, rows, signed=False):
+    """{row: (masses [kg], number weights [1/m3])} of the distinct size nodes of each of
+    ``rows`` (of the padded nodes w_all [1/m3], p_all [kg]; CQMOM's binder nodes of one size
+    node merged, ``node_groups.size_nodes``), nodes with w <= 0 (``signed``: w = 0) or
+    p <= 0 left out."""
+    from .node_groups import size_nodes
+    w, p = (np.ascontiguousarray(a[rows], dtype=float) for a in (w_all, p_all))
+    x, wx = np.empty_like(p), np.empty_like(p)
+    count = size_nodes(w, p, bool(signed), x, wx)
+    return {r: (x[k, :count[k]], wx[k, :count[k]]) for k, r in enumerate(rows.tolist())}
 
 
 def _fit_row(x, w, kernels):
@@ -368,7 +371,7 @@ def of_nodes(populations, rho, bivariate, labels=str, floor=0.0, kernels=None,
         if np.any(flags[key]):
             mix.notes.append(f"size distribution: {text} at "
                              f"{_rows_text(np.flatnonzero(flags[key]), labels)}")
-    mix.node_binder = node_binder(populations) if bivariate else None
+    mix.node_binder = node_binder(populations, distinct=True) if bivariate else None
     return mix
 
 
@@ -425,12 +428,13 @@ def _fit_rows(rows, w_all, p_all, floors, kernels, signed, flags):
     weights [1/m3], status)}; sets the row's ``flags`` and, below the floor, floors[row] = 0."""
     from ..methods.quadrature import gamma_inversion as I
     out = {}
+    nodes = _size_nodes(w_all, p_all, rows, signed)
     for r in rows.tolist():
         if not (np.all(np.isfinite(w_all[r])) and np.all(np.isfinite(p_all[r]))):
             out[r] = (0.0, np.zeros(0), np.zeros(0), I.FAILED)
             flags["bad"][r] = True
             continue
-        x, w = _size_nodes(w_all[r], p_all[r], signed)
+        x, w = nodes[r]
         m0 = w.sum()
         mean = (w * x).sum() / m0 if m0 > 0 else 0.0
         if floors[r] > 0 and x.size > 1 and m0 > 0:

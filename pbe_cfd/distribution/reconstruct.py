@@ -136,7 +136,7 @@ def interpolate_rows(q, x, y):
     valid = np.isfinite(x)
     nv = valid.sum(axis=1)
     lx = np.where(valid, np.log(np.where(valid, x, 1.0)), np.inf)
-    j = (lx[:, :, None] <= q[None, None, :]).sum(axis=1)            # (rows, k)
+    j = _count_at_or_below(lx, np.asarray(q, dtype=float))           # (rows, k)
     last = np.maximum(nv - 1, 0)[:, None]
     j0 = np.clip(j - 1, 0, last)
     j1 = np.clip(j, 0, last)
@@ -146,6 +146,18 @@ def interpolate_rows(q, x, y):
         gap = np.where(j1 > j0, x1 - x0, 1.0)
         t = np.where(j1 > j0, (q[None, :] - x0) / gap, 0.0)
     return np.where((nv > 0)[:, None], y0 + t * (y1 - y0), 0.0)
+
+
+def _count_at_or_below(lx, q):
+    """Per row of lx (rows, n) the number of its entries <= each q (k,): (rows, k) counts,
+    by bisection in the row sorted (the count does not depend on the entries' order)."""
+    out = np.empty((lx.shape[0], q.size), dtype=np.intp)
+    ordered = np.all(lx[:, 1:] >= lx[:, :-1], axis=1)
+    for r in range(lx.shape[0]):
+        row = lx[r] if ordered[r] else np.sort(lx[r])
+        out[r] = np.searchsorted(row, q, side="right")
+    out[:, np.isnan(q)] = 0             # no entry is <= NaN (searchsorted puts NaN last)
+    return out
 
 
 def stacked_rows(populations, k):
@@ -171,41 +183,26 @@ def padded_rows(populations, k):
     return out
 
 
-def node_binder(populations):
+def node_binder(populations, distinct=False):
     """(node masses x [kg], mass-mean binder fraction y [-]) of quadrature populations (w
-    [1/m3], p [kg], b [kg]) of equal length per row, each (rows, n) sorted by x per row
-    (nodes with w <= 0 or p <= 0: x = +inf at the end). Nodes sharing one mass (CQMOM's
-    binder nodes of one size node) share the mass-mean binder fraction of their group."""
-    w, p, b = (padded_rows(populations, k) for k in range(3))
-    valid = (w > 0) & (p > 0)
-    wv = np.where(valid, w, 0.0)
-    mass, binder = _group_sums(p, wv * p, wv * b)
-    y = np.where(mass > 0, binder / np.where(mass > 0, mass, 1.0), 0.0)
-    x = np.where(valid, p, np.inf)
-    order = np.argsort(x, axis=1)
-    return np.take_along_axis(x, order, 1), np.take_along_axis(y, order, 1)
-
-
-def _group_sums(key, *values):
-    """Per row of ``key`` (rows, n), each value (rows, n) summed over the entries of its row
-    with an equal key, given back at every entry of the group: O(n log n) per row by sorting
-    (groups in the order of their entries)."""
-    rows, n = key.shape
-    if n == 0:
-        return tuple(np.zeros((rows, 0)) for _ in values)
-    order = np.argsort(key, axis=1, kind="stable")
-    sorted_key = np.take_along_axis(key, order, 1)
-    starts = np.ones((rows, n), dtype=bool)
-    starts[:, 1:] = sorted_key[:, 1:] != sorted_key[:, :-1]
-    group = np.cumsum(starts, axis=1) - 1 + (np.arange(rows) * n)[:, None]
-    out = []
-    for v in values:
-        sums = np.bincount(group.ravel(), weights=np.take_along_axis(v, order, 1).ravel(),
-                           minlength=rows * n)
-        back = np.empty((rows, n))
-        np.put_along_axis(back, order, sums[group], 1)
-        out.append(back)
-    return tuple(out)
+    [1/m3], p [kg], b [kg]) per row, each (rows, n) (n the most nodes of a row) sorted by x
+    per row (nodes with w <= 0 or p <= 0: x = +inf at the end, y = 0 there). Nodes sharing
+    one mass (CQMOM's binder nodes of one size node) share the mass-mean binder fraction of
+    their group (``node_groups.binder_of_groups``). ``distinct``: each mass once, n the most
+    masses of a row (at least 1 where a row has nodes): what ``interpolate_rows`` reads of
+    the nodes, the same interpolation."""
+    from .node_groups import binder_of_groups
+    rows = [[np.asarray(r[k], dtype=float).ravel() for r in populations] for k in range(3)]
+    sizes = np.array([a.size for a in rows[1]], dtype=np.int64)
+    starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    w, p, b = (np.concatenate(a) if a else np.zeros(0) for a in rows)
+    n = int(sizes.max(initial=0))
+    x, y = np.empty((len(sizes), n)), np.empty((len(sizes), n))
+    widest = binder_of_groups(w, p, b, starts, distinct, x, y)
+    if distinct and n > 0:
+        width = max(int(widest), 1)
+        return x[:, :width].copy(), y[:, :width].copy()
+    return x, y
 
 
 def gamma_of_populations(populations, rho, bivariate, labels=str) -> GammaFit:

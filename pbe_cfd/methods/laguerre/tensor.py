@@ -91,6 +91,24 @@ def _slice_quadrature(c, d, lam, gam, p_max, b_max, n_p, n_b, spacing, points, y
     return out
 
 
+@functools.lru_cache(maxsize=1024)
+def _slice_nodes(c, d, lam, gam, p_max, b_max, n_p, n_b, spacing, points, y_max, cp, cb,
+                 fraction):
+    """(phi, W, p [kg], b [kg]) of one weight slice: its quadrature (``_slice_quadrature``),
+    the raw basis at its nodes (``fraction``: ``fraction_basis_values``, else
+    ``basis_values``; cp, cb the bytes of the slice's Cp, Cb) and the nodes' masses. None of
+    them depends on the state: an output time reconstructs every cell on the same few slices,
+    each evaluated once."""
+    u, v, W = _slice_quadrature(c, d, lam, gam, p_max, b_max, n_p, n_b, spacing, points, y_max)
+    m = int(points)
+    Cp, Cb = (np.frombuffer(x, dtype=float).reshape(m, m) for x in (cp, cb))
+    phi = (fraction_basis_values if fraction else basis_values)(u, v, Cp, Cb, lam, gam)
+    out = (phi, W, u * c, v * d)
+    for a in out:
+        a.setflags(write=False)
+    return out
+
+
 def wet_particles(state, aux):
     """The wet reconstruction on the quadrature nodes: (w [per N_ref], p [kg], b [kg]). With
     adaptive weights the reconstructions of the neighbouring weight slices are blended as the
@@ -98,28 +116,39 @@ def wet_particles(state, aux):
     summed, with the following support each slice's nodes are listed with its blend weight)."""
     w_total = None
     parts = []
+    following = aux[AUX_FOLLOWING] == 1.0
     for w, frac in weight_corners(state, aux):
         B = unpack_basis(aux, w)
         K = B["m"] ** 2
         p_max, b_max = wet_support(aux, w)
-        following = aux[AUX_FOLLOWING] == 1.0
-        u, v, W = _slice_quadrature(B["c"], B["d"], B["lam"], B["gam"], p_max, b_max,
-                                    int(aux[AUX_N_P]), int(aux[AUX_N_B]),
-                                    GRADED if following else int(aux[AUX_SPACING]), B["m"],
-                                    fraction_top(B["c"], B["d"]) if following else 1.0)
-        phi = (fraction_basis_values if following else basis_values)(
-            u, v, B["Cp"], B["Cb"], B["lam"], B["gam"])
+        phi, W, p, b = _slice_nodes(
+            B["c"], B["d"], B["lam"], B["gam"], p_max, b_max, int(aux[AUX_N_P]),
+            int(aux[AUX_N_B]), GRADED if following else int(aux[AUX_SPACING]), B["m"],
+            fraction_top(B["c"], B["d"]) if following else 1.0, B["Cp"].tobytes(),
+            B["Cb"].tobytes(), following)
         coef = B["Ginv"] @ (np.asarray(state[:K], float) * B["r"])
         part = frac * (phi @ coef) * W
-        if aux[AUX_FOLLOWING] == 1.0:       # own nodes per slice: the corners side by side
-            parts.append((part, u * B["c"], v * B["d"]))
+        if following:                       # own nodes per slice: the corners side by side
+            parts.append((part, p, b))
         elif w_total is None:
-            w_total, p, b = part, u * B["c"], v * B["d"]
+            w_total, p_total, b_total = part, p.copy(), b.copy()
         else:
             w_total = w_total + part
     if parts:
         return tuple(np.concatenate(x) for x in zip(*parts))
-    return w_total, p, b
+    return w_total, p_total, b_total
+
+
+@functools.lru_cache(maxsize=64)
+def _dry_nodes(c_dry, lam_dry, p_max, n_dry, m):
+    """(psi, quadrature weights [du], p [kg]) of the dry class's nodes in p: the univariate
+    basis at the nodes of ``mass_nodes``, which do not depend on the state (kept)."""
+    u, w = mass_nodes(c_dry, lam_dry, p_max, n_dry)
+    psi = univariate_values(u, projection_matrix(m, lam_dry), lam_dry)
+    out = (psi, w, u * c_dry)
+    for a in out:
+        a.setflags(write=False)
+    return out
 
 
 def dry_particles(state, aux):
@@ -127,10 +156,9 @@ def dry_particles(state, aux):
     B = unpack_basis(aux)
     m = B["m"]
     K = m * m
-    u, w = mass_nodes(B["c_dry"], B["lam_dry"], aux[AUX_P_MAX], B["n_dry"])
-    psi = univariate_values(u, projection_matrix(m, B["lam_dry"]), B["lam_dry"])
+    psi, w, p = _dry_nodes(B["c_dry"], B["lam_dry"], aux[AUX_P_MAX], B["n_dry"], m)
     coef = B["Ginv_dry"] @ (np.asarray(state[K:K + m], float) * B["r_dry"])
-    return (psi @ coef) * w, u * B["c_dry"], np.zeros_like(u)
+    return (psi @ coef) * w, p.copy(), np.zeros_like(p)
 
 
 def population_for_output(state, aux, arrays):
