@@ -70,10 +70,15 @@ def scene_factory():
 
 @pytest.fixture(autouse=True, scope="session")
 def _pbe_cfd_cache(tmp_path_factory):
-    """pbe-cfd's cache of readable case copies (``readable.cache_root``) in a temporary
-    directory for the session, never the user's ~/.cache."""
+    """pbe-cfd's cache (readable case copies, ``readable.cache_root``; the Laguerre ROM's tables,
+    ``methods.laguerre.build.default_cache_dir``) in a temporary directory of the session, never
+    the user's ~/.cache; one for all of the session's xdist workers (both caches write a new
+    entry beside its place and rename it in, so two workers building one entry both end with
+    it), so a table or a case copy is built once per session."""
     import os
-    path = tmp_path_factory.mktemp("pbe-cfd-cache")
+    base = tmp_path_factory.getbasetemp()
+    path = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "pbe-cfd-cache"
+    path.mkdir(exist_ok=True)
     old = os.environ.get("PBE_CFD_CACHE")
     os.environ["PBE_CFD_CACHE"] = str(path)
     yield path
