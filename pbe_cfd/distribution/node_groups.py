@@ -26,21 +26,8 @@ def _mass_groups(p, lo, hi, first, keys):
             keys[runs] = p[i]
             runs += 1
     first[runs] = hi
-    order = np.argsort(keys[:runs], kind="mergesort")
-    k = 0
-    while k < runs:
-        end = k + 1
-        while end < runs and keys[order[end]] == keys[order[k]]:
-            end += 1
-        for q in range(k + 1, end):
-            run = order[q]
-            j = q
-            while j > k and order[j - 1] > run:
-                order[j] = order[j - 1]
-                j -= 1
-            order[j] = run
-        k = end
-    return runs, order
+    # a stable sort: the runs of one mass keep the row's order
+    return runs, np.argsort(keys[:runs], kind="mergesort")
 
 
 @nb.njit(cache=True)

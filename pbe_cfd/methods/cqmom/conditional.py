@@ -23,6 +23,7 @@ import math
 
 import numba as nb
 
+from ..quadrature.drying_sources import CONTINUE_SPREAD, continued_pair_share
 from ..quadrature.gauss import DEGENERACY_TOLERANCE, solve_vandermonde, wheeler_nodes
 
 #: The conditional mean binder fraction of a node fixed on a bound by the bounded solve is
@@ -93,13 +94,6 @@ def gauss2_unit_interval(mu1, mu2, mu3, nodes, weights):
     return 2
 
 
-#: Half-width H of the continued pair of a near-degenerate conditional set, as a share of its
-#: mean binder fraction (``continued_fraction_points``), ours, the Laguerre ROM's value: wide
-#: enough that the pair's sums keep 10 digits apart from the centre's (they differ by ~(H / c)^2
-#: = 1e-6 relative), narrow against any spread a population carries.
-CONTINUE_SPREAD = 1.0e-3
-
-
 @nb.njit(cache=True, error_model="numpy")
 def continued_fraction_points(mu1, mu2, ys, rs):
     """Points of a conditional set near the degenerate boundary, for the drift (docs/physics.md
@@ -123,9 +117,7 @@ def continued_fraction_points(mu1, mu2, ys, rs):
     var = mu2 - mu1 * mu1
     if not (var < h * h) or not (h * h > 0.0):
         return 0
-    t = var / (h * h)
-    if t < -0.5:                  # held smoothly above -1 (value and two derivatives at -1/2)
-        t = -0.5 + 0.5 * math.tanh(2.0 * t + 1.0)
+    t = continued_pair_share(var, h, -0.5)   # linear to -1/2, held above -1 below
     ys[0] = mu1 - h
     ys[1] = mu1
     ys[2] = mu1 + h

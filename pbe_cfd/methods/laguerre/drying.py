@@ -46,6 +46,7 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.drying import cell_gas, drying_rate
+from ..quadrature.drying_sources import CONTINUE_SPREAD, continued_pair_share
 from .basis import moment_index
 from .breakage import add_laguerre_breakage
 from .layout import AUX_OFF_DRYING, AUX_ORDER, evaporated_entry
@@ -58,12 +59,6 @@ WET_LIQUID = moment_index(2).index((0, 1))
 #: whose square root would otherwise split one node in two by ~1e-6 and amplify that noise
 #: through the conditional means' 1 / (x2 - x1)
 SINGLE_NODE_VARIANCE = 1e-8
-#: half-width of a node's liquid pair, as a share of its mean liquid, below which the pair's
-#: sums are continued linearly in the variance (module docstring), ours: wide enough that
-#: the difference of the pair's and the centre's sums keeps 10 digits (the pair's sums differ
-#: from the centre's by ~(H / c)^2 = 1e-6 relative), narrow against any spread a population
-#: carries
-CONTINUE_SPREAD = 1e-3
 
 
 def drying_on(config) -> bool:
@@ -113,9 +108,7 @@ def _node_points(x, c, second, w):
         return 0.0, w, 0.0
     if var >= h0 * h0:
         return min(math.sqrt(var), reach), 0.0, w
-    t = var / (h0 * h0)
-    if t < 0.0:                 # outside: continued as far as -h0^2, then held at t = -1
-        t = math.tanh(t)
+    t = continued_pair_share(var, h0, 0.0)   # outside: tanh(t), held above -1
     return h0, (1.0 - t) * w, t * w
 
 

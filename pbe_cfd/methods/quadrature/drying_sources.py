@@ -12,12 +12,37 @@ Realizability: e vanishes with b linearly (the falling-rate period, X < X_cr), s
 liquid decays exponentially and M_k1 stays positive; the dry mass x - b of every node is
 unchanged, so b <= x holds.
 """
+import math
+
 import numba as nb
 
 from ...physics import parameters as P
 from ...physics.drying import drying_rate
 from ...physics.injection import (droplet_liquid, droplet_liquid_entry, droplet_number_entry,
                                  evaporated_entry)
+
+
+#: half-width of a continued liquid pair, as a share of its mean (``continued_pair_share``),
+#: ours: wide enough that the difference of the pair's and the centre's sums keeps 10 digits
+#: (they differ by ~(H / c)^2 = 1e-6 relative), narrow against any spread a population carries
+CONTINUE_SPREAD = 1e-3
+
+
+@nb.njit(cache=True, inline="always")
+def continued_pair_share(var, h, linear_to):
+    """The share t [-] of a node's weight on its continued liquid pair c -+ h (the centre c
+    holds 1 - t) for the liquid variance var (docs/physics.md section 15): t = var / h^2,
+    linear down to t = ``linear_to`` (<= 0) and below it held smoothly above -1,
+    linear_to + s tanh((t - linear_to) / s) with s = 1 + linear_to (value and two
+    derivatives continuous). Every sum over the points is then the centre's plus t times the
+    pair's excess: linear in var across var = 0, the boundary a monodisperse liquid sits on,
+    where an integrator's stages fall on both sides. For var >= h^2 the caller's own rule
+    applies (t >= 1 is returned as it is)."""
+    t = var / (h * h)
+    if t < linear_to:
+        s = 1.0 + linear_to
+        t = linear_to + s * math.tanh((t - linear_to) / s)
+    return t
 
 
 @nb.njit(cache=True, inline="always")
