@@ -138,7 +138,7 @@ def point_tables(m, mass, liquid):
 
 
 @nb.njit(cache=True)
-def _wet_pair_rates(props, weights, factor, u0, own, config, rates):
+def _wet_pair_rates(props, weights, factor, u0, params, config, rates):
     """Fill rates[s, t] = w_s w_t beta_st over the wet points (symmetric; 0 for a point of no
     weight) and return the number the pairs remove, 1/2 the ordered double sum [scaled]."""
     number = 0.0
@@ -153,7 +153,7 @@ def _wet_pair_rates(props, weights, factor, u0, own, config, rates):
             wt = weights[t]
             if wt == 0.0:
                 continue
-            f = ws * wt * pair_rate(props, s, t, factor, u0, own, config)
+            f = ws * wt * pair_rate(props, s, t, factor, u0, params, config)
             rates[s, t] = f
             rates[t, s] = f
             number += (0.5 if t == s else 1.0) * f
@@ -193,7 +193,7 @@ def _point_moment_rates(m, weights, tab, rates, scratch):
 
 
 @nb.njit(cache=True)
-def _wet_wet_every_row(out, m, props, weights, tab, rates, scratch, factor, u0, own, config):
+def _wet_wet_every_row(out, m, props, weights, tab, rates, scratch, factor, u0, params, config):
     """The wet-wet aggregation's every wet row over the wet points: W00 loses 1/2 sum w_s
     w_t beta_st, each row (i, j) of order >= 2 gains 1/2 sum_(a,c) C(i,a) C(j,c) R[(a,c),
     (i-a,j-c)] over (a, c) other than (0, 0) and (i, j), R the pair-rate-weighted products of
@@ -201,9 +201,9 @@ def _wet_wet_every_row(out, m, props, weights, tab, rates, scratch, factor, u0, 
     partners'; the rows of order 1 do not change. tab: ``point_tables``; rates: N_POINTS x
     N_POINTS, scratch: K^2 + N_POINTS K entries of scratch, apart."""
     K = m * m
-    number = _wet_pair_rates(props, weights, factor, u0, own, config, rates)
+    number = _wet_pair_rates(props, weights, factor, u0, params, config, rates)
     _point_moment_rates(m, weights, tab, rates, scratch)
-    nref = own[P.NUMBER_SCALE]
+    nref = params[P.NUMBER_SCALE]
     out[0] += min(-nref * number, 0.0)
     choose = tab[TAB_CHOOSE:TAB_CHOOSE + m]
     for i in range(m):
@@ -222,10 +222,10 @@ def _wet_wet_every_row(out, m, props, weights, tab, rates, scratch, factor, u0, 
 
 
 @nb.njit(cache=True)
-def _wet_wet(out, m, props, mass, liquid, weights, rates, factor, u0, own, config):
+def _wet_wet(out, m, props, mass, liquid, weights, rates, factor, u0, params, config):
     """The wet-wet rows W00, W20, W11, W02 over the wet points (module docstring); rates:
     N_POINTS x N_POINTS of scratch."""
-    number = _wet_pair_rates(props, weights, factor, u0, own, config, rates)
+    number = _wet_pair_rates(props, weights, factor, u0, params, config, rates)
     pp = 0.0                            # each sum: 1/2 of the ordered double sum
     pb = 0.0
     bb = 0.0
@@ -237,7 +237,7 @@ def _wet_wet(out, m, props, mass, liquid, weights, rates, factor, u0, own, confi
             pp += f * mass[s] * mass[t]
             pb += f * (mass[s] * liquid[t] + mass[t] * liquid[s])
             bb += f * liquid[s] * liquid[t]
-    nref = own[P.NUMBER_SCALE]
+    nref = params[P.NUMBER_SCALE]
     out[0] += min(-nref * number, 0.0)
     out[2 * m] += max(2.0 * nref * pp, 0.0)
     out[m + 1] += max(nref * pb, 0.0)
@@ -245,13 +245,13 @@ def _wet_wet(out, m, props, mass, liquid, weights, rates, factor, u0, own, confi
 
 
 @nb.njit(cache=True)
-def _dry_wet(out, m, props, dry_pow, dry_weights, mass, liquid, weights, factor, u0, own,
+def _dry_wet(out, m, props, dry_pow, dry_weights, mass, liquid, weights, factor, u0, params,
              config):
     """Dry + wet -> wet over the dry x wet points: dD_e = -sum w_r w_s beta x_r^e (e < 3),
     dW10 = -dD_1, dW20 = sum w_r w_s beta (x_r^2 + 2 x_r x_s), dW11 = sum w_r w_s beta x_r b_s
     (W00, W01, W02 unchanged; x_r^e: ``dry_powers``)."""
     K = m * m
-    nref = own[P.NUMBER_SCALE]
+    nref = params[P.NUMBER_SCALE]
     number = 0.0
     first = 0.0
     second = 0.0
@@ -267,7 +267,7 @@ def _dry_wet(out, m, props, dry_pow, dry_weights, mass, liquid, weights, factor,
             ws = weights[s]
             if ws == 0.0:
                 continue
-            f = nref * wr * ws * pair_rate(props, DRY_ROW + r, s, factor, u0, own, config)
+            f = nref * wr * ws * pair_rate(props, DRY_ROW + r, s, factor, u0, params, config)
             number += f
             first += f * xr
             second += f * xr2
@@ -285,7 +285,7 @@ def _dry_wet(out, m, props, dry_pow, dry_weights, mass, liquid, weights, factor,
 
 
 @nb.njit(cache=True)
-def _dry_capture_on_points(out, m, props, dry_pow, dry_weights, xd, xl, kd, factor, u0, own,
+def _dry_capture_on_points(out, m, props, dry_pow, dry_weights, xd, xl, kd, factor, u0, params,
                            config):
     """Dry + droplet -> wet: L_e = kd sum_r w_r beta_rd x_r^e (e < 3; x_r^e: ``dry_powers``)
     leaves D_e and enters every wet row as sum_e C(i, e) x_d^(i - e) x_l^j L_e; returns L_0,
@@ -296,7 +296,7 @@ def _dry_capture_on_points(out, m, props, dry_pow, dry_weights, xd, xl, kd, fact
         wr = dry_weights[r]
         if wr == 0.0:
             continue
-        f = kd * wr * pair_rate(props, DRY_ROW + r, DROPLET_ROW, factor, u0, own, config)
+        f = kd * wr * pair_rate(props, DRY_ROW + r, DROPLET_ROW, factor, u0, params, config)
         lost += f
         for e in range(min(m, DRY_POINT_ORDERS)):
             xe = dry_pow[r, e]
@@ -307,7 +307,7 @@ def _dry_capture_on_points(out, m, props, dry_pow, dry_weights, xd, xl, kd, fact
 
 
 @nb.njit(cache=True)
-def _wet_capture_on_points(out, m, props, mass, liquid, weights, xd, xl, kd, factor, u0, own,
+def _wet_capture_on_points(out, m, props, mass, liquid, weights, xd, xl, kd, factor, u0, params,
                            config):
     """Wet + droplet -> wet: the wet rows of order <= 2 of (x_s + x_d)^i (b_s + x_l)^j -
     x_s^i b_s^j, kd sum_s w_s beta_sd per row; returns the droplets lost (0 where the sum is
@@ -320,7 +320,7 @@ def _wet_capture_on_points(out, m, props, mass, liquid, weights, xd, xl, kd, fac
         ws = weights[s]
         if ws == 0.0:
             continue
-        f = kd * ws * pair_rate(props, s, DROPLET_ROW, factor, u0, own, config)
+        f = kd * ws * pair_rate(props, s, DROPLET_ROW, factor, u0, params, config)
         lost += f
         g20 += f * (2.0 * mass[s] * xd + xd * xd)
         g11 += f * (mass[s] * xl + liquid[s] * xd + xd * xl)
@@ -336,7 +336,7 @@ def _wet_capture_on_points(out, m, props, mass, liquid, weights, xd, xl, kd, fac
 
 
 @nb.njit(cache=True)
-def _dry_wet_every_row(out, m, props, dry_weights, weights, tab, rows, factor, u0, own,
+def _dry_wet_every_row(out, m, props, dry_weights, weights, tab, rows, factor, u0, params,
                        config):
     """Dry + wet -> wet over the dry x wet points, every wet row: a wet row (i, j) with
     i >= 1 gains sum w_r w_s beta [(x_r + x_s)^i - x_s^i] b_s^j (its binomial terms with
@@ -344,7 +344,7 @@ def _dry_wet_every_row(out, m, props, dry_weights, weights, tab, rows, factor, u
     sum w_r w_s beta x_r^e (x_r^e: ``dry_powers``, rows TAB_DRY of tab). rows: K + m entries
     of scratch."""
     K = m * m
-    nref = own[P.NUMBER_SCALE]
+    nref = params[P.NUMBER_SCALE]
     choose = tab[TAB_CHOOSE:TAB_CHOOSE + m]
     rows[:K + m] = 0.0
     for r in range(2):
@@ -356,7 +356,7 @@ def _dry_wet_every_row(out, m, props, dry_weights, weights, tab, rows, factor, u
             ws = weights[s]
             if ws == 0.0:
                 continue
-            f = nref * wr * ws * pair_rate(props, DRY_ROW + r, s, factor, u0, own, config)
+            f = nref * wr * ws * pair_rate(props, DRY_ROW + r, s, factor, u0, params, config)
             for e in range(m):
                 rows[K + e] += f * xr[e]
             for i in range(1, m):
@@ -376,7 +376,7 @@ def _dry_wet_every_row(out, m, props, dry_weights, weights, tab, rows, factor, u
 
 
 @nb.njit(cache=True)
-def _wet_capture_every_row(out, m, props, weights, tab, rows, xd, xl, kd, factor, u0, own,
+def _wet_capture_every_row(out, m, props, weights, tab, rows, xd, xl, kd, factor, u0, params,
                            config):
     """Wet + droplet -> wet, every wet row: (x_s + x_d)^i (b_s + x_l)^j - x_s^i b_s^j, i.e.
     sum over (a, c) other than (i, j) of C(i,a) C(j,c) x_d^(i-a) x_l^(j-c) V_ac, V_ac = kd
@@ -394,7 +394,7 @@ def _wet_capture_every_row(out, m, props, weights, tab, rows, xd, xl, kd, factor
         ws = weights[s]
         if ws == 0.0:
             continue
-        f = kd * ws * pair_rate(props, s, DROPLET_ROW, factor, u0, own, config)
+        f = kd * ws * pair_rate(props, s, DROPLET_ROW, factor, u0, params, config)
         lost += f
         for i in range(m):
             fx = f * tab[TAB_MASS + s, i]
@@ -428,7 +428,10 @@ def add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd, cros
     scaled moments; cell: the cell's row (ALPHA [-], THETA [m2/s2], COLLISION_VELOCITY [m/s]:
     4 sqrt(Theta / pi) where not positive); d43 [m]: the cell's volume-mean diameter (the
     ktgf kernel's cell factor); nd: the free droplets [scaled]; pd, bd: one droplet's mass
-    and liquid [kg].
+    and liquid [kg]; params: the cell's params, where the integrator extends them with the
+    switch memory (physics.parameters.HELD) each pair of property rows (the wet points
+    0 .. N_POINTS - 1 in ``_point``'s order, the dry points DRY_ROW + r, the droplet
+    DROPLET_ROW) holds its sharp Stokes decision within a step, as QMOM's nodes do.
 
     Always the wet-wet rows W00, W20, W11, W02 (module docstring); with ``cross`` also the
     dry-wet aggregation's wet rows of order <= 2 and dry rows D_e (e < 3) over the dry points
@@ -437,14 +440,13 @@ def add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd, cros
     order <= 2), and the droplets lost. The rows left to the tensors: ``rhs.points_rows``
     and ``rhs.low_rows``."""
     m = int(aux[AUX_ORDER])
-    own = params[:P.N_PARAMS]           # the scene's slots: no held Stokes decision
-    factor = kernel_cell_factor(config[P.KERNEL], cell[P.ALPHA], cell[P.THETA], d43, own)
+    factor = kernel_cell_factor(config[P.KERNEL], cell[P.ALPHA], cell[P.THETA], d43, params)
     if factor == 0.0:
         return 0.0
     u0 = cell[P.COLLISION_VELOCITY]
     if not u0 > 0.0:
         u0 = collision_velocity(cell[P.THETA])
-    pref = own[P.MASS_SCALE]
+    pref = params[P.MASS_SCALE]
     pts = wet_points(state, m)
     props = np.zeros((N_ROWS, N_PROPS))
     x0, b0, w0 = _point(0, pts)
@@ -458,7 +460,7 @@ def add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd, cros
     weights = (w0, w1, w2, w3, w4, w5)
     for q in range(N_POINTS):
         if weights[q] != 0.0:
-            particle_properties(mass[q] * pref, liquid[q] * pref, own, config, props, q)
+            particle_properties(mass[q] * pref, liquid[q] * pref, params, config, props, q)
     tab = point_tables(m, mass, liquid)         # the dry points' powers go in it too
     K = m * m
     scratch = np.empty(K * K + N_POINTS * K + N_POINTS * N_POINTS + K + m)
@@ -466,10 +468,10 @@ def add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd, cros
                     + N_POINTS * N_POINTS].reshape((N_POINTS, N_POINTS))
     rows = scratch[K * K + N_POINTS * K + N_POINTS * N_POINTS:]
     if every_row:
-        _wet_wet_every_row(out, m, props, weights, tab, rates, scratch, factor, u0, own,
+        _wet_wet_every_row(out, m, props, weights, tab, rates, scratch, factor, u0, params,
                            config)
     else:
-        _wet_wet(out, m, props, mass, liquid, weights, rates, factor, u0, own, config)
+        _wet_wet(out, m, props, mass, liquid, weights, rates, factor, u0, params, config)
     if not cross:
         return 0.0
     dx1, dx2, da1, da2 = dry_points(state, m)
@@ -477,27 +479,27 @@ def add_point_terms(state, out, cell, aux, params, config, d43, nd, pd, bd, cros
     dry_weights = (da1, da2)
     for r in range(2):
         if dry_weights[r] != 0.0:
-            particle_properties(dry_mass[r] * pref, 0.0, own, config, props, DRY_ROW + r)
+            particle_properties(dry_mass[r] * pref, 0.0, params, config, props, DRY_ROW + r)
     dry_pow = dry_powers(state, m, dry_mass, dry_weights, tab[TAB_DRY:TAB_DRY + 2])
     if every_row:
-        _dry_wet_every_row(out, m, props, dry_weights, weights, tab, rows, factor, u0, own,
+        _dry_wet_every_row(out, m, props, dry_weights, weights, tab, rows, factor, u0, params,
                            config)
     else:
         _dry_wet(out, m, props, dry_pow, dry_weights, mass, liquid, weights, factor, u0,
-                 own, config)
+                 params, config)
     if not (nd > 0.0 and pd > 0.0 and config[P.SEPARATE_DROPLETS] == 1):
         return 0.0
-    particle_properties(pd, bd, own, config, props, DROPLET_ROW)
-    kd = own[P.NUMBER_SCALE] * nd * own[P.DROPLET_FACTOR]   # [1/s per (m3/s) of pair rate]
+    particle_properties(pd, bd, params, config, props, DROPLET_ROW)
+    kd = params[P.NUMBER_SCALE] * nd * params[P.DROPLET_FACTOR]   # [1/s per (m3/s) of pair rate]
     xd = pd / pref
     xl = bd / pref
     lost = _dry_capture_on_points(out, m, props, dry_pow, dry_weights, xd, xl, kd, factor,
-                                  u0, own, config)
+                                  u0, params, config)
     if every_row:
         for k in range(1, m):
             tab[TAB_DROPLET_MASS, k] = tab[TAB_DROPLET_MASS, k - 1] * xd
             tab[TAB_DROPLET_LIQUID, k] = tab[TAB_DROPLET_LIQUID, k - 1] * xl
         return lost + _wet_capture_every_row(out, m, props, weights, tab, rows, xd, xl, kd,
-                                             factor, u0, own, config)
+                                             factor, u0, params, config)
     return lost + _wet_capture_on_points(out, m, props, mass, liquid, weights, xd, xl, kd,
-                                         factor, u0, own, config)
+                                         factor, u0, params, config)

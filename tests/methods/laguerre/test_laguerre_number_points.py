@@ -257,3 +257,57 @@ def test_the_rhs_takes_the_cross_rows_from_the_points_once(tmp_path):
     for a in range(s.size):
         assert out[1.0][a] == pytest.approx(out[0.0][a], rel=tol, abs=0), a
     assert out[1.0][-1] < 0.0 and out[1.0][K] < 0.0
+
+
+@pytest.mark.parametrize("every_row", [False, True], ids=["points", "points-all"])
+def test_the_point_sums_hold_the_integrators_stokes_decisions(every_row):
+    """Under the sharp viscous Stokes step the integrator hands the rates params extended by
+    the switch memory (physics.parameters.HELD), and every pair of property rows keeps the
+    decision it first took until the step ends (docs/physics.md 6.2). The point sums are such
+    rates: with the memory empty they give the fresh sums to the bit and record a decision for
+    every pair of points they evaluate; with every decision held at 0 (no pair sticks) every
+    row of aggregation and capture is exactly 0 and the evaluation marks a crossing; held at
+    1 the sums are those without the Stokes criterion. Red if the point sums evaluate the
+    criterion anew (the held memory ignored)."""
+    from test_laguerre import seed_efficiency
+    params, config = setup(M, kernel=CONSTANT, separate=True)
+    seed_efficiency(params, config)
+    s = np.zeros(int(config[P.N_STATE]))
+    s[:K] = _wet_state(params)[:K]
+    s[K:K + M] = _dry_class(params)
+    nd = 3e8 / params[P.NUMBER_SCALE]
+    pd, bd = params[P.DROPLET_MASS], params[P.DROPLET_MASS]
+    aux = np.zeros(AUX_HEADER)
+    aux[AUX_ORDER] = M
+    cell = np.zeros(P.N_CELL)
+    cell[P.ALPHA], cell[P.THETA], cell[P.COLLISION_VELOCITY] = 0.3, 1e-3, 0.1
+
+    def sums(p, cfg=config):
+        out = np.zeros_like(s)
+        lost = add_point_terms(s, out, cell, aux, p, cfg, 0.0, nd, pd, bd, True, every_row)
+        return out, lost
+
+    fresh, fresh_lost = sums(params)
+    assert fresh_lost > 0.0 and np.any(fresh[:K] != 0.0)     # some pairs stick
+    held = np.zeros(P.N_PARAMS_HELD)
+    held[:P.N_PARAMS] = params
+    held[P.STOKES_HOLD] = 1.0
+    memory = held[P.STOKES_HELD:].reshape(P.HELD_ROWS, P.HELD_ROWS)
+    memory[:] = -1.0
+    first, first_lost = sums(held)
+    assert np.array_equal(first, fresh) and first_lost == fresh_lost
+    assert held[P.STOKES_CROSSED] == 0.0
+    recorded = memory >= 0.0
+    assert recorded.sum() >= 6 and np.all(memory[recorded] <= 1.0)   # the pairs of points
+    assert np.any(memory[recorded] == 1.0)
+    memory[recorded] = 0.0
+    none, none_lost = sums(held)
+    assert np.all(none == 0.0) and none_lost == 0.0
+    assert held[P.STOKES_CROSSED] == 1.0
+    memory[recorded] = 1.0
+    held[P.STOKES_CROSSED] = 0.0
+    every, every_lost = sums(held)
+    plain = config.copy()
+    plain[P.USE_PHYSICAL] = 0
+    want, want_lost = sums(params, plain)
+    assert np.array_equal(every, want) and every_lost == want_lost
