@@ -15,12 +15,19 @@ import time as _time
 def _batch_of(scene):
     """(CellBatch of the scene's packed problem, a function compiling the transport's kernels
     or None), or (None, None) for a method that integrates no ODE (cNMC)."""
+    _problem, batch, extra = _prepared(scene)
+    return batch, extra
+
+
+def _prepared(scene):
+    """(the scene's packed problem, its CellBatch, a function compiling the transport's
+    kernels or None), or (None, None, None) for a method that integrates no ODE (cNMC)."""
     from .batch import CellBatch, check_physics
     from .problem import problem_of
     from ..methods.registry import method_of
     check_physics(scene)
     if not method_of(scene).integrated:
-        return None, None
+        return None, None, None
     domain = None
     if scene.domain.type == "openfoam":
         from .domain import load_domain
@@ -33,7 +40,7 @@ def _batch_of(scene):
         transport = build_transport(problem.transport, domain, problem.active,
                                     problem.mesh_rows, arrays=problem.arrays, aux=problem.aux)
         extra = lambda: transport.compile(batch.states.shape[1])  # noqa: E731
-    return batch, extra
+    return problem, batch, extra
 
 
 def _stages_of(batch):
@@ -46,12 +53,19 @@ def _stages_of(batch):
 
 def _group_task(scene_name, stage, group):
     """In a helper process: compile group ``group`` of stage ``stage`` of the scene's kernel
-    into numba's disk cache. Returns (names compiled, CPU seconds)."""
+    into numba's disk cache; the last group of the last stage (the integrator's, the lighter)
+    also compiles the output assembly's functions (``simulate.warm_outputs``). Returns (names
+    compiled, CPU seconds)."""
     from ..integrate.warmup import compile_group
     from ..scene.scene import load_scene
+    from .simulate import warm_outputs
     cpu = _time.process_time()
-    batch, _extra = _batch_of(load_scene(scene_name))
-    return compile_group(_stages_of(batch)[stage][group]), _time.process_time() - cpu
+    problem, batch, _extra = _prepared(load_scene(scene_name))
+    stages = _stages_of(batch)
+    done = compile_group(stages[stage][group])
+    if stage == len(stages) - 1 and group == len(stages[stage]) - 1:
+        warm_outputs(problem)
+    return done, _time.process_time() - cpu
 
 
 def _warm_in_parallel(scene_name, batch, jobs, say) -> dict:
@@ -81,7 +95,8 @@ def _warm_in_parallel(scene_name, batch, jobs, say) -> dict:
 
 
 def compile_scene(scene, progress=None, jobs=1, scene_name=None) -> dict:
-    """Compile (or load from the cache) the kernels a run of ``scene`` uses. ``progress``
+    """Compile (or load from the cache) the kernels a run of ``scene`` uses, and the numba
+    functions of its output assembly (``simulate.warm_outputs``). ``progress``
     (an object with ``notice(text)``, or None) is told what compiles and roughly how long
     when it takes long. With ``jobs`` > 1 and ``scene_name`` (what ``load_scene`` reads the
     scene from, for the helper processes), the kernel and the method's functions compile in
@@ -91,7 +106,7 @@ def compile_scene(scene, progress=None, jobs=1, scene_name=None) -> dict:
     compiled (False: loaded from the cache), "helpers": the helpers' compile or None,
     "recompiled": staged functions compiled again here}; for a method that integrates no
     ODE (cNMC), {"kernel": None, ...} with nothing compiled."""
-    batch, extra = _batch_of(scene)
+    problem, batch, extra = _prepared(scene)
     if batch is None:
         return {"kernel": None, "seconds": 0.0, "cpu_s": 0.0, "compiled": False,
                 "helpers": None, "recompiled": []}
@@ -113,6 +128,8 @@ def compile_scene(scene, progress=None, jobs=1, scene_name=None) -> dict:
     before = cache_misses(helpers["stages"]) if helpers else {}
     batch.compile_announced(progress, extra)
     again = recompiled(helpers["stages"], before) if helpers else []
+    from .simulate import warm_outputs
+    warm_outputs(problem)
     if helpers:
         from ..util.progress import record_compile_s
         record_compile_s(batch.kernel_name(), _time.process_time() - cpu + helpers["cpu_s"])

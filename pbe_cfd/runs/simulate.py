@@ -86,6 +86,26 @@ def run_well_mixed(scene, progress=None) -> RunResult:
                      kernels_compiled=batch.compiled_now, psd=psd, labels=labels)
 
 
+def warm_outputs(problem) -> None:
+    """Assemble the output columns of ``problem``'s first start state (moments, d10/d50/d90,
+    the PSD) and discard them: this compiles, or loads from numba's cache, the functions a
+    run's output assembly calls (the method's populations, the size distribution's node
+    groups), so that ``pbe-cfd compile`` leaves a run nothing to compile. A start state the
+    assembly refuses is left to the run, which names it."""
+    if not problem.method.integrated:
+        return
+    states = np.array(problem.states[:1], dtype=np.float64)
+    columns = {"time_s": np.asarray(problem.times[:1], dtype=np.float64)}
+    populations = []
+    try:
+        columns.update(model.moment_outputs(problem.outputs.method_plan, problem.arrays,
+                                            states, problem.aux, populations=populations))
+        _size_distribution(problem.outputs.distribution, problem.arrays, states, problem.aux,
+                           populations, columns, [])
+    except (ValueError, FloatingPointError, ArithmeticError):
+        return
+
+
 def _size_distribution(plan, arrays, states, aux, populations, columns, warnings):
     """Add d10/d50/d90/span to ``columns`` and return (psd.csv columns, columns.json);
     ``plan`` the run's ``distribution.tables.DistributionPlan``."""
