@@ -102,7 +102,7 @@ def warm_outputs(problem) -> None:
                                             states, problem.aux, populations=populations))
         _size_distribution(problem.outputs.distribution, problem.arrays, states, problem.aux,
                            populations, columns, [])
-    except (ValueError, FloatingPointError, ArithmeticError):
+    except (ValueError, ArithmeticError):        # the run names what it refuses
         return
 
 
