@@ -87,21 +87,26 @@ def run_well_mixed(scene, progress=None) -> RunResult:
 
 
 def warm_outputs(problem) -> None:
-    """Assemble the output columns of ``problem``'s first start state (moments, d10/d50/d90,
-    the PSD) and discard them: this compiles, or loads from numba's cache, the functions a
-    run's output assembly calls (the method's populations, the size distribution's node
-    groups), so that ``pbe-cfd compile`` leaves a run nothing to compile. A start state the
-    assembly refuses is left to the run, which names it."""
+    """Assemble the output columns of ``problem``'s start states (moments of every row, the
+    size distribution of the row with the most granules: d10/d50/d90, the PSD) and discard
+    them: this compiles, or loads from numba's cache, the functions a run's output assembly
+    calls (the method's populations, the size distribution's node groups), so that ``pbe-cfd
+    compile`` leaves a run nothing to compile. Start states without granules (the
+    distribution has nothing to reconstruct), or that the assembly refuses, are left to the
+    run, which names what it refuses."""
     if not problem.method.integrated:
         return
-    states = np.array(problem.states[:1], dtype=np.float64)
-    columns = {"time_s": np.asarray(problem.times[:1], dtype=np.float64)}
+    states = np.array(problem.states, dtype=np.float64)
     populations = []
     try:
-        columns.update(model.moment_outputs(problem.outputs.method_plan, problem.arrays,
-                                            states, problem.aux, populations=populations))
-        _size_distribution(problem.outputs.distribution, problem.arrays, states, problem.aux,
-                           populations, columns, [])
+        moments = model.moment_outputs(problem.outputs.method_plan, problem.arrays, states,
+                                       problem.aux, populations=populations)
+        row = int(np.argmax(moments["M00"])) if "M00" in moments else 0
+        columns = {"time_s": np.asarray(problem.times[:1], dtype=np.float64)}
+        columns.update({k: np.asarray(v)[row:row + 1] for k, v in moments.items()
+                        if np.ndim(v) == 1 and len(v) == len(states)})
+        _size_distribution(problem.outputs.distribution, problem.arrays, states[row:row + 1],
+                           problem.aux, populations[row:row + 1], columns, [])
     except (ValueError, ArithmeticError):        # the run names what it refuses
         return
 

@@ -9,13 +9,19 @@ Red if a numba function that a run's integration or output assembly calls is lef
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
+
+from pbe_cfd.runs import model, simulate
+from pbe_cfd.runs.problem import problem_of
+from pbe_cfd.scene.scene import load_scene
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -62,3 +68,25 @@ def test_couple_and_run_compile_nothing_after_compile(tmp_path):
     assert seen["compile"], "no numba function of the package was compiled"
     assert _gained(seen["compile"], seen["couple"]) == {}
     assert _gained(seen["couple"], seen["run"]) == {}
+
+
+def test_warm_outputs_reconstructs_the_row_with_the_most_granules(monkeypatch):
+    """A case's first cell may hold no granules (a freeboard cell): the size distribution,
+    which has nothing to reconstruct there, is warmed on the start state with the most
+    granules (largest M00), so its functions still compile ahead. Red if the first row is
+    taken."""
+    problem = problem_of(load_scene("seed-wurster"))
+    start = np.array(problem.states[0], dtype=np.float64)
+    states = np.vstack([0.0 * start, 0.5 * start, start, 0.25 * start])
+    problem = dataclasses.replace(problem, states=states)
+    seen = []
+    monkeypatch.setattr(simulate, "_size_distribution",
+                        lambda plan, arrays, rows, aux, pops, columns, notes:
+                        seen.append((rows.copy(), float(columns["M00"][0]), len(pops))))
+    simulate.warm_outputs(problem)
+    assert len(seen) == 1
+    rows, m00, n_pops = seen[0]
+    assert np.array_equal(rows, states[2:3]) and n_pops == 1
+    every = model.moment_outputs(problem.outputs.method_plan, problem.arrays, states,
+                                 problem.aux)["M00"]
+    assert m00 == max(every) > every[1] > every[3]
