@@ -12,13 +12,6 @@ import sys
 import time as _time
 
 
-def _batch_of(scene):
-    """(CellBatch of the scene's packed problem, a function compiling the transport's kernels
-    or None), or (None, None) for a method that integrates no ODE (cNMC)."""
-    _problem, batch, extra = _prepared(scene)
-    return batch, extra
-
-
 def _prepared(scene):
     """(the scene's packed problem, its CellBatch, a function compiling the transport's
     kernels or None), or (None, None, None) for a method that integrates no ODE (cNMC)."""
@@ -128,11 +121,12 @@ def compile_scene(scene, progress=None, jobs=1, scene_name=None) -> dict:
     before = cache_misses(helpers["stages"]) if helpers else {}
     batch.compile_announced(progress, extra)
     again = recompiled(helpers["stages"], before) if helpers else []
-    from .simulate import warm_outputs
-    warm_outputs(problem)
-    if helpers:
+    if helpers:                        # a helper warmed the outputs' functions too
         from ..util.progress import record_compile_s
         record_compile_s(batch.kernel_name(), _time.process_time() - cpu + helpers["cpu_s"])
+    else:
+        from .simulate import warm_outputs
+        warm_outputs(problem)
     return {"kernel": batch.kernel_name(), "seconds": _time.perf_counter() - start,
             "cpu_s": _time.process_time() - cpu + (helpers["cpu_s"] if helpers else 0.0),
             "compiled": batch.compiled_now or bool(helpers and helpers["compiled"]),

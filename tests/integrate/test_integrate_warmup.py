@@ -64,8 +64,8 @@ def test_two_process_compile_leaves_the_kernel_no_staged_function_to_compile(tmp
                           text=True, timeout=3600, env=env)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "compiled again" not in proc.stdout, proc.stdout
-    from pbe_cfd.runs.precompile import _batch_of, _stages_of
+    from pbe_cfd.runs.precompile import _prepared, _stages_of
     from pbe_cfd.scene.scene import load_scene
-    batch, _extra = _batch_of(load_scene("seed-wurster"))
+    _problem, batch, _extra = _prepared(load_scene("seed-wurster"))
     staged = sum(len(group) for stage in _stages_of(batch) for group in stage)
     assert f"{staged} functions of it in 2 processes" in proc.stdout, proc.stdout
