@@ -57,10 +57,17 @@ def make_scene(**tables):
 def pytest_collection_modifyitems(config, items):
     """A study (minutes to tens of minutes) is also slow: the fast tier's
     ``-m "not slow and not openfoam"`` replaces the default ``-m "not study"`` (pyproject.toml),
-    so a study marked ``study`` alone would run in it. Runs before the marker selection."""
+    so a study marked ``study`` alone would run in it. Runs before the marker selection; puts
+    the files with slow or OpenFOAM tests first."""
     for item in items:
         if item.get_closest_marker("study") and not item.get_closest_marker("slow"):
             item.add_marker(pytest.mark.slow)
+    # the files holding a slow or an OpenFOAM test first, each file's tests in their order: the
+    # workers (--dist loadfile, one file per worker) start on the long files, and the run does
+    # not end on one worker finishing a long file while the other waits
+    long_files = {item.path for item in items
+                  if item.get_closest_marker("slow") or item.get_closest_marker("openfoam")}
+    items.sort(key=lambda item: item.path not in long_files)
 
 
 @pytest.fixture

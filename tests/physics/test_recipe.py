@@ -126,9 +126,16 @@ def test_a_kernel_and_a_factor_added_by_the_recipe_run_everywhere(tmp_path):
     run = subprocess.run([sys.executable, "-c", PUBLIC_PATH], cwd=tmp_path, env=env,
                          capture_output=True, text=True)
     assert run.returncode == 0, run.stderr[-3000:]
+    # the registry tests; not the method dispatch's unknown-code test: it compiles every
+    # method's right-hand side (150 s on an empty cache) and no entry the recipe adds, which
+    # reach the methods through the pair dispatch the tests here compile and the public path's
+    # QMOM run integrates
+    unknown_method = ("tests/physics/test_registries.py::"
+                      "test_an_unknown_method_code_gives_nan_not_another_methods_numbers")
     run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rA", "-p",
                           "no:cacheprovider", "tests/physics/test_registries.py",
-                          "tests/physics/test_physics_registry.py"],
+                          "tests/physics/test_physics_registry.py", "--deselect",
+                          unknown_method],
                          cwd=tmp_path, env=env, capture_output=True, text=True)
     assert run.returncode == 0, run.stdout[-3000:]
     passed = [line for line in run.stdout.splitlines() if line.startswith("PASSED")]
