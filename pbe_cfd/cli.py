@@ -54,14 +54,19 @@ def _phases_text(phases) -> str:
                                       if n + "_s" in phases)
 
 
-def write_size_distribution(directory, psd, labels, title, what):
-    """psd.csv, psd.png and columns.json of a run into ``directory`` (a new output)."""
+def write_size_distribution(directory, psd, labels, title, what) -> list:
+    """psd.csv, psd.png and columns.json of a run into ``directory`` (a new output); only
+    columns.json where the run has no size distribution (``psd`` None: no granules). Returns
+    the names written."""
     from .io import output
     from .viz import psd_figure
-    output.write_columns_csv(directory / "psd.csv", psd)
     output.write_json(directory / "columns.json", labels)
+    if psd is None:
+        return ["columns.json"]
+    output.write_columns_csv(directory / "psd.csv", psd)
     psd_figure.plot_psd(directory / "psd.png", psd, title=title,
                         metadata=output.figure_metadata("png", what))
+    return ["psd.csv", "psd.png", "columns.json"]
 
 
 def _add_library_warnings(found: list, caught) -> None:
@@ -103,11 +108,11 @@ def run_command(args):
         plotting.plot_trajectories(tmp / "moments.png", [(scene.method.name, result.columns)],
                                    title=f"{scene.name}: {scene.method.name}",
                                    metadata=output.figure_metadata("png", "run"))
-        write_size_distribution(tmp, result.psd, result.labels,
-                                f"{scene.name}: {scene.method.name}", "run")
+        sizes = write_size_distribution(tmp, result.psd, result.labels,
+                                        f"{scene.name}: {scene.method.name}", "run")
     print(f"{scene.name}: {scene.method.name} to t = {scene.end_time:g} s in "
           f"{result.wall_time_s:.2f} s{_compile_text(result)}; wrote "
-          f"{args.out}/moments.csv, summary.json, moments.png, psd.csv, psd.png, columns.json")
+          f"{args.out}/moments.csv, summary.json, moments.png, {', '.join(sizes)}")
     return 0
 
 

@@ -193,6 +193,20 @@ def auto_grid(recon, points: int = PSD_POINTS) -> np.ndarray:
                     points)
 
 
+#: the run's note where no output time holds granules (no size-distribution file)
+NO_GRANULES = ("size distribution: no granules at any output time (nothing to reconstruct): "
+               "no psd.csv, psd.png or cell_psd.csv written; d10, d50, d90 and span are 0")
+
+
+def psd_if_granules(times, recon) -> tuple[dict | None, list]:
+    """``psd_columns`` of ``recon`` on its own grid, or (None, [NO_GRANULES]) where no row
+    holds granules (a scene whose population has not formed by its end: droplets sprayed
+    with no granules to capture them)."""
+    if not np.any(~np.asarray(recon.empty)):
+        return None, [NO_GRANULES]
+    return psd_columns(times, recon)
+
+
 def psd_columns(times, recon, grid=None, band=None) -> tuple[dict, list]:
     """(psd.csv columns, notes) of a reconstruction with one row per output time ``times``
     [s] on ``grid`` [m] (default ``auto_grid``). ``band``: (q3_lo, q3_hi) per row and grid
@@ -223,14 +237,15 @@ def psd_columns(times, recon, grid=None, band=None) -> tuple[dict, list]:
     return cols, notes
 
 
-def cnmc_psd_columns(times, result, bivariate) -> tuple[dict, list]:
-    """psd.csv columns of a cNMC ensemble on its own lattice classes (those holding mass at
-    some time, one class of margin each side), with the replicas' band of q3."""
+def cnmc_psd_columns(times, result, bivariate) -> tuple[dict | None, list]:
+    """(psd.csv columns, notes) of a cNMC ensemble on its own lattice classes (those holding
+    mass at some time, one class of margin each side), with the replicas' band of q3; (None,
+    [NO_GRANULES]) where no replica holds granules at any output time."""
     table = R.cnmc_table(result, bivariate)
     mean = np.asarray(result["psd_mass_fraction"], float)
     used = np.flatnonzero(mean.max(axis=0) > 0)
     if used.size == 0:
-        raise DistributionError("size distribution: the cNMC holds no granules")
+        return None, [NO_GRANULES]
     a, b = max(used[0] - 1, 0), min(used[-1] + 2, mean.shape[1])
     edges = table.log_edges
     grid = np.exp(0.5 * (edges[a:b] + edges[a + 1:b + 1]))
@@ -283,8 +298,11 @@ def column_labels(plan: DistributionPlan, state_names, columns, bed: bool = Fals
     return out
 
 
-def psd_labels(plan: DistributionPlan, columns) -> dict:
-    """name -> meaning of the psd.csv columns (``plan`` the run's ``DistributionPlan``)."""
+def psd_labels(plan: DistributionPlan, columns) -> dict | None:
+    """name -> meaning of the psd.csv columns (``plan`` the run's ``DistributionPlan``); None
+    where there is no psd.csv (columns None)."""
+    if columns is None:
+        return None
     how = plan.text
     texts = {"time_s": "time [s]", "d_m": "diameter [m], log-spaced",
              "Q3": "reconstructed: mass fraction of the granules below d [-]; " + how,

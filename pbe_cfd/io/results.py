@@ -82,6 +82,9 @@ def compare_runs(results, out, overwrite: bool = False, say=print) -> int:
             psd_figure.psd_overlay(tmp, psds, title="granule size distributions (mass-based)",
                                    metadata=output.figure_metadata(out.suffix, "compare"))
         say(f"wrote {psd_out}")
+    else:
+        say(f"no {psd_out.name}: no psd.csv in "
+            + ", ".join(lb for lb, cols in psds if cols is None))
     return 0
 
 

@@ -197,13 +197,15 @@ def _bed_distribution(plan, arrays, times, bed, mixtures, cell_fields, warnings)
     stack = reconstruct.Stack(mixtures)
     size, notes = tables.size_columns(stack, lambda r: f"the bed at t = {times[r]:.6g} s")
     bed.update(size)
-    psd, grid_notes = tables.psd_columns(times, stack)
+    psd, grid_notes = tables.psd_if_granules(times, stack)
     warnings.extend(x for x in notes + grid_notes if x not in warnings)
     names = arrays.state_names
     hooks = plan.distribution           # the method's and the distribution's labels
-    return psd, {"bed_moments.csv": tables.column_labels(hooks, names, bed, bed=True),
-                 "vtk cell fields": tables.column_labels(hooks, names, cell_fields[0]),
-                 "psd.csv": tables.psd_labels(hooks, psd)}
+    labels = {"bed_moments.csv": tables.column_labels(hooks, names, bed, bed=True),
+              "vtk cell fields": tables.column_labels(hooks, names, cell_fields[0])}
+    if psd is not None:
+        labels["psd.csv"] = tables.psd_labels(hooks, psd)
+    return psd, labels
 
 
 def _domain_warnings(plan, spray, notes, cells, active) -> list:

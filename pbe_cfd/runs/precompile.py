@@ -53,11 +53,12 @@ def _group_task(scene_name, stage, group):
     from ..scene.scene import load_scene
     from .simulate import warm_outputs
     cpu = _time.process_time()
-    problem, batch, _extra = _prepared(load_scene(scene_name))
+    scene = load_scene(scene_name)
+    problem, batch, _extra = _prepared(scene)
     stages = _stages_of(batch)
     done = compile_group(stages[stage][group])
     if stage == len(stages) - 1 and group == len(stages[stage]) - 1:
-        warm_outputs(problem)
+        warm_outputs(problem, scene)
     return done, _time.process_time() - cpu
 
 
@@ -126,7 +127,7 @@ def compile_scene(scene, progress=None, jobs=1, scene_name=None) -> dict:
         record_compile_s(batch.kernel_name(), _time.process_time() - cpu + helpers["cpu_s"])
     else:
         from .simulate import warm_outputs
-        warm_outputs(problem)
+        warm_outputs(problem, scene)
     return {"kernel": batch.kernel_name(), "seconds": _time.perf_counter() - start,
             "cpu_s": _time.process_time() - cpu + (helpers["cpu_s"] if helpers else 0.0),
             "compiled": batch.compiled_now or bool(helpers and helpers["compiled"]),

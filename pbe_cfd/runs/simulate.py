@@ -86,29 +86,54 @@ def run_well_mixed(scene, progress=None) -> RunResult:
                      kernels_compiled=batch.compiled_now, psd=psd, labels=labels)
 
 
-def warm_outputs(problem) -> None:
+def warm_outputs(problem, scene=None) -> None:
     """Assemble the output columns of ``problem``'s start states (moments of every row, the
     size distribution of the row with the most granules: d10/d50/d90, the PSD) and discard
     them: this compiles, or loads from numba's cache, the functions a run's output assembly
-    calls (the method's populations, the size distribution's node groups), so that ``pbe-cfd
-    compile`` leaves a run nothing to compile. Start states without granules (the
-    distribution has nothing to reconstruct), or that the assembly refuses, are left to the
-    run, which names what it refuses."""
+    calls (the method's populations, the size distribution's reconstruction, the method's
+    output-time watch), so that ``pbe-cfd compile`` leaves a run nothing to compile. With
+    ``scene``, also the size distribution of a broad population (``_broad_start``): a start
+    that is monodisperse or empty does not reach the reconstruction's general fit, which a
+    run reaches once its population spreads. States that the assembly refuses are left to
+    the run, which names what it refuses."""
     if not problem.method.integrated:
         return
-    states = np.array(problem.states, dtype=np.float64)
-    populations = []
     try:
-        moments = model.moment_outputs(problem.outputs.method_plan, problem.arrays, states,
-                                       problem.aux, populations=populations)
-        row = int(np.argmax(moments["M00"])) if "M00" in moments else 0
-        columns = {"time_s": np.asarray(problem.times[:1], dtype=np.float64)}
-        columns.update({k: np.asarray(v)[row:row + 1] for k, v in moments.items()
-                        if np.ndim(v) == 1 and len(v) == len(states)})
-        _size_distribution(problem.outputs.distribution, problem.arrays, states[row:row + 1],
-                           problem.aux, populations[row:row + 1], columns, [])
+        states = np.array(problem.states, dtype=np.float64)
+        _warm_distribution(problem, states, most_granules=True)
+        watch = problem.outputs.method_plan.method.output_watch
+        if watch is not None:                    # the method's output-time watch
+            watch().update(0.0, states, problem.rows, problem.aux, problem.arrays,
+                           problem.cell_ids)
+        if scene is not None:
+            _warm_distribution(problem, _broad_start(scene, problem), most_granules=False)
     except (ValueError, ArithmeticError):        # the run names what it refuses
         return
+
+
+def _warm_distribution(problem, states, most_granules) -> None:
+    """The moments of ``states`` (scaled, one per row) and the size distribution of its row
+    with the most granules (largest M00; ``most_granules`` False: its first row)."""
+    populations = []
+    moments = model.moment_outputs(problem.outputs.method_plan, problem.arrays, states,
+                                   problem.aux, populations=populations)
+    row = int(np.argmax(moments["M00"])) if most_granules and "M00" in moments else 0
+    columns = {"time_s": np.asarray(problem.times[:1], dtype=np.float64)}
+    columns.update({k: np.asarray(v)[row:row + 1] for k, v in moments.items()
+                    if np.ndim(v) == 1 and len(v) == len(states)})
+    _size_distribution(problem.outputs.distribution, problem.arrays, states[row:row + 1],
+                       problem.aux, populations[row:row + 1], columns, [])
+
+
+def _broad_start(scene, problem) -> np.ndarray:
+    """One state (1, n_state) of a broad population packed like ``problem``'s start states:
+    ``scene``'s initial population made exponential in mass (its mean mass [kg]) at the
+    problem's number scale [1/m3], granules present whatever the scene starts with."""
+    import dataclasses
+    initial = dataclasses.replace(scene.initial, distribution="exponential",
+                                  number_density=problem.arrays.number_scale)
+    broad = dataclasses.replace(scene, initial=initial)
+    return model.initial_moments(broad, problem.arrays, problem.arrays.state_names)[None, :]
 
 
 def _size_distribution(plan, arrays, states, aux, populations, columns, warnings):
@@ -122,10 +147,12 @@ def _size_distribution(plan, arrays, states, aux, populations, columns, warnings
     recon = tables.reconstruction_of(plan, arrays, states, aux, populations, label)
     size, notes = tables.size_columns(recon, label)
     columns.update(size)
-    psd, grid_notes = tables.psd_columns(times, recon)
+    psd, grid_notes = tables.psd_if_granules(times, recon)
     warnings.extend(notes + grid_notes)
-    return psd, {"moments.csv": tables.column_labels(plan, arrays.state_names, columns),
-                 "psd.csv": tables.psd_labels(plan, psd)}
+    labels = {"moments.csv": tables.column_labels(plan, arrays.state_names, columns)}
+    if psd is not None:
+        labels["psd.csv"] = tables.psd_labels(plan, psd)
+    return psd, labels
 
 
 def _run_ensemble(scene, problem, start, progress) -> RunResult:
@@ -161,8 +188,9 @@ def _run_ensemble(scene, problem, start, progress) -> RunResult:
             if key.startswith("droplet_number_density"):
                 columns.pop(key)
     from ..distribution import tables
-    labels = {"moments.csv": tables.column_labels(outputs.distribution, [], columns),
-              "psd.csv": tables.psd_labels(outputs.distribution, psd)}
+    labels = {"moments.csv": tables.column_labels(outputs.distribution, [], columns)}
+    if psd is not None:
+        labels["psd.csv"] = tables.psd_labels(outputs.distribution, psd)
     return RunResult(scene=scene, columns=columns, stats=stats, wall_time_s=wall,
                      warnings=psd_notes, psd=psd, labels=labels)
 

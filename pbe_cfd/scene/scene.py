@@ -539,6 +539,12 @@ def _cross_checks(path, scene: Scene):
         raise SceneError(path, "initial.number_density",
                          "expected a positive number density (or a binder injection)")
     entry = registry.METHODS[scene.method.name]
+    if (not entry.integrated and scene.initial.number_density == 0.0
+            and scene.initial.droplet_number_density == 0.0):
+        raise SceneError(path, "initial.number_density",
+                         f"the {scene.method.name} reference samples the particles present at "
+                         "the start: expected a positive number_density or "
+                         "droplet_number_density")
     for key, refusal in (spray.spray_refusals(scene, entry)
                          + drying_refusals(scene, registry.METHOD_REGISTRY)):
         raise SceneError(path, key, refusal)

@@ -99,6 +99,75 @@ def test_a_grid_the_data_cannot_support_says_so():
         tables.auto_grid(empty)
 
 
+EMPTY_SCENE = """
+[scene]
+name = "empty-start"
+end_time = 4.0
+output_interval = 2.0
+[domain]
+type = "well-mixed"
+[material]
+density = 1000.0
+binder_density = 1000.0
+[initial]
+distribution = "monodisperse"
+number_density = 0.0
+mean_mass = 2e-9
+[aggregation]
+kernel = "constant"
+rate = 1e-12
+droplet_factor = 1.0
+[binder_injection]
+rate = 1e9
+droplet_diameter = 60e-6
+[method]
+name = "{method}"
+"""
+
+
+@pytest.mark.parametrize("method", ["qmom", "laguerre"])
+def test_a_run_without_granules_writes_no_size_distribution_and_says_so(tmp_path, capsys,
+                                                                        method):
+    """Droplets sprayed into a cell with no granules stay droplets: no output time holds a
+    granule, there is nothing to reconstruct. The run finishes (the droplets' moments are
+    its answer), d10/d50/d90/span are 0, and psd.csv and psd.png are not written, which
+    the run's warnings and its last line say; columns.json lists no psd.csv. (Before: a
+    traceback from the PSD grid.)"""
+    from pbe_cfd.cli import main
+    from pbe_cfd.io import output
+    import json
+    scene = tmp_path / "empty.toml"
+    scene.write_text(EMPTY_SCENE.format(method=method))
+    out = tmp_path / "out"
+    assert main(["run", str(scene), "--out", str(out)]) == 0
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert "psd.csv" not in last and "columns.json" in last
+    cols = output.read_columns_csv(out / "moments.csv")
+    droplets = np.asarray(cols["droplet_number_density"])
+    assert np.all(droplets[1:] > 0.0)
+    # every particle is a free droplet: the moments count them, the granules' PSD is empty
+    assert np.array_equal(np.asarray(cols["M00"]), droplets)
+    for name in ("d10_m", "d50_m", "d90_m", "span"):
+        assert np.all(np.asarray(cols[name]) == 0.0), name
+    assert not (out / "psd.csv").exists() and not (out / "psd.png").exists()
+    assert "psd.csv" not in json.loads((out / "columns.json").read_text())
+    warnings = json.loads((out / "summary.json").read_text())["warnings"]
+    assert tables.NO_GRANULES in warnings
+
+
+def test_the_cnmc_refuses_a_start_without_particles(tmp_path, capsys):
+    """The constant-number Monte Carlo samples the particles of the start: an empty start is
+    refused with exit 2 naming the key, before anything is written."""
+    from pbe_cfd.cli import main
+    scene = tmp_path / "empty.toml"
+    scene.write_text(EMPTY_SCENE.format(method="cnmc"))
+    out = tmp_path / "out"
+    assert main(["run", str(scene), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "initial.number_density" in err and "cnmc" in err
+    assert not out.exists()
+
+
 def test_an_unrealizable_row_is_named_and_falls_back_to_a_delta():
     """M20 < M10^2 / M00 (no distribution has these moments): named, delta at the mean."""
     m0, m1 = np.array([N0, N0]), np.array([N0 * P0, N0 * P0])
