@@ -298,11 +298,14 @@ def column_labels(plan: DistributionPlan, state_names, columns, bed: bool = Fals
     return out
 
 
-def psd_labels(plan: DistributionPlan, columns) -> dict | None:
-    """name -> meaning of the psd.csv columns (``plan`` the run's ``DistributionPlan``); None
-    where there is no psd.csv (columns None)."""
-    if columns is None:
-        return None
+def psd_file_labels(plan: DistributionPlan, columns) -> dict:
+    """columns.json's entry for psd.csv ({"psd.csv": ``psd_labels``}), or {} where the run
+    has no psd.csv (``columns`` None: no granules at any output time)."""
+    return {} if columns is None else {"psd.csv": psd_labels(plan, columns)}
+
+
+def psd_labels(plan: DistributionPlan, columns) -> dict:
+    """name -> meaning of the psd.csv columns (``plan`` the run's ``DistributionPlan``)."""
     how = plan.text
     texts = {"time_s": "time [s]", "d_m": "diameter [m], log-spaced",
              "Q3": "reconstructed: mass fraction of the granules below d [-]; " + how,

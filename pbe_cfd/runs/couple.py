@@ -201,11 +201,9 @@ def _bed_distribution(plan, arrays, times, bed, mixtures, cell_fields, warnings)
     warnings.extend(x for x in notes + grid_notes if x not in warnings)
     names = arrays.state_names
     hooks = plan.distribution           # the method's and the distribution's labels
-    labels = {"bed_moments.csv": tables.column_labels(hooks, names, bed, bed=True),
-              "vtk cell fields": tables.column_labels(hooks, names, cell_fields[0])}
-    if psd is not None:
-        labels["psd.csv"] = tables.psd_labels(hooks, psd)
-    return psd, labels
+    return psd, {"bed_moments.csv": tables.column_labels(hooks, names, bed, bed=True),
+                 "vtk cell fields": tables.column_labels(hooks, names, cell_fields[0]),
+                 **tables.psd_file_labels(hooks, psd)}
 
 
 def _domain_warnings(plan, spray, notes, cells, active) -> list:

@@ -149,10 +149,8 @@ def _size_distribution(plan, arrays, states, aux, populations, columns, warnings
     columns.update(size)
     psd, grid_notes = tables.psd_if_granules(times, recon)
     warnings.extend(notes + grid_notes)
-    labels = {"moments.csv": tables.column_labels(plan, arrays.state_names, columns)}
-    if psd is not None:
-        labels["psd.csv"] = tables.psd_labels(plan, psd)
-    return psd, labels
+    return psd, {"moments.csv": tables.column_labels(plan, arrays.state_names, columns),
+                 **tables.psd_file_labels(plan, psd)}
 
 
 def _run_ensemble(scene, problem, start, progress) -> RunResult:
@@ -188,9 +186,8 @@ def _run_ensemble(scene, problem, start, progress) -> RunResult:
             if key.startswith("droplet_number_density"):
                 columns.pop(key)
     from ..distribution import tables
-    labels = {"moments.csv": tables.column_labels(outputs.distribution, [], columns)}
-    if psd is not None:
-        labels["psd.csv"] = tables.psd_labels(outputs.distribution, psd)
+    labels = {"moments.csv": tables.column_labels(outputs.distribution, [], columns),
+              **tables.psd_file_labels(outputs.distribution, psd)}
     return RunResult(scene=scene, columns=columns, stats=stats, wall_time_s=wall,
                      warnings=psd_notes, psd=psd, labels=labels)
 
