@@ -30,6 +30,7 @@ RULES = (
     ("test_method_names", ""),
     ("test_error_bounds", ""),
     ("test_install", ""),
+    ("test_mutation_list", ""),
     # physics: kernels, factors, breakage functions, registries and their recipe
     ("test_physics_", "physics"),
     ("test_breakage_hand_values", "physics"),

@@ -104,6 +104,22 @@ def test_secondary_rule_integrates_gamma_moments(shape):
         assert np.sum(wts * pts ** k) == pytest.approx(exact, rel=1e-9, abs=0), k
 
 
+@pytest.mark.parametrize("nodes", [1, 2, 3, 4])
+def test_the_secondary_rule_is_exact_to_the_degree_the_sources_need(nodes):
+    """The sources of the top moment M_(2N)0 reach degree 2N + 1 in a kernel's variable (the
+    sum kernel) and 2N + 2 (power-law selection with a = 2); ``secondary_nodes(N)`` Gauss
+    points per gamma kernel must integrate every power up to 2N + 2 exactly (docs/physics.md
+    section 16). A rule of n points is exact to degree 2n - 1, so N + 1 points miss x^(2N+2)
+    by a relative amount of order one; round-off of the rule is ~1e-13."""
+    n_sec = S.secondary_nodes(nodes)
+    pts, wts, work = np.zeros(n_sec), np.zeros(n_sec), np.zeros(2 * n_sec)
+    for shape in (0.3, 7.5):
+        assert I.gamma_rule(shape, n_sec, pts, wts, work)
+        for k in range(2 * nodes + 3):
+            exact = math.exp(gammaln(shape + k) - gammaln(shape))
+            assert np.sum(wts * pts ** k) == pytest.approx(exact, rel=1e-9, abs=0), (shape, k)
+
+
 def _scene(bivariate=True, nodes=2):
     return make_scene(initial={"distribution": "exponential", "number_density": 1e10,
                                "mean_mass": 1e-9, "binder_fraction": 0.2 if bivariate else 0.0},
