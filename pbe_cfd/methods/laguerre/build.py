@@ -31,7 +31,7 @@ from ...physics.efficiency import uses_collision_velocity
 from .basis import GRADED, SPACINGS
 from .breakage import breakage_blocks
 from .drying import drying_blocks
-from .dry import cross_tensors, dry_class, dry_kernels, dry_tensors
+from .dry import cross_tensors, dry_class, dry_kernels, dry_tensors, dry_wet_rates
 from .layout import (AUX_B_MAX, AUX_CAPTURE_MOMENTS, AUX_CHECK_LEVEL, AUX_COND_DRY,
                      AUX_COND_G, AUX_CONSISTENT, AUX_DROPLET_MASS, AUX_FOLLOWING, AUX_HEADER,
                      AUX_LAYOUT_VERSION,
@@ -364,7 +364,7 @@ def _slice_tensors(t, s, bases, grids, dry, k, shared, u0, kargs, m, pd, p_ref, 
         if not shared:
             if id(grids[w]) not in known:
                 B, kd = wet_kernels(basis["p"], basis["b"], u0, *kargs)
-                _, Bdw, _ = dry_kernels(dry, basis["p"], basis["b"], u0, *kargs)
+                Bdw = dry_wet_rates(dry, basis["p"], basis["b"], u0, *kargs[:2])
                 known[id(grids[w])] = (B, kd, Bdw)
             B, kd, Bdw = known[id(grids[w])]
         t["Q"][w, s], t["Cd"][w, s], t["Cd0"][w, s] = wet_tensors(

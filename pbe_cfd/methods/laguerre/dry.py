@@ -144,12 +144,20 @@ def dry_kernels(dry, p_wet, b_wet, u0, uparams, ucfg, separate):
     zeros = np.zeros_like(p)
     Bdd = np.empty((len(p), len(p)))
     cross_rate_matrix(p, zeros, p, zeros, u0, uparams, ucfg, Bdd)
-    Bdw = np.empty((len(p), len(p_wet)))
-    cross_rate_matrix(p, zeros, p_wet, b_wet, u0, uparams, ucfg, Bdw)
     kd = np.zeros(len(p))
     if separate:
         capture_rate_vector(p, zeros, u0, uparams, ucfg, kd)
-    return Bdd, Bdw, kd
+    return Bdd, dry_wet_rates(dry, p_wet, b_wet, u0, uparams, ucfg), kd
+
+
+def dry_wet_rates(dry, p_wet, b_wet, u0, uparams, ucfg):
+    """The dry-wet pair-rate matrix [m3/s per unit k0] of ``dry_kernels`` alone (dry nodes by
+    wet nodes of masses p_wet, b_wet [kg]) at collision velocity u0 [m/s]: what a weight slice
+    with nodes of its own needs; the dry-dry block depends on the dry nodes only."""
+    p = dry["p"]
+    Bdw = np.empty((len(p), len(p_wet)))
+    cross_rate_matrix(p, np.zeros_like(p), p_wet, b_wet, u0, uparams, ucfg, Bdw)
+    return Bdw
 
 
 def dry_tensors(dry, Bdd, kd, m):
