@@ -626,11 +626,10 @@ def test_binder_the_nodes_cannot_hold_is_projected_not_rejected(method):
     keeps pushing the per-node binder solved from M_k1 past them. That is the closure's limit,
     not an unrealizable moment set (0 <= M01 <= M10 holds; the size moments are those of a
     positive measure), so no step is rejected for it: the projection after each accepted step
-    clips the binder (docs/physics.md section 9). Before, the binder test rejected 20,891
-    (QMOM N = 2), 24,131 (N = 3) and 212,907 (EQMOM N = 2) steps here, all in the first second,
-    without changing the carried moments the closure leaves exact: M00, M10, M01 and M20 stay
-    within the run's error bound of the closed form of the constant kernel with injection
-    (bench.analytic: written from the moment equations, no method code)."""
+    clips the binder (docs/physics.md section 9). The carried moments the closure leaves
+    exact, M00, M10, M01 and M20, stay within the run's error bound of the closed form of the
+    constant kernel with injection (bench.analytic: written from the moment equations, no
+    method code)."""
     from pbe_cfd.bench.analytic import analytic_moments
 
     scene = load_scene("study-analytic").with_method(**method, rtol=1e-8)

@@ -344,9 +344,9 @@ def qmom_realizable(state, aux, params, config, work):
     Checks finiteness, non-negative number and droplets, positive nodes, the consistency of the
     moments a reduced quadrature discards, and the binder: 0 <= M_k1 <= M_(k+1)0 (b <= p in
     every particle). Binder moments that no per-node binder within 0 <= b_a <= p_a reproduces
-    are not a reason
-    to reject a step: that is the closure's limit, not the moment set's (docs/physics.md
-    section 9), and ``qmom_project`` puts them on the clipped binder after every accepted step.
+    are not a reason to reject a step: that is the closure's limit, not the moment set's
+    (docs/physics.md section 9), and ``qmom_project`` puts them on the clipped binder after
+    every accepted step.
     An all-zero (empty) state is realizable.
     """
     n_state = config[P.N_STATE]
