@@ -228,10 +228,8 @@ def _project_into(state, target, config, work, family):
 def eqmom_realizable(state, aux, params, config, work):
     """True if the state is a moment set the gamma-EQMOM represents: finite, non-negative
     number and droplets, invertible (M_2N not below the Gauss rule's), the moments a reduced
-    fit drops consistent with it (PROJECTION_TOLERANCE) and 0 <= M_k1 <= M_(k+1)0. Binder moments
-    the bounded fractions do not reproduce are the closure's limit, not a reason to reject a
-    step (as QMOM's): ``eqmom_project`` puts them on the bounded fractions after every
-    accepted step. All zeros: realizable."""
+    fit drops consistent with it (PROJECTION_TOLERANCE), 0 <= M01 <= M10 and the binder
+    moments reproduced by the bounded fractions (BINDER_TOLERANCE). All zeros: realizable."""
     n_state = config[P.N_STATE]
     n_max = config[P.ORDER]
     n_size = 2 * n_max + 1
@@ -262,10 +260,13 @@ def eqmom_realizable(state, aux, params, config, work):
             if abs(target[k] - state[k]) > S.PROJECTION_TOLERANCE * abs(state[k]):
                 return False
     if config[P.BIVARIATE] == 1:
-        # 0 <= b <= p in every particle: 0 <= M_k1 <= M_(k+1)0
+        m01 = state[n_size]
+        if m01 < 0.0 or m01 > state[1] * (1.0 + S.PROJECTION_TOLERANCE):
+            return False
+        _project_into(state, target, config, work, S.kernel_family(aux))
         for k in range(n_max):
-            mk1 = state[n_size + k]
-            if mk1 < 0.0 or mk1 > state[k + 1] * (1.0 + S.PROJECTION_TOLERANCE):
+            i = n_size + k
+            if abs(target[i] - state[i]) > S.BINDER_TOLERANCE * abs(state[k + 1]):
                 return False
     return True
 

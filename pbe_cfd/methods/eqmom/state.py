@@ -40,6 +40,10 @@ AUX_HERMITE = 2
 MAX_PER_KERNEL = max(I.MAX_SECONDARY, L.MAX_HERMITE)
 #: re-projection mismatch (relative) up to which a reduced fit still represents the state
 PROJECTION_TOLERANCE = 1.0e-8
+#: binder moments reproduced by the bounded fractions within this share of M_(k+1)0 (QMOM's
+#: BINDER_TOLERANCE, for the same reason: kernels of tiny weight fix their binder only to
+#: ~1e-6 of the moment)
+BINDER_TOLERANCE = 1.0e-6
 
 # ---- result slots (front of work) -------------------------------------------------------------
 SIGMA = 0          # kernel width sigma (gamma: scaled mass; lognormal: of ln x, [-])
