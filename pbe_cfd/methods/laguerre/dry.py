@@ -29,26 +29,13 @@ wet s), Z_dd = Psi_d^T B_dd Psi_d, Z_dw = Psi_d^T B_dw Psi_w.
 """
 from math import comb
 
-import numba as nb
 import numpy as np
 
 from ...physics.injection import droplet_moment
-from ...physics.rates import aggregation_rate
+from ...physics.rates import aggregation_rate_matrix
 from .basis import (consistent_inverse, mass_nodes, moment_index, projection_matrix,
                     univariate_values)
 from .wet import capture_rate_vector
-
-
-# ---- kernel matrices (numba) ----------------------------------------------------------------
-@nb.njit(cache=True)
-def cross_rate_matrix(p1, b1, p2, b2, u0, params, config, out):
-    """out[s, t] = aggregation_rate((p1[s], b1[s]), (p2[t], b2[t])) [m3/s per unit k0] (masses
-    in kg), unit ktgf multiplier (alpha = 0 -> g0 = 1, theta = 1, d43 = 1)."""
-    for s in range(p1.shape[0]):
-        for t in range(p2.shape[0]):
-            out[s, t] = aggregation_rate(p1[s], b1[s], p2[t], b2[t], 0.0, 1.0, u0, 1.0, params,
-                                         config)
-
 
 
 # ---- dry basis ------------------------------------------------------------------------------
@@ -143,7 +130,8 @@ def dry_kernels(dry, p_wet, b_wet, u0, uparams, ucfg, separate):
     p = dry["p"]
     zeros = np.zeros_like(p)
     Bdd = np.empty((len(p), len(p)))
-    cross_rate_matrix(p, zeros, p, zeros, u0, uparams, ucfg, Bdd)
+    # unit ktgf multiplier: alpha = 0 -> g0 = 1, theta = 1, d43 = 1
+    aggregation_rate_matrix(p, zeros, p, zeros, 0.0, 1.0, u0, 1.0, uparams, ucfg, Bdd)
     kd = np.zeros(len(p))
     if separate:
         capture_rate_vector(p, zeros, u0, uparams, ucfg, kd)
@@ -156,7 +144,8 @@ def dry_wet_rates(dry, p_wet, b_wet, u0, uparams, ucfg):
     with nodes of its own needs; the dry-dry block depends on the dry nodes only."""
     p = dry["p"]
     Bdw = np.empty((len(p), len(p_wet)))
-    cross_rate_matrix(p, np.zeros_like(p), p_wet, b_wet, u0, uparams, ucfg, Bdw)
+    aggregation_rate_matrix(p, np.zeros_like(p), p_wet, b_wet, 0.0, 1.0, u0, 1.0, uparams, ucfg,
+                            Bdw)
     return Bdw
 
 

@@ -28,24 +28,12 @@ from math import comb
 import numba as nb
 import numpy as np
 
-from ...physics.rates import aggregation_rate, droplet_capture_rate
+from ...physics.rates import droplet_capture_rate, symmetric_aggregation_rate_matrix
 from .basis import (basis_values, consistent_inverse, fraction_basis_values,
                     moment_index, projection_matrix, quadrature)
 
 
 # ---- kernel matrices (numba) -----------------------------------------------------------------
-@nb.njit(cache=True)
-def _pair_rate_matrix(p, b, u0, params, config, out):
-    """out[s, t] = aggregation_rate(node s, node t) [m3/s per unit k0]; unit ktgf multiplier
-    (alpha = 0 -> g0 = 1, theta = 1, d43 = 1). One evaluation per unordered pair."""
-    n = p.shape[0]
-    for s in range(n):
-        for t in range(s, n):
-            r = aggregation_rate(p[s], b[s], p[t], b[t], 0.0, 1.0, u0, 1.0, params, config)
-            out[s, t] = r
-            out[t, s] = r
-
-
 @nb.njit(cache=True)
 def capture_rate_vector(p, b, u0, params, config, out):
     """out[s] = droplet_capture_rate(node s) [m3/s per unit k0], unit ktgf multiplier."""
@@ -136,7 +124,8 @@ def wet_kernels(p, b, u0, uparams, ucfg, separate):
     pair-rate matrix and, if droplets are separate, the capture-rate vector [m3/s per unit k0].
     Independent of the weights."""
     B = np.empty((len(p), len(p)))
-    _pair_rate_matrix(p, b, u0, uparams, ucfg, B)
+    # unit ktgf multiplier: alpha = 0 -> g0 = 1, theta = 1, d43 = 1
+    symmetric_aggregation_rate_matrix(p, b, 0.0, 1.0, u0, 1.0, uparams, ucfg, B)
     kd = np.zeros(len(p))
     if separate:
         capture_rate_vector(p, b, u0, uparams, ucfg, kd)
