@@ -260,4 +260,22 @@ MUTATIONS = [
       note="survived the rule's own test (a fixed count of 5) and Ziff-McGrady (a = 1: "
            "degree 2N + 1, exact with N + 1 points); caught by the test of the count against "
            "the degree 2N + 2 of a = 2, added for it"),
+    M("qmom-closure-test-is-the-step-test", "own", "methods", "pbe_cfd/methods/qmom/qmom.py",
+      "    return _check_state(state, config, work, True)",
+      "    return _check_state(state, config, work, False)",
+      ["tests/methods/qmom/test_qmom_realizability.py",
+       TRANS + "::test_binder_repair_keeps_number_mass_and_binder"]),
+    M("eqmom-step-test-asks-the-closure", "own", "methods", "pbe_cfd/methods/eqmom/sources.py",
+      "    return _check_state(state, aux, config, work, False)",
+      "    return _check_state(state, aux, config, work, True)",
+      ["tests/methods/eqmom/test_eqmom_inversion.py::"
+       "test_binder_fraction_per_kernel_is_recovered_and_bounded",
+       "tests/methods/test_hard_cases.py::"
+       "test_binder_the_nodes_cannot_hold_is_projected_not_rejected"]),
+    M("eqmom-closure-test-is-the-step-test", "own", "methods",
+      "pbe_cfd/methods/eqmom/sources.py",
+      "    return _check_state(state, aux, config, work, True)",
+      "    return _check_state(state, aux, config, work, False)",
+      ["tests/methods/eqmom/test_eqmom_inversion.py::"
+       "test_binder_fraction_per_kernel_is_recovered_and_bounded"]),
 ]

@@ -86,6 +86,10 @@ class MethodEntry(NamedTuple):
                     integrated): rhs(state, out, cell, aux, params, config, work),
                     realizable/project(state, aux, params, config, work),
                     conserved(config, params, pivots, coefs) -> number of invariants
+    on_closure      numba function realizable(state, aux, params, config, work) -> True if the
+                    state is also on the method's closure (QMOM, EQMOM: the binder moments
+                    reproduced by the bounded per-node binder), the test that picks the cells
+                    the repair after transport re-projects; None: ``realizable``
     work_size       f(config) -> floats of the per-cell ``work`` array it needs (at most
                     WORK_SIZE; ``model.pack`` checks)
     bench_orders    f(text) -> the order of ``pbe-cfd bench throughput --methods name:text``
@@ -156,6 +160,7 @@ class MethodEntry(NamedTuple):
     realizable: Callable | None = None
     project: Callable | None = None
     conserved: Callable | None = None
+    on_closure: Callable | None = None
     work_size: Callable = lambda config: 0
     bench_orders: Callable | None = None
     bench_scene: Callable | None = None

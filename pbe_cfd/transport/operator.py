@@ -51,7 +51,8 @@ from numba import typeof
 from numba.core import types
 
 from ..integrate import faults
-from ..integrate.kernel_types import addresses_of, layout_key, signatures
+from ..integrate.kernel_types import (addresses_of, closure_check_address, layout_key,
+                                      signatures)
 from .solids_flux import (ActiveFlux, circulation_time, restrict_and_correct, upwind_generator,
                           vertical_axis)
 from .substeps import apply_substeps
@@ -426,9 +427,9 @@ DEFAULT_SPLIT_STEP = 0.25
 
 
 def _mixture_repair(settings, arrays, aux):
-    """A callable re-projecting the cells whose mixed state the method's realizability check
-    rejects (QMOM: node-wise binder outside [0, p_a]), or None where the method's
-    ``repairs_mixture`` says mixing keeps its states realizable (``settings.repairs``)."""
+    """A callable re-projecting the cells whose mixed state is not on the method's closure
+    (``MethodEntry.on_closure``; QMOM: node-wise binder outside [0, p_a]), or None where the
+    method's ``repairs_mixture`` says mixing keeps its states on it (``settings.repairs``)."""
     if not settings.repairs:
         return None
     params, config = arrays.params, arrays.config
@@ -440,17 +441,18 @@ def _mixture_repair(settings, arrays, aux):
 
 
 @nb.njit(cache=True)
-def _repair_cells(realizable, project, states, aux, params, config, changed, work, fix):
-    """Count the cells whose state is not realizable for the method and, if ``fix``,
-    re-project them; ``changed[c]`` the largest relative change of an entry. realizable,
-    project: the method's functions as first-class functions (``integrate.kernel_types``,
-    the integration kernel's signatures): this kernel compiles once for every method, and
-    only the scene's method's functions are compiled."""
+def _repair_cells(on_closure, project, states, aux, params, config, changed, work, fix):
+    """Count the cells whose state is not on the method's closure and, if ``fix``,
+    re-project them; ``changed[c]`` the largest relative change of an entry. on_closure,
+    project: the method's closure test (``MethodEntry.on_closure``, else its realizability
+    test) and projection as first-class functions (``integrate.kernel_types``, the
+    integration kernel's signatures): this kernel compiles once for every method, and only
+    the scene's method's functions are compiled."""
     count = 0
     n_state = states.shape[1]
     before = np.empty(n_state)
     for c in range(states.shape[0]):
-        if realizable(states[c], aux, params, config, work):
+        if on_closure(states[c], aux, params, config, work):
             continue
         count += 1
         if not fix:
@@ -471,13 +473,13 @@ _REPAIR_KERNELS = {}
 
 def _repair_kernel(method, args):
     """The compiled ``_repair_cells`` for the types of ``args`` and the entry points of the
-    method's realizability test and projection (compiled, or loaded from numba's disk cache,
-    on first use; found by the arguments' layout afterwards)."""
+    method's closure test and projection (compiled, or loaded from numba's disk cache, on
+    first use; found by the arguments' layout afterwards)."""
     key = (int(method),) + tuple(layout_key(a) for a in args)
     found = _REPAIR_KERNELS.get(key)
     if found is None:
         sigs = signatures(*args[1:4])
-        functions = addresses_of(method, sigs)
+        functions = (closure_check_address(method, sigs), addresses_of(method, sigs).project)
         sig = ((types.FunctionType(sigs.realizable), types.FunctionType(sigs.project))
                + tuple(typeof(a) for a in args))
         _repair_cells.compile(sig)
@@ -487,10 +489,10 @@ def _repair_kernel(method, args):
 
 
 def unrealizable_cells(states, aux, params, config, fix=False):
-    """Number of rows of ``states`` (scaled moment states, one row per cell) that the
-    method's realizability check (method config[METHOD]) rejects; with ``fix`` they are
-    re-projected in place by the method's projection. Returns (count, largest relative change
-    of any entry of a re-projected cell)."""
+    """Number of rows of ``states`` (scaled moment states, one row per cell) that are not on
+    the closure of the method config[METHOD] (``MethodEntry.on_closure``, else its
+    realizability test); with ``fix`` they are re-projected in place by its projection.
+    Returns (count, largest relative change of any entry of a re-projected cell)."""
     from ..methods.entry import WORK_SIZE
     from ..physics import parameters as P
     given = np.asarray(states)
@@ -501,10 +503,10 @@ def unrealizable_cells(states, aux, params, config, fix=False):
     entry, functions = _repair_kernel(int(config[P.METHOD]), args)
     counted = []
     caught = faults.watched(lambda: counted.append(
-        entry(functions.realizable, functions.project, *args)))
+        entry(*functions, *args)))
     if caught.count:
         raise faults.MethodRaised(
-            f"the method's realizability test or projection raised {caught.first} on "
+            f"the method's closure test or projection raised {caught.first} on "
             f"{states.shape[0]} transported cell state(s) ({caught.count} time(s))")
     n = counted[0]
     if fix and n and states is not given:

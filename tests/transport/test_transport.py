@@ -279,13 +279,13 @@ def test_the_mixture_repair_compiles_the_scenes_method_alone():
     """The repair after transport checks and re-projects with the scene's method only (its
     functions the kernel's arguments): compiling it for a QMOM scene compiles (or loads) no
     Laguerre or CQMOM function and not the run-time dispatch over every method, and it calls
-    QMOM's functions with the integration kernel's signatures
+    QMOM's closure test and projection with the integration kernel's signatures
     (test_binder_repair_keeps_number_mass_and_binder checks what it does)."""
     from numba.core import types
 
     from pbe_cfd.methods.cqmom.cqmom import cqmom_project, cqmom_realizable
     from pbe_cfd.methods.dispatch import method_project, method_realizable
-    from pbe_cfd.methods.qmom import qmom_project, qmom_realizable
+    from pbe_cfd.methods.qmom import qmom_on_closure, qmom_project
     from pbe_cfd.methods.laguerre.rhs import laguerre_project, laguerre_realizable
     from pbe_cfd.transport import operator as tmod
     others = (laguerre_realizable, laguerre_project, cqmom_realizable, cqmom_project,
@@ -300,7 +300,7 @@ def test_the_mixture_repair_compiles_the_scenes_method_alone():
     assert all(isinstance(sig[0], types.FunctionType) and isinstance(sig[1], types.FunctionType)
                for sig in tmod._repair_cells.signatures)
     for sig in tmod._repair_cells.signatures:
-        assert sig[0].signature.args in qmom_realizable.overloads
+        assert sig[0].signature.args in qmom_on_closure.overloads
         assert sig[1].signature.args in qmom_project.overloads
 
 

@@ -14,7 +14,8 @@ from ..entry import MethodEntry
 import pbe_cfd.methods.quadrature.gamma_inversion as I
 import pbe_cfd.methods.eqmom.state as S
 from .options import KERNELS, EqmomOptions
-from .sources import eqmom_conserved, eqmom_project, eqmom_realizable, eqmom_rhs
+from .sources import (eqmom_conserved, eqmom_on_closure, eqmom_project, eqmom_realizable,
+                      eqmom_rhs)
 
 #: config[P.METHOD] of the EQMOM
 CODE = 3
@@ -98,6 +99,7 @@ ENTRY = MethodEntry(
     # a solids fraction with droplets of their own for it
     solute_droplets=False, dries=True, evaporates_droplets=True,
     rhs=eqmom_rhs, realizable=eqmom_realizable, project=eqmom_project,
+    on_closure=eqmom_on_closure,
     conserved=eqmom_conserved,
     work_size=lambda config: S.work_size(int(config[P.ORDER]), int(config[P.N_STATE])),
     bench_orders=int, bench_scene=lambda scene, order: scene.with_method(nodes=order),

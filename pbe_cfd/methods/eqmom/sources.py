@@ -224,12 +224,9 @@ def _project_into(state, target, config, work, family):
                 target[n_size + k] += w * y * I.family_moment(x, sigma, k + 1, family)
 
 
-@nb.njit(cache=True, error_model="numpy")
-def eqmom_realizable(state, aux, params, config, work):
-    """True if the state is a moment set the gamma-EQMOM represents: finite, non-negative
-    number and droplets, invertible (M_2N not below the Gauss rule's), the moments a reduced
-    fit drops consistent with it (PROJECTION_TOLERANCE), 0 <= M01 <= M10 and the binder
-    moments reproduced by the bounded fractions (BINDER_TOLERANCE). All zeros: realizable."""
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _check_state(state, aux, config, work, on_closure):
+    """The tests of ``eqmom_realizable`` (on_closure False) or ``eqmom_on_closure`` (True)."""
     n_state = config[P.N_STATE]
     n_max = config[P.ORDER]
     n_size = 2 * n_max + 1
@@ -260,6 +257,13 @@ def eqmom_realizable(state, aux, params, config, work):
             if abs(target[k] - state[k]) > S.PROJECTION_TOLERANCE * abs(state[k]):
                 return False
     if config[P.BIVARIATE] == 1:
+        if not on_closure:
+            # 0 <= b <= p in every particle: 0 <= M_k1 <= M_(k+1)0
+            for k in range(n_max):
+                mk1 = state[n_size + k]
+                if mk1 < 0.0 or mk1 > state[k + 1] * (1.0 + S.PROJECTION_TOLERANCE):
+                    return False
+            return True
         m01 = state[n_size]
         if m01 < 0.0 or m01 > state[1] * (1.0 + S.PROJECTION_TOLERANCE):
             return False
@@ -269,6 +273,27 @@ def eqmom_realizable(state, aux, params, config, work):
             if abs(target[i] - state[i]) > S.BINDER_TOLERANCE * abs(state[k + 1]):
                 return False
     return True
+
+
+@nb.njit(cache=True, error_model="numpy")
+def eqmom_realizable(state, aux, params, config, work):
+    """True if the state is a moment set the gamma-EQMOM represents, what a step must keep to
+    be accepted: finite, non-negative number and droplets, invertible (M_2N not below the
+    Gauss rule's), the moments a reduced fit drops consistent with it (PROJECTION_TOLERANCE)
+    and 0 <= M_k1 <= M_(k+1)0 (b <= p in every particle). Binder moments the bounded
+    per-kernel fractions do not reproduce are the closure's limit, not a reason to reject a
+    step (as QMOM's): ``eqmom_project`` puts them on the bounded fractions after every accepted
+    step, and ``eqmom_on_closure`` is the test for them. All zeros: realizable."""
+    return _check_state(state, aux, config, work, False)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def eqmom_on_closure(state, aux, params, config, work):
+    """True if the state is realizable and on the EQMOM's closure, what a state mixed by
+    transport must be to go without ``eqmom_project``: the tests of ``eqmom_realizable`` but
+    for the binder, which must be 0 <= M01 <= M10 with the binder moments reproduced by the
+    bounded fractions (BINDER_TOLERANCE of M_(k+1)0)."""
+    return _check_state(state, aux, config, work, True)
 
 
 @nb.njit(cache=True, error_model="numpy")

@@ -3,7 +3,8 @@ numba functions (``methods.registry`` lists it)."""
 from ...physics import parameters as P
 from ..entry import MethodEntry, no_aux, no_diagnostics, no_hint
 from .options import QmomOptions
-from .qmom import (qmom_conserved, qmom_project, qmom_realizable, qmom_rhs,
+from .qmom import (qmom_conserved, qmom_on_closure, qmom_project, qmom_realizable,
+                   qmom_rhs,
                    quadrature_of as qmom_quadrature_of,
                    quadrature_rows_of as qmom_quadrature_rows_of, state_names as qmom_state_names,
                    work_size as qmom_work_size)
@@ -43,6 +44,7 @@ ENTRY = MethodEntry(
     populations=_populations, failure_hint=no_hint, diagnostics=no_diagnostics, plan_line=_plan,
     repairs_mixture=lambda plan: plan.bivariate,
     rhs=qmom_rhs, realizable=qmom_realizable, project=qmom_project,
+    on_closure=qmom_on_closure,
     conserved=qmom_conserved, work_size=lambda config: qmom_work_size(config[P.ORDER]),
     bench_orders=int, bench_scene=lambda scene, order: scene.with_method(nodes=order),
     bench_quick=("2", "3"), bench_full=("2", "3", "4"), bench_ceiling="nodes",

@@ -37,11 +37,12 @@ _as_strided = np.lib.stride_tricks.as_strided
 #: Re-projection mismatch (relative to each moment's size) up to which a moment set whose
 #: quadrature lost nodes is still accepted as (numerically) on the realizable boundary.
 PROJECTION_TOLERANCE = 1.0e-8
-#: Binder moments M_k1 must be reproduced by the clipped per-node binder within this share of
-#: their bound M_(k+1)0 (b <= p). The per-node binder solve is a Vandermonde system whose
-#: conditioning follows the spread of the weights: a node carrying 1e-11 of the number (a few
-#: early aggregates among droplets) has its binder fixed by the moments only to ~1e-6 of M_k1,
-#: so a tighter test would reject sets that are realizable up to integration error.
+#: Binder moments M_k1 of a state on the closure (``qmom_on_closure``) are reproduced by the
+#: clipped per-node binder within this share of their bound M_(k+1)0 (b <= p). The per-node
+#: binder solve is a Vandermonde system whose conditioning follows the spread of the weights:
+#: a node carrying 1e-11 of the number (a few early aggregates among droplets) has its binder
+#: fixed by the moments only to ~1e-6 of M_k1, so a tighter test would send states that are on
+#: the closure up to integration error to the projection.
 BINDER_TOLERANCE = 1.0e-6
 
 
@@ -343,17 +344,9 @@ def _project_into(state, target, config, nodes, weights, binder, n):
         target[k] = state[k]         # the evaporated liquid and the droplets, as carried
 
 
-@nb.njit(cache=True, error_model="numpy")
-def qmom_realizable(state, aux, params, config, work):
-    """True if the cell's state is a realizable moment set (within PROJECTION_TOLERANCE).
-
-    Checks finiteness, non-negative number and droplets, positive nodes, the consistency of the
-    moments a reduced quadrature discards, and the binder: 0 <= M01 <= M10, and the binder
-    moments M_k1 must be reproduced (within the tolerance) by binder per node clipped to
-    0 <= b_a <= p_a. Nearly coincident nodes make the per-node binder solve ill-conditioned,
-    so the test is on the moments it reproduces, not on the raw per-node values.
-    An all-zero (empty) state is realizable.
-    """
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _check_state(state, config, work, on_closure):
+    """The tests of ``qmom_realizable`` (on_closure False) or ``qmom_on_closure`` (True)."""
     n_state = config[P.N_STATE]
     n_max = config[P.ORDER]
     for k in range(n_state):
@@ -385,6 +378,13 @@ def qmom_realizable(state, aux, params, config, work):
             if abs(target[k] - state[k]) > PROJECTION_TOLERANCE * abs(state[k]):
                 return False
     if config[P.BIVARIATE] == 1:
+        if not on_closure:
+            # 0 <= b <= p in every particle: 0 <= M_k1 <= M_(k+1)0
+            for k in range(n_max):
+                mk1 = state[2 * n_max + k]
+                if mk1 < 0.0 or mk1 > state[k + 1] * (1.0 + PROJECTION_TOLERANCE):
+                    return False
+            return True
         m01 = state[2 * n_max]
         if m01 < 0.0 or m01 > state[1] * (1.0 + PROJECTION_TOLERANCE):
             return False
@@ -395,6 +395,34 @@ def qmom_realizable(state, aux, params, config, work):
             if abs(target[i] - state[i]) > BINDER_TOLERANCE * abs(state[k + 1]):
                 return False
     return True
+
+
+@nb.njit(cache=True, error_model="numpy")
+def qmom_realizable(state, aux, params, config, work):
+    """True if the cell's state is a realizable moment set (within PROJECTION_TOLERANCE): what
+    a step must keep to be accepted.
+
+    Checks finiteness, non-negative number and droplets, positive nodes, the consistency of the
+    moments a reduced quadrature discards, and the binder: 0 <= M_k1 <= M_(k+1)0 (b <= p in
+    every particle). Binder moments that no per-node binder within 0 <= b_a <= p_a reproduces
+    are the closure's limit, not the moment set's (docs/physics.md section 9):
+    ``qmom_project`` puts them on the clipped binder after every accepted step, and
+    ``qmom_on_closure`` is the test for them. An all-zero (empty) state is realizable.
+    """
+    return _check_state(state, config, work, False)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def qmom_on_closure(state, aux, params, config, work):
+    """True if the cell's state is realizable and on QMOM's closure: what a state mixed by
+    transport must be to go without ``qmom_project``.
+
+    The tests of ``qmom_realizable`` but for the binder, which must be 0 <= M01 <= M10 and
+    M_k1 reproduced by binder per node clipped to 0 <= b_a <= p_a (within BINDER_TOLERANCE of
+    M_(k+1)0). Nearly coincident nodes make the per-node binder solve ill-conditioned, so the
+    test is on the moments it reproduces, not on the raw per-node values.
+    """
+    return _check_state(state, config, work, True)
 
 
 @nb.njit(cache=True, error_model="numpy")

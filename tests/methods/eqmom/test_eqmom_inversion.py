@@ -22,7 +22,7 @@ from pbe_cfd.distribution.kernel_mixture import of_states
 from pbe_cfd.methods.eqmom import entry, state as S
 from pbe_cfd.methods.registry import method_plan
 from pbe_cfd.methods.quadrature import gamma_inversion as I
-from pbe_cfd.methods.eqmom.sources import eqmom_project, eqmom_realizable
+from pbe_cfd.methods.eqmom.sources import eqmom_on_closure, eqmom_project, eqmom_realizable
 
 from conftest import make_scene
 
@@ -152,10 +152,29 @@ def test_binder_fraction_per_kernel_is_recovered_and_bounded():
     assert ys[np.argsort(xs)] == pytest.approx([0.1, 0.3], rel=1e-7, abs=0)
     work = np.zeros(4096)
     assert eqmom_realizable(state, aux, arrays.params, arrays.config, work)
-    # binder moments no kernel fraction in [0, 1] reproduces: bounded, then not realizable
-    bad = state.copy()
-    bad[6] = 1.2 * bad[1]                       # M01 > M10
-    assert not eqmom_realizable(bad, aux, arrays.params, arrays.config, work)
+    # a binder moment past its bound (b <= p in every particle: M_k1 <= M_(k+1)0): not
+    # realizable, for M01 and for M11
+    for k in (0, 1):
+        bad = state.copy()
+        bad[5 + k] = 1.01 * bad[1 + k]
+        assert not eqmom_realizable(bad, aux, arrays.params, arrays.config, work), k
+    # binder moments within their bounds that no kernel fractions in [0, 1] reproduce (M11
+    # raised to 1.2 M10 in scaled units, 0.49 of M20): the closure's limit, realizable but
+    # off the closure (what the repair after transport re-projects); the projection puts them
+    # on the bounded fractions, keeping M01, and then on the closure
+    assert eqmom_on_closure(state, aux, arrays.params, arrays.config, work)
+    odd = state.copy()
+    odd[6] = 1.2 * odd[1]
+    assert odd[6] < odd[2]
+    assert eqmom_realizable(odd, aux, arrays.params, arrays.config, work)
+    assert not eqmom_on_closure(odd, aux, arrays.params, arrays.config, work)
+    projected = odd.copy()
+    eqmom_project(projected, aux, arrays.params, arrays.config, work)
+    assert projected[5] == odd[5] and projected[:5].tolist() == odd[:5].tolist()
+    assert projected[6] != odd[6]
+    assert eqmom_on_closure(projected, aux, arrays.params, arrays.config, work)
+    sig, xs, ws, ys, _ = entry.kernels_si(projected, aux, arrays)
+    assert np.all((ys >= 0.0) & (ys <= 1.0))
 
 
 def test_distribution_is_the_gamma_mixture_and_names_a_failed_cell():
