@@ -257,16 +257,14 @@ def _check_state(state, aux, config, work, on_closure):
             if abs(target[k] - state[k]) > S.PROJECTION_TOLERANCE * abs(state[k]):
                 return False
     if config[P.BIVARIATE] == 1:
+        # 0 <= b <= p in every particle: 0 <= M_k1 <= M_(k+1)0
+        for k in range(n_max):
+            mk1 = state[n_size + k]
+            if mk1 < 0.0 or mk1 > state[k + 1] * (1.0 + S.PROJECTION_TOLERANCE):
+                return False
         if not on_closure:
-            # 0 <= b <= p in every particle: 0 <= M_k1 <= M_(k+1)0
-            for k in range(n_max):
-                mk1 = state[n_size + k]
-                if mk1 < 0.0 or mk1 > state[k + 1] * (1.0 + S.PROJECTION_TOLERANCE):
-                    return False
             return True
-        m01 = state[n_size]
-        if m01 < 0.0 or m01 > state[1] * (1.0 + S.PROJECTION_TOLERANCE):
-            return False
+        # binder moments reproduced by the bounded per-kernel fractions
         _project_into(state, target, config, work, S.kernel_family(aux))
         for k in range(n_max):
             i = n_size + k
@@ -290,9 +288,9 @@ def eqmom_realizable(state, aux, params, config, work):
 @nb.njit(cache=True, error_model="numpy")
 def eqmom_on_closure(state, aux, params, config, work):
     """True if the state is realizable and on the EQMOM's closure, what a state mixed by
-    transport must be to go without ``eqmom_project``: the tests of ``eqmom_realizable`` but
-    for the binder, which must be 0 <= M01 <= M10 with the binder moments reproduced by the
-    bounded fractions (BINDER_TOLERANCE of M_(k+1)0)."""
+    transport must be to go without ``eqmom_project``: the tests of ``eqmom_realizable`` and
+    besides the binder moments reproduced by the bounded fractions (BINDER_TOLERANCE of
+    M_(k+1)0)."""
     return _check_state(state, aux, config, work, True)
 
 

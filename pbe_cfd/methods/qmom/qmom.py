@@ -378,16 +378,13 @@ def _check_state(state, config, work, on_closure):
             if abs(target[k] - state[k]) > PROJECTION_TOLERANCE * abs(state[k]):
                 return False
     if config[P.BIVARIATE] == 1:
+        # 0 <= b <= p in every particle: 0 <= M_k1 <= M_(k+1)0
+        for k in range(n_max):
+            mk1 = state[2 * n_max + k]
+            if mk1 < 0.0 or mk1 > state[k + 1] * (1.0 + PROJECTION_TOLERANCE):
+                return False
         if not on_closure:
-            # 0 <= b <= p in every particle: 0 <= M_k1 <= M_(k+1)0
-            for k in range(n_max):
-                mk1 = state[2 * n_max + k]
-                if mk1 < 0.0 or mk1 > state[k + 1] * (1.0 + PROJECTION_TOLERANCE):
-                    return False
             return True
-        m01 = state[2 * n_max]
-        if m01 < 0.0 or m01 > state[1] * (1.0 + PROJECTION_TOLERANCE):
-            return False
         # binder moments reproduced by the bounded per-node binder
         _project_into(state, target, config, nodes, weights, binder, n)
         for k in range(n_max):
@@ -417,10 +414,10 @@ def qmom_on_closure(state, aux, params, config, work):
     """True if the cell's state is realizable and on QMOM's closure: what a state mixed by
     transport must be to go without ``qmom_project``.
 
-    The tests of ``qmom_realizable`` but for the binder, which must be 0 <= M01 <= M10 and
-    M_k1 reproduced by binder per node clipped to 0 <= b_a <= p_a (within BINDER_TOLERANCE of
-    M_(k+1)0). Nearly coincident nodes make the per-node binder solve ill-conditioned, so the
-    test is on the moments it reproduces, not on the raw per-node values.
+    The tests of ``qmom_realizable`` and besides the binder moments M_k1 reproduced by binder
+    per node clipped to 0 <= b_a <= p_a (within BINDER_TOLERANCE of M_(k+1)0). Nearly
+    coincident nodes make the per-node binder solve ill-conditioned, so the test is on the
+    moments it reproduces, not on the raw per-node values.
     """
     return _check_state(state, config, work, True)
 
