@@ -32,7 +32,7 @@ from math import comb
 import numpy as np
 
 from ...physics.injection import droplet_moment
-from ...physics.rates import aggregation_rate_matrix
+from ...physics.rates import aggregation_rate_matrix, symmetric_aggregation_rate_matrix
 from .basis import (consistent_inverse, mass_nodes, moment_index, projection_matrix,
                     univariate_values)
 from .wet import capture_rate_vector
@@ -131,7 +131,7 @@ def dry_kernels(dry, p_wet, b_wet, u0, uparams, ucfg, separate):
     zeros = np.zeros_like(p)
     Bdd = np.empty((len(p), len(p)))
     # unit ktgf multiplier: alpha = 0 -> g0 = 1, theta = 1, d43 = 1
-    aggregation_rate_matrix(p, zeros, p, zeros, 0.0, 1.0, u0, 1.0, uparams, ucfg, Bdd)
+    symmetric_aggregation_rate_matrix(p, zeros, 0.0, 1.0, u0, 1.0, uparams, ucfg, Bdd)
     kd = np.zeros(len(p))
     if separate:
         capture_rate_vector(p, zeros, u0, uparams, ucfg, kd)
