@@ -23,6 +23,7 @@ from ...physics.kernels import kernel_cell_factor, kernel_uses_d43
 from ...physics.properties import DIAMETER, N_PROPS
 from ...physics.rates import pair_rate, particle_properties
 from ..quadrature.aggregation_sources import add_pair_sources
+from ..quadrature.binder import binder_within_mass
 from ..quadrature.breakage_sources import node_selection_rate
 from ..quadrature.drying_sources import (add_droplet_class_terms, drift_moment_rate,
                                          droplet_point, point_drying_rate,
@@ -257,11 +258,8 @@ def _check_state(state, aux, config, work, on_closure):
             if abs(target[k] - state[k]) > S.PROJECTION_TOLERANCE * abs(state[k]):
                 return False
     if config[P.BIVARIATE] == 1:
-        # 0 <= b <= p in every particle: 0 <= M_k1 <= M_(k+1)0
-        for k in range(n_max):
-            mk1 = state[n_size + k]
-            if mk1 < 0.0 or mk1 > state[k + 1] * (1.0 + S.PROJECTION_TOLERANCE):
-                return False
+        if not binder_within_mass(state, n_size, n_max, S.PROJECTION_TOLERANCE):
+            return False
         if not on_closure:
             return True
         # binder moments reproduced by the bounded per-kernel fractions

@@ -29,7 +29,7 @@ from ..quadrature.aggregation_sources import add_pair_sources
 from ..quadrature.breakage_sources import add_qmom_breakage
 from ..quadrature.drying_sources import (add_droplet_class_terms, add_qmom_drying,
                                          droplet_point, set_droplet_invariants, tail_entries)
-from ..quadrature.binder import solve_node_binder
+from ..quadrature.binder import binder_within_mass, solve_node_binder
 from ..quadrature.gauss import wheeler_nodes
 
 _as_strided = np.lib.stride_tricks.as_strided
@@ -378,11 +378,8 @@ def _check_state(state, config, work, on_closure):
             if abs(target[k] - state[k]) > PROJECTION_TOLERANCE * abs(state[k]):
                 return False
     if config[P.BIVARIATE] == 1:
-        # 0 <= b <= p in every particle: 0 <= M_k1 <= M_(k+1)0
-        for k in range(n_max):
-            mk1 = state[2 * n_max + k]
-            if mk1 < 0.0 or mk1 > state[k + 1] * (1.0 + PROJECTION_TOLERANCE):
-                return False
+        if not binder_within_mass(state, 2 * n_max, n_max, PROJECTION_TOLERANCE):
+            return False
         if not on_closure:
             return True
         # binder moments reproduced by the bounded per-node binder

@@ -1,11 +1,24 @@
 """The bounded per-node binder solve of a quadrature: given N size nodes p_a with weights w_a
 (non-dimensional masses and numbers, see ``methods.qmom``) and the binder moments
 M_k1 = sum_a w_a p_a^k b_a, k < N, one binder mass b_a per node with 0 <= b_a <= p_a.
-Shared by QMOM and the conditional quadrature (CQMOM)."""
+Shared by QMOM and the conditional quadrature (CQMOM); ``binder_within_mass`` is the bound
+every binder moment set of real particles keeps (QMOM, EQMOM)."""
 import numba as nb
 import numpy as np
 
 from .gauss import solve_vandermonde
+
+
+@nb.njit(cache=True, inline="always")
+def binder_within_mass(state, first, count, tolerance):
+    """True if 0 <= M_k1 <= M_(k+1)0 (1 + tolerance) for k < count, which b <= p in every
+    particle implies: M_k1 at state[first + k], M_(k+1)0 at state[k + 1] (one cell's scaled
+    state)."""
+    for k in range(count):
+        mk1 = state[first + k]
+        if mk1 < 0.0 or mk1 > state[k + 1] * (1.0 + tolerance):
+            return False
+    return True
 
 
 @nb.njit(cache=True, inline="always")
