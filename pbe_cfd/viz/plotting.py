@@ -73,7 +73,9 @@ def plot_trajectories(path, runs, title="", common_only=False, metadata=None):
     """Draw ``trajectories_figure`` to ``path``; ``metadata`` goes into the image file
     (``output.figure_metadata``). Returns the path."""
     fig = trajectories_figure(runs, title, common_only)
-    fig.savefig(path, dpi=110, metadata=metadata, bbox_inches="tight")
+    # the margins are fixed in inches (``trajectories_figure``): one draw, where a tight
+    # bounding box draws the figure twice
+    fig.savefig(path, dpi=110, metadata=metadata)
     plt.close(fig)
     return path
 
@@ -97,9 +99,11 @@ def trajectories_figure(runs, title="", common_only=False):
     ncol = 3
     nrow = max(1, math.ceil(len(names) / ncol))
     height = (4.2 if ref else 3.0) * nrow
-    fig = plt.figure(figsize=(4.3 * ncol, height))
+    width = 4.3 * ncol
+    fig = plt.figure(figsize=(width, height))
+    # margins in inches: room for the tick labels on the left, none wasted on the right
     outer = fig.add_gridspec(nrow, ncol, hspace=0.5, wspace=0.38, top=1 - 0.55 / height,
-                             bottom=0.45 / height)
+                             bottom=0.45 / height, left=0.8 / width, right=1 - 0.25 / width)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for idx, name in enumerate(names):
         cell = outer[divmod(idx, ncol)]
