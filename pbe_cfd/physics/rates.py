@@ -59,7 +59,7 @@ def droplet_capture_rate(p, b, alpha, theta, u0, d43, params, config):
                                                        theta, u0, d43, params, config)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def aggregation_rate_matrix(p1, b1, p2, b2, alpha, theta, u0, d43, params, config, out):
     """out[s, t] = aggregation_rate((p1[s], b1[s]), (p2[t], b2[t])) [m3/s] for two sets of
     particles (masses p, b [kg]) in one cell (alpha [-], theta [m2/s2], u0 [m/s], d43 [m]).
@@ -80,7 +80,7 @@ def aggregation_rate_matrix(p1, b1, p2, b2, alpha, theta, u0, d43, params, confi
             out[s, t] = pair_rate(props, s, n1 + t, factor, u0, own, config)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def symmetric_aggregation_rate_matrix(p, b, alpha, theta, u0, d43, params, config, out):
     """out[s, t] = aggregation_rate((p[s], b[s]), (p[t], b[t])) [m3/s] for one set of particles
     (masses p, b [kg]) in one cell (alpha [-], theta [m2/s2], u0 [m/s], d43 [m]); one

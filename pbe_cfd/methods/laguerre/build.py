@@ -28,6 +28,7 @@ import numpy as np
 from ...physics import parameters as P
 from ...physics.injection import droplet_liquid
 from ...physics.efficiency import uses_collision_velocity
+from ...util.threads import run_shares, run_threads
 from .basis import GRADED, SPACINGS
 from .breakage import breakage_blocks
 from .drying import drying_blocks
@@ -359,17 +360,31 @@ def _slice_tensors(t, s, bases, grids, dry, k, shared, u0, kargs, m, pd, p_ref, 
     B, kd, Bdd, Bdw, kdd = k
     separate = kargs[-1]
     t["Qdd"][s], t["Cdd"][s] = dry_tensors(dry, Bdd, kdd, m)
-    known = {id(grids[0]): (B, kd, Bdw)}          # kernel data per node set
-    for w, basis in enumerate(bases):
-        if not shared:
-            if id(grids[w]) not in known:
-                B, kd = wet_kernels(basis["p"], basis["b"], u0, *kargs)
-                Bdw = dry_wet_rates(dry, basis["p"], basis["b"], u0, *kargs[:2])
-                known[id(grids[w])] = (B, kd, Bdw)
-            B, kd, Bdw = known[id(grids[w])]
-        t["Q"][w, s], t["Cd"][w, s], t["Cd0"][w, s] = wet_tensors(
-            basis, B, kd, m, pd, separate, bd, t["capture_moments"])
-        t["X"][w, s], t["XL"][w, s] = cross_tensors(dry, basis, Bdw, m, p_ref)
+    # the weight slices by node set (one set where the nodes are shared): each set's kernel
+    # data once, the first set's from k
+    groups = {}
+    for w in range(len(bases)):
+        groups.setdefault(0 if shared else id(grids[w]), []).append(w)
+    first = 0 if shared else id(grids[0])
+
+    def fill(key, ws):
+        B_, kd_, Bdw_ = B, kd, Bdw
+        if key != first:
+            basis = bases[ws[0]]
+            B_, kd_ = wet_kernels(basis["p"], basis["b"], u0, *kargs)
+            Bdw_ = dry_wet_rates(dry, basis["p"], basis["b"], u0, *kargs[:2])
+        for w in ws:
+            t["Q"][w, s], t["Cd"][w, s], t["Cd0"][w, s] = wet_tensors(
+                bases[w], B_, kd_, m, pd, separate, bd, t["capture_moments"])
+            t["X"][w, s], t["XL"][w, s] = cross_tensors(dry, bases[w], Bdw_, m, p_ref)
+
+    # the node sets are independent (kernel matrices: numba without the GIL; the tensors'
+    # products: BLAS), so they run on the run's threads; a set's numbers do not depend on
+    # how many
+    items = list(groups.items())
+    threads = min(run_threads(), len(items))
+    run_shares(lambda j: [fill(*item) for item in items[j::threads]], range(threads),
+               "laguerre-tables")
 
 
 def _tables(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):

@@ -34,7 +34,7 @@ from .basis import (basis_values, consistent_inverse, fraction_basis_values,
 
 
 # ---- kernel matrices (numba) -----------------------------------------------------------------
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def capture_rate_vector(p, b, u0, params, config, out):
     """out[s] = droplet_capture_rate(node s) [m3/s per unit k0], unit ktgf multiplier."""
     for s in range(p.shape[0]):
