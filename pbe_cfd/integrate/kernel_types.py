@@ -109,29 +109,14 @@ def _address(dispatcher, sig) -> FunctionAddress:
     return FunctionAddress(address, dispatcher.__qualname__)
 
 
-_CLOSURE_ADDRESSES = {}
-
-
 def closure_check_address(method: int, sigs: MethodFunctions) -> FunctionAddress:
-    """The entry point of the closure test (``closure_test_of``) of the method with code
-    ``method``, compiled (or loaded) for the realizability test's signature in ``sigs``: what
-    the repair after transport calls."""
-    key = (int(method), sigs.realizable)
-    found = _CLOSURE_ADDRESSES.get(key)
-    if found is None:
-        found = _address(closure_test_of(method), sigs.realizable)
-        _CLOSURE_ADDRESSES[key] = found
-    return found
-
-
-def closure_test_of(method: int):
-    """The dispatcher of the closure test of the method with registry code ``method``:
-    ``MethodEntry.on_closure``, or its realizability test (``functions_of``) where it has
-    none."""
+    """The entry point of the closure test (``MethodEntry.closure_test``) of the method with
+    code ``method``, compiled (or loaded) for the realizability test's signature in ``sigs``:
+    what the repair after transport calls (it keeps the address with its compiled kernel). A
+    method known only to ``functions_of`` is tested by its realizability test."""
     entry = registry.entry_of_code(method)
-    if entry is not None and entry.on_closure is not None:
-        return entry.on_closure
-    return functions_of(method).realizable
+    test = entry.closure_test if entry is not None else functions_of(method).realizable
+    return _address(test, sigs.realizable)
 
 
 def functions_of(method: int) -> MethodFunctions:

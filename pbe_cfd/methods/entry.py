@@ -193,6 +193,12 @@ class MethodEntry(NamedTuple):
         return self.options or NoOptions
 
     @property
+    def closure_test(self) -> Callable | None:
+        """The test of a state on its closure (``on_closure``), or ``realizable`` where the
+        method has none: what the repair after transport asks."""
+        return self.on_closure if self.on_closure is not None else self.realizable
+
+    @property
     def integrated(self) -> bool:
         """True if the per-cell integrator runs it (a moment method)."""
         return self.code != NOT_INTEGRATED

@@ -444,10 +444,10 @@ def _mixture_repair(settings, arrays, aux):
 def _repair_cells(on_closure, project, states, aux, params, config, changed, work, fix):
     """Count the cells whose state is not on the method's closure and, if ``fix``,
     re-project them; ``changed[c]`` the largest relative change of an entry. on_closure,
-    project: the method's closure test (``MethodEntry.on_closure``, else its realizability
-    test) and projection as first-class functions (``integrate.kernel_types``, the
-    integration kernel's signatures): this kernel compiles once for every method, and only
-    the scene's method's functions are compiled."""
+    project: the method's closure test (``MethodEntry.closure_test``) and projection as
+    first-class functions (``integrate.kernel_types``, the integration kernel's signatures):
+    this kernel compiles once for every method, and only the scene's method's functions are
+    compiled."""
     count = 0
     n_state = states.shape[1]
     before = np.empty(n_state)
@@ -490,8 +490,8 @@ def _repair_kernel(method, args):
 
 def unrealizable_cells(states, aux, params, config, fix=False):
     """Number of rows of ``states`` (scaled moment states, one row per cell) that are not on
-    the closure of the method config[METHOD] (``MethodEntry.on_closure``, else its
-    realizability test); with ``fix`` they are re-projected in place by its projection.
+    the closure of the method config[METHOD] (``MethodEntry.closure_test``); with ``fix``
+    they are re-projected in place by its projection.
     Returns (count, largest relative change of any entry of a re-projected cell)."""
     from ..methods.entry import WORK_SIZE
     from ..physics import parameters as P
