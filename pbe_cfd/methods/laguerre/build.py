@@ -353,23 +353,22 @@ def _slice_grids(grid, pairs, spec):
     return out
 
 
-def _slice_tensors(t, s, bases, grids, dry, k, shared, u0, kargs, m, pd, p_ref, bd):
+def _slice_tensors(t, s, bases, grids, dry, k, u0, kargs, m, pd, p_ref, bd):
     """Fill the blocks of collision-velocity slice s: k the kernel data on the first basis's
-    nodes; with per-slice nodes (not shared) the wet and cross kernels are evaluated per
-    weight slice."""
+    nodes; the wet and cross kernels of every other node set of the weight slices
+    (``_slice_grids``) are evaluated here."""
     B, kd, Bdd, Bdw, kdd = k
     separate = kargs[-1]
     t["Qdd"][s], t["Cdd"][s] = dry_tensors(dry, Bdd, kdd, m)
-    # the weight slices by node set (one set where the nodes are shared): each set's kernel
-    # data once, the first set's from k
+    # the weight slices by node set (one set where the nodes are shared, ``_slice_grids``):
+    # each set's kernel data once, the first set's from k
     groups = {}
     for w in range(len(bases)):
-        groups.setdefault(0 if shared else id(grids[w]), []).append(w)
-    first = 0 if shared else id(grids[0])
+        groups.setdefault(id(grids[w]), []).append(w)
 
     def fill(key, ws):
         B_, kd_, Bdw_ = B, kd, Bdw
-        if key != first:
+        if key != id(grids[0]):
             basis = bases[ws[0]]
             B_, kd_ = wet_kernels(basis["p"], basis["b"], u0, *kargs)
             Bdw_ = dry_wet_rates(dry, basis["p"], basis["b"], u0, *kargs[:2])
@@ -421,7 +420,7 @@ def _tables(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
              capture_moments=int(config[P.DROPLET_LIQUID]) == 1)
     for s, u0 in enumerate(slices):
         k = first if s == 0 else (last if s == nS - 1 else kernels(u0))
-        _slice_tensors(t, s, bases, grids, dry, k, shared, u0_of(u0),
+        _slice_tensors(t, s, bases, grids, dry, k, u0_of(u0),
                        (uparams, ucfg, separate), m, pd, p_ref, bd)
     logu = np.log(np.array([x if np.isfinite(x) else 1.0 for x in slices]))
     t.update(logu=logu, logw=np.concatenate([lnc, lnd, lnl]), nwc=len(lnc), nwd=len(lnd),
