@@ -435,7 +435,7 @@ def _mixture_repair(settings, arrays, aux):
     params, config = arrays.params, arrays.config
 
     def repair(states):
-        return unrealizable_cells(states, aux, params, config, fix=True)
+        return cells_off_closure(states, aux, params, config, fix=True)
 
     return repair
 
@@ -488,7 +488,7 @@ def _repair_kernel(method, args):
     return found
 
 
-def unrealizable_cells(states, aux, params, config, fix=False):
+def cells_off_closure(states, aux, params, config, fix=False):
     """Number of rows of ``states`` (scaled moment states, one row per cell) that are not on
     the closure of the method config[METHOD] (``MethodEntry.closure_test``); with ``fix``
     they are re-projected in place by its projection.

@@ -120,13 +120,13 @@ def test_a_realizability_test_that_raises_in_the_transport_repair_is_an_error(de
     entry points: one that raises is a MethodRaised naming the exception (exit 1 from the
     CLI), not a count of unrealizable cells made of whatever the test returned."""
     from pbe_cfd.integrate.faults import MethodRaised
-    from pbe_cfd.transport.operator import unrealizable_cells
+    from pbe_cfd.transport.operator import cells_off_closure
     batch, config = decay_method
     config[P.METHOD] = FAKE_TEST_RAISES
     states = np.ones((3, batch.states.shape[1]))
-    assert unrealizable_cells(states, batch.aux, batch.params, config) == (0, 0.0)
+    assert cells_off_closure(states, batch.aux, batch.params, config) == (0, 0.0)
     states[1, 0] = 0.25
     with pytest.raises(MethodRaised, match="ZeroDivisionError"):
-        unrealizable_cells(states, batch.aux, batch.params, config)
+        cells_off_closure(states, batch.aux, batch.params, config)
     captured = capfd.readouterr()
     assert "ZeroDivisionError" not in captured.err + captured.out

@@ -22,7 +22,7 @@ from pbe_cfd.physics.kernels import radial_distribution
 from pbe_cfd.scene.scene import SceneError, load_scene
 from pbe_cfd.runs.simulate import run_well_mixed
 from pbe_cfd.transport.solids_flux import divergence_free, pair_weighted_average
-from pbe_cfd.transport.operator import transport_of_scene, unrealizable_cells
+from pbe_cfd.transport.operator import cells_off_closure, transport_of_scene
 
 from conftest import AVICEL, make_scene
 
@@ -236,7 +236,7 @@ def test_binder_tracer_spreads_conserved_and_realizable_every_substep(mesh, bund
     realizable_failures = 0
     for _ in range(steps):
         tr.transport(states, tr.dt_max)          # one substep per call
-        bad, _ = unrealizable_cells(states, aux, arrays.params, arrays.config)
+        bad, _ = cells_off_closure(states, aux, arrays.params, arrays.config)
         realizable_failures += bad
     assert realizable_failures == 0
     rel = np.abs(tr.bed_totals(states) - total0) / np.abs(total0)
@@ -266,13 +266,13 @@ def test_binder_repair_keeps_number_mass_and_binder():
         mixes.append(sum(mono(arrays, w[i], p[i], y[i] * p[i]) for i in range(3)))
     mixes = np.array(mixes)
     aux = np.zeros(1)
-    bad, _ = unrealizable_cells(mixes, aux, arrays.params, arrays.config)
+    bad, _ = cells_off_closure(mixes, aux, arrays.params, arrays.config)
     assert bad > 10
     before = mixes.copy()
-    fixed, change = unrealizable_cells(mixes, aux, arrays.params, arrays.config, fix=True)
+    fixed, change = cells_off_closure(mixes, aux, arrays.params, arrays.config, fix=True)
     assert fixed == bad and change > 0
     assert np.array_equal(mixes[:, keep], before[:, keep])
-    assert unrealizable_cells(mixes, aux, arrays.params, arrays.config)[0] == 0
+    assert cells_off_closure(mixes, aux, arrays.params, arrays.config)[0] == 0
 
 
 def test_the_mixture_repair_compiles_the_scenes_method_alone():
@@ -403,11 +403,11 @@ def test_the_repair_check_follows_the_array_layout():
                                rng.uniform(0.0, 1.0) * q * P0 * (rng.random() < 0.5))
                           for q in rng.uniform(1.0, 4.0, 3)) for _ in range(100)])
     aux = np.zeros(1)
-    bad = unrealizable_cells(mixes, aux, arrays.params, arrays.config)[0]
+    bad = cells_off_closure(mixes, aux, arrays.params, arrays.config)[0]
     assert bad > 5
     fortran = np.asfortranarray(mixes)
-    assert unrealizable_cells(fortran, aux, arrays.params, arrays.config)[0] == bad
-    assert unrealizable_cells(mixes, aux, arrays.params, arrays.config)[0] == bad
+    assert cells_off_closure(fortran, aux, arrays.params, arrays.config)[0] == bad
+    assert cells_off_closure(mixes, aux, arrays.params, arrays.config)[0] == bad
 
 
 # ---------------------------------------------------------------------------- physics

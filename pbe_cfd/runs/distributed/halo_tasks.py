@@ -57,7 +57,7 @@ def block_transport(block: dict, op: dict, pieces: list, dt: float, k: int, repa
     CSR rows, where the owned cells and each halo piece sit); ``pieces``: the halo states in
     the order of ``op["piece_pos"]``. Returns the new block state."""
     from ...transport.halo import advance_block
-    from ...transport.operator import unrealizable_cells
+    from ...transport.operator import cells_off_closure
 
     start = _time.perf_counter()
     out = dict(block)
@@ -72,7 +72,7 @@ def block_transport(block: dict, op: dict, pieces: list, dt: float, k: int, repa
     else:
         out["states"] = block["states"].copy()
     if repair:
-        fixed, change = unrealizable_cells(out["states"], shared["aux"], shared["params"],
+        fixed, change = cells_off_closure(out["states"], shared["aux"], shared["params"],
                                            shared["config"], fix=True)
         out["repaired"] = block["repaired"] + fixed
         out["repair_max"] = max(block["repair_max"], change)
