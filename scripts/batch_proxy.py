@@ -6,9 +6,9 @@
 Writes, in the new directory OUT, the batch proxy's scenes: `fluid-bed-laguerre-batch` with
 its domain replaced by one well-mixed cell at the active cells' mean solids fraction
 (0.38139) and granular temperature (7.5256e-5 m2/s2), its spray rate by the spray zone's
-share of the bed's (3.5926e9 droplets/(m3 s)), no transport (the construction of
-tests/methods/laguerre/test_laguerre_number_rate.py's proxy, the following support's
-default closure kept), and the same scene with `[method]` replaced by QMOM N = 3 and 4,
+share of the bed's (3.5926e9 droplets/(m3 s)), no transport (``proxy_source`` of
+tests/methods/laguerre/test_laguerre_number_rate.py; the following support's default
+closure kept), and the same scene with `[method]` replaced by QMOM N = 3 and 4,
 CQMOM 3 x 3 and the cNMC. Runs each with `pbe-cfd run` and prints, per output minute up to
 the end, the cNMC's M00, d43, d50 and binder fraction (mean and 95% half-width of its
 replicas) and each method's relative difference from it [%].
@@ -18,10 +18,12 @@ import csv
 import re
 import subprocess
 import sys
-from importlib import resources
 from pathlib import Path
 
-import numpy as np
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tests" / "methods" / "laguerre"))
+
+import test_laguerre_number_rate as P            # noqa: E402  the proxy, fixed there
 
 METHODS = {
     "laguerre": None,                  # the bundled scene's [method]
@@ -33,18 +35,9 @@ QUANTITIES = ("M00", "d43_m", "d50_m", "binder_fraction")
 
 
 def proxy_source(end):
-    """The proxy scene's TOML text, run to ``end`` [s]."""
-    src = (resources.files("pbe_cfd") / "scenes" / "fluid-bed-laguerre-batch.toml").read_text()
-    dom = ('[domain]\ntype = "well-mixed"\nsolids_fraction = 0.38139\n'
-           'granular_temperature = 7.5256e-05\n')
-    src = re.sub(r"^\[domain\].*?(?=\n\[material\])", dom, src, flags=re.S | re.M)
-    p0 = 1021.0 * np.pi / 6.0 * 100.4e-6 ** 3
-    src = src.replace("binder_fraction = 0.0\n", "binder_fraction = 0.0\nnumber_density = "
-                      "%.6g\n" % (0.38139 * 1021.0 / p0), 1)
-    src = src.replace("rate = 2.0e10 ", "rate = 3.5926e9 ")
-    src = re.sub(r"^zone = \{.*?\}\n", "", src, flags=re.M)
-    src = re.sub(r"^\[transport\].*", "", src, flags=re.S | re.M)
-    src, count = re.subn(r"^end_time = [0-9.e+]+", f"end_time = {end!r}", src, flags=re.M)
+    """The proxy scene's TOML text (the test module's ``proxy_source``), run to ``end`` [s]."""
+    src, count = re.subn(r"^end_time = [0-9.e+]+", f"end_time = {end!r}", P.proxy_source(),
+                         flags=re.M)
     if count != 1:
         raise SystemExit("batch_proxy: the bundled scene's end_time line was not found")
     return src

@@ -39,7 +39,10 @@ STATES = {
 }
 
 
-def proxy_scene(path):
+def proxy_source():
+    """The batch proxy's TOML text: the bundled ``fluid-bed-laguerre-batch`` as one well-mixed
+    cell at the active cells' mean solids fraction and granular temperature, the spray zone's
+    share of the spray, no transport (also scripts/batch_proxy.py's scene)."""
     src = (resources.files("pbe_cfd") / "scenes" / "fluid-bed-laguerre-batch.toml").read_text()
     dom = ('[domain]\ntype = "well-mixed"\nsolids_fraction = 0.38139\n'
            'granular_temperature = 7.5256e-05\n')
@@ -49,7 +52,11 @@ def proxy_scene(path):
                       "%.6g\n" % (0.38139 * 1021.0 / p0), 1)
     src = src.replace("rate = 2.0e10 ", "rate = 3.5926e9 ")
     src = re.sub(r"^zone = \{.*?\}\n", "", src, flags=re.M)
-    src = re.sub(r"^\[transport\].*", "", src, flags=re.S | re.M)
+    return re.sub(r"^\[transport\].*", "", src, flags=re.S | re.M)
+
+
+def proxy_scene(path):
+    src = proxy_source()
     # the tensors' rows, whose number rate this module checks (the following support's
     # default is the point measure's: test_the_points_closure_lowers_the_granule_number)
     assert "following_growth = 1e6 " in src
