@@ -58,7 +58,10 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=2026)
     args = ap.parse_args(argv)
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=False)
+    if out.exists():
+        raise SystemExit(f"batch_proxy: {out} exists; give a new directory (nothing in an "
+                         "existing one is overwritten)")
+    out.mkdir(parents=True)
     src = proxy_source(args.end)
     head = src.split("[method]")[0]
     methods = dict(METHODS, cnmc=f'name = "cnmc"\nparticles = {args.particles}\n'
