@@ -80,6 +80,21 @@ def test_plan_lists_computed_and_left_out(capsys):
     assert "QMOM with 2 nodes" in text
 
 
+def test_plan_notes_qmoms_one_binder_value_where_the_efficiency_reads_it(capsys):
+    """QMOM holds one binder value per size node: its plan says so where an efficiency factor
+    reads the binder (seed-wurster: geometric x physical), not where none does
+    (constant-kernel: no efficiency, no binder) and not for CQMOM, which carries a binder
+    spread per size node."""
+    note = "one binder value per size node, and the efficiency reads the binder"
+    texts = {}
+    for name in ("seed-wurster", "constant-kernel", "seed-wurster-cqmom"):
+        assert main(["plan", name]) == 0
+        texts[name] = capsys.readouterr().out
+    assert note in texts["seed-wurster"]
+    assert note not in texts["constant-kernel"]
+    assert note not in texts["seed-wurster-cqmom"]
+
+
 def test_plan_of_a_dry_scene_leaves_out_binder(tmp_path, capsys):
     path = tmp_path / "tiny.toml"
     path.write_text(GOOD)

@@ -1,6 +1,7 @@
 """The QMOM's registry entry: its scene keys, state names, populations, plan line and its
 numba functions (``methods.registry`` lists it)."""
 from ...physics import parameters as P
+from ...physics.efficiency import EFFICIENCY_BY_NAME
 from ..entry import MethodEntry, no_aux, no_diagnostics, no_hint
 from .options import QmomOptions
 from .qmom import (qmom_conserved, qmom_on_closure, qmom_project, qmom_realizable,
@@ -32,10 +33,25 @@ def _populations(states, aux, arrays):
     return w * arrays.number_scale, x * arrays.mass_scale, beta * arrays.mass_scale, counts
 
 
+#: the plan's note where the efficiency reads the binder that QMOM holds one value of per node
+BINDER_SPREAD_NOTE = ("\n    note: one binder value per size node, and the efficiency reads "
+                      "the binder; where binder differs between granules of one size (a "
+                      "spray), CQMOM or the Laguerre ROM carry that spread "
+                      "(docs/results/accuracy.md, \"Which method for which question\")")
+
+
+def reads_node_binder(scene) -> bool:
+    """True if the scene carries binder and an efficiency factor of its aggregation reads it:
+    QMOM then evaluates the factor at each size node's one binder value."""
+    agg = scene.aggregation
+    return bool(scene.bivariate and agg is not None and any(
+        EFFICIENCY_BY_NAME[name].uses_binder for name in agg.efficiency))
+
+
 def _plan(scene):
     m = scene.method
     return (f"QMOM with {m.options.nodes} nodes; state {', '.join(_state_names(scene))}"
-            f"; rtol {m.rtol:g}")
+            f"; rtol {m.rtol:g}" + (BINDER_SPREAD_NOTE if reads_node_binder(scene) else ""))
 
 
 ENTRY = MethodEntry(
