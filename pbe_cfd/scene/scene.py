@@ -100,6 +100,11 @@ class Aggregation:
     droplet_factor: float | None = None
     reference_diameter: float | None = None
 
+    @property
+    def reads_binder(self) -> bool:
+        """True if an efficiency factor of it depends on the granules' binder."""
+        return any(EFFICIENCY_BY_NAME[f].uses_binder for f in self.efficiency)
+
 
 @dataclass(frozen=True)
 class Breakage:
@@ -516,7 +521,7 @@ def _option_keys(entry) -> tuple:
 def _cross_checks(path, scene: Scene):
     agg = scene.aggregation
     factors = [EFFICIENCY_BY_NAME[f] for f in agg.efficiency] if agg is not None else []
-    if any(f.uses_binder for f in factors) and not scene.bivariate:
+    if agg is not None and agg.reads_binder and not scene.bivariate:
         raise SceneError(path, "aggregation.efficiency",
                          f"{', '.join(agg.efficiency)} efficiency depends on binder, but the scene "
                          "has none: expected [binder_injection] or initial.binder_fraction > 0")

@@ -1,7 +1,6 @@
 """The QMOM's registry entry: its scene keys, state names, populations, plan line and its
 numba functions (``methods.registry`` lists it)."""
 from ...physics import parameters as P
-from ...physics.efficiency import EFFICIENCY_BY_NAME
 from ..entry import MethodEntry, no_aux, no_diagnostics, no_hint
 from .options import QmomOptions
 from .qmom import (qmom_conserved, qmom_on_closure, qmom_project, qmom_realizable,
@@ -40,18 +39,13 @@ BINDER_SPREAD_NOTE = ("\n    note: one binder value per size node, and the effic
                       "(docs/results/accuracy.md, \"Which method for which question\")")
 
 
-def reads_node_binder(scene) -> bool:
-    """True if the scene carries binder and an efficiency factor of its aggregation reads it:
-    QMOM then evaluates the factor at each size node's one binder value."""
-    agg = scene.aggregation
-    return bool(scene.bivariate and agg is not None and any(
-        EFFICIENCY_BY_NAME[name].uses_binder for name in agg.efficiency))
-
-
 def _plan(scene):
     m = scene.method
+    # an efficiency that reads the binder sees each size node's one binder value
+    agg = scene.aggregation
+    note = BINDER_SPREAD_NOTE if agg is not None and agg.reads_binder else ""
     return (f"QMOM with {m.options.nodes} nodes; state {', '.join(_state_names(scene))}"
-            f"; rtol {m.rtol:g}" + (BINDER_SPREAD_NOTE if reads_node_binder(scene) else ""))
+            f"; rtol {m.rtol:g}{note}")
 
 
 ENTRY = MethodEntry(
