@@ -73,13 +73,20 @@ BOUND_FRACTIONS = np.concatenate([[0.0], np.geomspace(1e-4, 0.95, 45)])
 BOUND_TOLERANCE = 1e-4
 
 
-def _rate_range(p, b, n, case, second=False):
-    """(lowest, highest) evaporation rate over the positive populations on the bound's grid
-    with the box's M_k0 (k < 2n) and M_k1 (k < n), and M_k2 (k < n) if ``second``, relative
-    to the box's exact rate; None where no population on the grid has them."""
-    from scipy.optimize import linprog
+def _bound_grid(case):
+    """(masses [kg], liquids [kg], evaporation rates [kg/s]) of the bound's grid particles."""
     mass, fraction = np.meshgrid(BOUND_MASSES, BOUND_FRACTIONS, indexing="ij")
     mass, liquid = mass.ravel(), (mass * fraction).ravel()
+    return mass, liquid, C._rate(mass, liquid, case)
+
+
+def _rate_range(p, b, n, case, grid, second=False):
+    """(lowest, highest) evaporation rate over the positive populations on the bound's grid
+    (``_bound_grid``) with the box's M_k0 (k < 2n) and M_k1 (k < n), and M_k2 (k < n) if
+    ``second``, relative to the box's exact rate; None where no population on the grid has
+    them."""
+    from scipy.optimize import linprog
+    mass, liquid, rate = grid
     scale = p.mean()
     rows = [(mass / scale) ** k for k in range(2 * n)]
     targets = [np.sum((p / scale) ** k) for k in range(2 * n)]
@@ -92,7 +99,7 @@ def _rate_range(p, b, n, case, second=False):
     a_ub = np.vstack([a, -a])
     b_ub = np.concatenate([np.full(len(a), 1.0 + BOUND_TOLERANCE),
                            np.full(len(a), -(1.0 - BOUND_TOLERANCE))])
-    cost = C._rate(mass, liquid, case) / C._rate(p, b, case).sum()
+    cost = rate / C._rate(p, b, case).sum()
     low = linprog(cost, A_ub=a_ub, b_ub=b_ub, bounds=(0, None), method="highs")
     high = linprog(-cost, A_ub=a_ub, b_ub=b_ub, bounds=(0, None), method="highs")
     if low.status != 0 or high.status != 0:
@@ -132,11 +139,12 @@ def main(k0, bounds=False, second=False):
         return
     print("range of the rate over the populations with the carried moments"
           + (" and M_k2" if second else "") + ", / exact - 1")
+    grid = _bound_grid(case)
     for t in TIMES:
         p, b, _vol = snaps[t]
         parts = []
         for n in (2, 3, 4):
-            found = _rate_range(p, b, n, case, second)
+            found = _rate_range(p, b, n, case, grid, second)
             parts.append(f"N={n} " + ("no population on the grid" if found is None else
                                       f"[{found[0] - 1:+.3f}, {found[1] - 1:+.3f}]"))
         print(f"t = {t:2d} s  " + " | ".join(parts))
