@@ -382,8 +382,12 @@ def _slice_tensors(t, s, bases, grids, dry, k, u0, kargs, m, pd, p_ref, bd):
     # how many
     items = list(groups.items())
     threads = min(run_threads(), len(items))
-    run_shares(lambda j: [fill(*item) for item in items[j::threads]], range(threads),
-               "laguerre-tables")
+
+    def share(j):
+        for key, ws in items[j::threads]:
+            fill(key, ws)
+
+    run_shares(share, range(threads), "laguerre-tables")
 
 
 def _tables(params, config, m, weights, grid, consistent, u0_grid, p_ref, spec):
