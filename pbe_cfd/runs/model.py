@@ -79,7 +79,10 @@ def _breakage_params(scene, params, config):
     config[P.BREAKAGE_SELECTION] = SELECTION_BY_NAME[brk.selection].code
     config[P.BREAKAGE_DAUGHTERS] = DAUGHTERS_BY_NAME[brk.daughters].code
     params[P.BREAKAGE_RATE] = brk.rate
-    params[P.BREAKAGE_EXPONENT] = brk.exponent
+    # the exponent a of S_unit = (p / p_ref)^a; 0 for a selection without one (constant),
+    # whose S_unit is then that power too (the Laguerre dry rows weigh the gamma by p^a)
+    params[P.BREAKAGE_EXPONENT] = (brk.exponent if "exponent" in
+                                   SELECTION_BY_NAME[brk.selection].keys else 0.0)
     params[P.BREAKAGE_REFERENCE_MASS] = (brk.reference_mass if brk.reference_mass is not None
                                          else scene.initial.mean_mass)
     params[P.BREAKAGE_REFERENCE_THETA] = brk.reference_granular_temperature or 0.0

@@ -12,8 +12,10 @@ s0 g0(alpha) sqrt(Theta / Theta_ref) x the Stokes deformation gate) times a part
 S_unit [-] (1, or (p / p_ref)^a), so the matrices do not depend on the cell: F_cell is evaluated
 per cell at RHS time and nothing is tabulated on the Theta grid. The wet class's matrix depends
 on its weight (one per slice of the adaptive weight grid, blended as the other wet tensors);
-the dry class's is one m x m matrix. Dry granules break into dry daughters (b = 0 stays 0) and
-wet ones into wet daughters (b > 0 stays > 0): no cross terms. Free droplets never break.
+the dry class's is one m x m matrix (under the following support at m = 3 the dry rows are
+taken on the Gauss rule of the dry class's own gamma instead: ``linear_terms``). Dry granules
+break into dry daughters (b = 0 stays 0) and wet ones into wet daughters (b > 0 stays > 0): no
+cross terms. Free droplets never break.
 
 The integrals use each class's quadrature on the support; with the consistent reconstruction
 (int_S p^i b^j phi~_k = delta_ak) L is exact for a constant selection (L = diag(F - 1)).
@@ -108,18 +110,18 @@ def add_linear_term(state, out, aux, offset, n, first_in, first_out, factor):
 
 
 @nb.njit(cache=True)
-def add_laguerre_breakage(state, out, cell, aux, params, config, wpos):
+def add_laguerre_breakage(state, out, cell, aux, params, config, wpos, dry_rows):
     """Add the breakage sources [scaled state units per s] of one cell to ``out``: the wet
-    class's L blended over the weight corners wpos (``weight_corner``) of the RHS, the dry
-    class's L_dry, both times the cell factor F_cell [1/s] of the cell row (ALPHA [-], THETA
-    [m2/s2], COLLISION_VELOCITY [m/s]). Nothing without a breakage block or where F_cell = 0;
-    free droplets are untouched."""
+    class's L blended over the weight corners wpos (``weight_corner``) of the RHS and, where
+    ``dry_rows`` is True, the dry class's L_dry, both times the cell factor F_cell [1/s] of the
+    cell row (ALPHA [-], THETA [m2/s2], COLLISION_VELOCITY [m/s]). Returns F_cell [1/s] (0
+    without a breakage block); free droplets are untouched."""
     o = int(aux[AUX_OFF_BREAK])
     if o <= 0:
-        return
+        return 0.0
     factor = cell_selection_factor(cell, params, config)
     if factor == 0.0:
-        return
+        return 0.0
     m = int(aux[AUX_ORDER])
     K = m * m
     nwc = int(aux[AUX_NWC])
@@ -128,5 +130,7 @@ def add_laguerre_breakage(state, out, cell, aux, params, config, wpos):
         w, f = weight_corner(q, wpos, nwc, nwd)
         if f != 0.0:
             add_linear_term(state, out, aux, o + w * K * K, K, 0, 0, factor * f)
-    n_weights = nwc * nwd * max(1, int(aux[AUX_NWL]))
-    add_linear_term(state, out, aux, o + n_weights * K * K, m, K, K, factor)
+    if dry_rows:
+        n_weights = nwc * nwd * max(1, int(aux[AUX_NWL]))
+        add_linear_term(state, out, aux, o + n_weights * K * K, m, K, K, factor)
+    return factor

@@ -48,7 +48,6 @@ from ...physics import parameters as P
 from ...physics.drying import cell_gas, drying_rate
 from ..quadrature.drying_sources import CONTINUE_SPREAD, continued_pair_share
 from .basis import moment_index
-from .breakage import add_laguerre_breakage
 from .layout import AUX_OFF_DRYING, AUX_ORDER, evaporated_entry
 
 #: state entry of the wet liquid M~01: (i, j) = (0, 1) in ``moment_index`` order (order >= 2)
@@ -236,13 +235,3 @@ def add_laguerre_drying(state, out, cell, aux, params, config):
             elif carried > 0.0:
                 out[i * m + j] += drift * (state[i * m + j] / carried)
     out[evaporated_entry(config)] += evaporated
-
-
-@nb.njit(cache=True)
-def add_linear_terms(state, out, cell, aux, params, config, wpos):
-    """The ROM's breakage (``laguerre_breakage``, with a [breakage] table: linear, at the weight
-    corners wpos of the RHS) and drying (with a [drying] table, on the state's own points)."""
-    if config[P.BREAKAGE] == 1:
-        add_laguerre_breakage(state, out, cell, aux, params, config, wpos)
-    if config[P.DRYING] == 1:
-        add_laguerre_drying(state, out, cell, aux, params, config)

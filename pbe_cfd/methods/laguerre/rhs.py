@@ -52,7 +52,7 @@ from ...physics.kernels import KTGF, kernel_cell_factor
 from ..quadrature.drying_sources import add_droplet_class_terms, droplet_point
 from .admissible import (DRY_MERGE_SHARE, laguerre_conserved, laguerre_project,  # noqa: F401
                          laguerre_realizable, strictly_realizable)
-from .drying import add_linear_terms
+from .linear_terms import add_linear_terms
 from .layout import (AUX_CAPTURE_MOMENTS, AUX_NPAIR, AUX_NSLICE, AUX_NWC, AUX_NWD,
                      AUX_OFF_CAPMAP, AUX_OFF_CD, AUX_OFF_CD0, AUX_OFF_CDD, AUX_OFF_Q,
                      AUX_NUMBER_POINTS, AUX_OFF_QDD, AUX_OFF_X, AUX_OFF_XL, AUX_ORDER,
