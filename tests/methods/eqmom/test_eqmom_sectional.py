@@ -13,9 +13,11 @@ Reference: tests/references/sectional_kernel_matrix.py (fixed pivots, sharing no
 pbe_cfd) on 8 and 16 pivots per octave from 1e-4 P0 to 1e4 P0, Richardson-extrapolated for
 its O(h^2) grid error: M_ref = (4 M_16 - M_8) / 3, its error estimated by |M_16 - M_8| / 3
 (the grid error of M_16; the extrapolated value is better still), and requires the grid to
-hold the mass (below 1e-4 of it within a factor 10 of either end). A case whose estimate
-exceeds REF_LIMIT = 1% is inconclusive (skipped with the numbers; the sum kernel with a = 1/3
-puts mass on the finest pivots, where the fixed-pivot breakage map is coarsest).
+hold the mass (below 1e-4 of it within a factor 10 of either end). Each moment is decided
+where that estimate cannot move its deviation across the 3% band (``check``); a case whose
+outcome it could move is inconclusive (skipped with the numbers; the sum kernel with a = 1/3
+puts mass on the finest pivots, where the fixed-pivot breakage map is coarsest, and its M30
+carries a grid error of 1.3-1.9%, but the moments that decide both of its cases do not).
 
 Claim (issue 27): on the cases where QMOM N = 3 misses M00, M10, M20 or M30 by more than 3%
 at some output time (1.25 s .. 5 s), EQMOM with N = 3 kernels is within 3% of all four:
@@ -41,7 +43,6 @@ RATES = {"constant": 1.0e-10, "sum": 0.05, "eke": 1.77e-11}
 D_REF = (6.0 * P0 / (math.pi * RHO)) ** (1.0 / 3.0)
 TIMES = np.linspace(0.0, END, 5)
 BAND = 0.03
-REF_LIMIT = 0.01
 MOMENTS = ("M00", "M10", "M20", "M30")
 
 #: the full set, fixed before looking: (kernel, a, daughters)
@@ -59,6 +60,8 @@ CI_CASES = [("constant", 1.0 / 3.0, "uniform"), ("constant", 1.0, "equal"),
 KNOWN_MISSES = {
     ("eke", 1.0 / 3.0, "uniform"): "EQMOM N = 3 misses M00 by 11.5% (QMOM N = 3: 25%)",
     ("eke", 1.0, "uniform"): "EQMOM N = 3 misses M00 by 3.08% (+0.18% reference error)",
+    ("sum", 1.0 / 3.0, "uniform"): "EQMOM N = 3 misses M00 by 9.7% (reference error 0.04%)",
+    ("sum", 1.0 / 3.0, "equal"): "EQMOM N = 3 misses M20 by 4.0% (reference error 0.35%)",
 }
 
 
@@ -119,15 +122,25 @@ def errors(case, runs=RUNS):
 
 
 def check(case):
+    """Each moment is decided where the reference's error cannot move its deviation across
+    the band: a miss where deviation - error >= BAND, within where deviation + error < BAND.
+    A case misses on one decided miss; it is inconclusive (skipped with the numbers) where
+    QMOM's miss or EQMOM's outcome is not decided."""
     e = errors(case)
     print(case_id(case), {k: np.round(100 * v, 3).tolist() for k, v in e.items()})
-    if e["ref_error"].max() > REF_LIMIT:
-        pytest.skip(f"{case_id(case)}: the sectional reference's grid error "
-                    f"{100 * e['ref_error'].max():.2g}% exceeds {100 * REF_LIMIT:g}%: "
-                    "inconclusive (reported in docs/results/eqmom.md)")
-    if e["qmom3"].max() > BAND:
-        # the method's deviation plus the reference's error bound: its error is below the band
-        assert np.all(e["eqmom3"] + e["ref_error"] < BAND), (case, e)
+    err = e["ref_error"]
+    if not np.any(e["qmom3"] - err >= BAND):
+        if np.any(e["qmom3"] + err >= BAND):
+            pytest.skip(f"{case_id(case)}: whether QMOM N = 3 misses is within the sectional "
+                        "reference's grid error: inconclusive (docs/results/eqmom.md)")
+        return                                     # QMOM within: reported, not asserted
+    dev = e["eqmom3"]
+    if not np.any(dev - err >= BAND) and np.any(dev + err >= BAND):
+        pytest.skip(f"{case_id(case)}: EQMOM's deviation {np.round(100 * dev, 2)}% is within "
+                    f"the reference's grid error {np.round(100 * err, 2)}% of the band: "
+                    "inconclusive (docs/results/eqmom.md)")
+    # the method's deviation plus the reference's error bound: its error is below the band
+    assert np.all(dev + err < BAND), (case, e)
 
 
 def marked(cases):
