@@ -18,10 +18,10 @@ eigenvector components of the Jacobi matrix of the generalised Laguerre polynomi
 is x^e: every row is the gamma's own closed form (D_(e+a) of the gamma) to round-off, for
 any a >= 0, fractional too, and a constant selection gives exactly (F(e) - 1) F_cell D_e.
 The rows are those of a positive population, so the term keeps D0 D2 >= D1^2 as breakage
-does. A dry class at one mass (var <= SINGLE_NODE_VARIANCE mu^2)
-is one node at its mean whose rows remove the same share of each carried moment (as
-``number_points.dry_powers``). At other orders, and with the fixed support, the dry class keeps
-the matrix L_dry of its fixed weight.
+does. A dry class at one mass (var <= SINGLE_NODE_VARIANCE mu^2) breaks at its mean mu:
+dD~_e/dt = F_cell S_unit(p_ref mu) (F(e) - 1) D~_e, the carried D_e in place of D0 mu^e (as
+``number_points.dry_powers`` takes them). At other orders, and with the fixed support, the dry
+class keeps the matrix L_dry of its fixed weight.
 """
 import math
 
@@ -42,6 +42,8 @@ DRY_BREAKAGE_NODES = 4
 #: the order at which the dry rows follow (the following support's default order; above it
 #: the dry class carries D3.., which a gamma of D0, D1, D2 does not reproduce)
 DRY_FOLLOWING_ORDER = 3
+#: the state entry of the dry class's D~0 at that order (the wet class's m x m moments first)
+DRY_FIRST = DRY_FOLLOWING_ORDER * DRY_FOLLOWING_ORDER
 
 
 @nb.njit(cache=True)
@@ -49,16 +51,15 @@ def dry_gamma_rule(d0, d1, d2, power, nodes, weights):
     """Write the Gauss rule of x^power times the gamma density with moments d0, d1, d2
     [scaled] into nodes (masses x [scaled]) and weights [scaled number x x^power]: sum_s
     weights_s f(x_s) approximates int x^power f(x) gamma(x) dx (exactly for polynomials f of
-    degree < 2 DRY_BREAKAGE_NODES). Returns the number of nodes used: 0 for no class (d0 or
-    d1 not positive) or an unconverged eigen-solve, 1 for a class at one mass (its mean, the
-    weight d0 mu^power), else DRY_BREAKAGE_NODES."""
+    degree < 2 DRY_BREAKAGE_NODES). Returns the number of nodes written: DRY_BREAKAGE_NODES, or
+    0 where there is no gamma (d0 or d1 not positive, a class at one mass: var <=
+    SINGLE_NODE_VARIANCE mu^2) or the eigen-solve did not converge."""
     if not (d0 > 0.0 and d1 > 0.0):
         return 0
     mu = d1 / d0
     var = d2 / d0 - mu * mu
     if not var > SINGLE_NODE_VARIANCE * mu * mu:
-        nodes[0], weights[0] = mu, d0 * mu ** power
-        return 1
+        return 0
     k = mu * mu / var
     theta = var / mu
     shape = k + power
@@ -81,7 +82,7 @@ def add_dry_breakage_on_gamma(state, out, factor, params, config):
     """Add the dry class's breakage rows dD~_e/dt [scaled per s] (e < 3, module docstring) of
     an order-3 state to ``out``; F_cell = factor [1/s]. Returns False (nothing added) where the
     eigen-solve did not converge, for the caller to take the fixed weight's rows."""
-    K = 9
+    K = DRY_FIRST
     d0, d1, d2 = state[K], state[K + 1], state[K + 2]
     if not (d0 > 0.0 and d1 > 0.0):
         return True                                  # no dry class: no rows

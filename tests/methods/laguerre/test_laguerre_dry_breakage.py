@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from scipy.special import gammaln
 
-from pbe_cfd.methods.laguerre.linear_terms import add_dry_breakage_on_gamma
+from pbe_cfd.methods.laguerre.linear_terms import DRY_FIRST, add_dry_breakage_on_gamma
 from pbe_cfd.physics import parameters as P
 from pbe_cfd.runs import model
 from pbe_cfd.runs.simulate import run_well_mixed
@@ -27,7 +27,7 @@ from conftest import make_scene
 from test_breakage import EXACT, N0, P0, TOL, equal_F, uniform_F
 
 ROUND_OFF = 1e-13
-K = 9                   # the dry class's first entry at m = 3
+K = DRY_FIRST             # the dry class's first entry at m = 3
 
 
 def dry_scene(selection, daughters, end=10.0, rate=0.1):
