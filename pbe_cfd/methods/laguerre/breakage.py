@@ -131,6 +131,18 @@ def add_laguerre_breakage(state, out, cell, aux, params, config, wpos, dry_rows)
         if f != 0.0:
             add_linear_term(state, out, aux, o + w * K * K, K, 0, 0, factor * f)
     if dry_rows:
-        n_weights = nwc * nwd * max(1, int(aux[AUX_NWL]))
-        add_linear_term(state, out, aux, o + n_weights * K * K, m, K, K, factor)
+        add_dry_breakage_matrix(state, out, aux, factor)
     return factor
+
+
+@nb.njit(cache=True)
+def add_dry_breakage_matrix(state, out, aux, factor):
+    """Add the dry class's breakage rows of its fixed weight, F_cell L_dry D~ [scaled per s]
+    (factor = F_cell [1/s]), to ``out``; nothing without a breakage block."""
+    o = int(aux[AUX_OFF_BREAK])
+    if o <= 0:
+        return
+    m = int(aux[AUX_ORDER])
+    K = m * m
+    n_weights = int(aux[AUX_NWC]) * int(aux[AUX_NWD]) * max(1, int(aux[AUX_NWL]))
+    add_linear_term(state, out, aux, o + n_weights * K * K, m, K, K, factor)

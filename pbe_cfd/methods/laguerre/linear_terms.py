@@ -12,9 +12,8 @@ g the gamma density of shape k = mu^2 / var and scale theta = var / mu with the 
 (mu, var from D~0, D~1, D~2). With a the selection's exponent (``[breakage] exponent``; 0 for
 the constant selection) the integral is D~0 theta^a Gamma(k + a) / Gamma(k) times the mean of
 x^e S_unit(p_ref x) / x^a over the gamma of shape k + a, taken by that gamma's Gauss rule
-(Golub-Welsch: nodes theta z_s, weights v_s^2, z_s and v_s the eigenvalues and first
-eigenvector components of the Jacobi matrix of the generalised Laguerre polynomials, diagonal
-2 i + k + a, off-diagonal sqrt(i (i + k + a - 1))). For a power-law selection the integrand
+(``quadrature.gamma_inversion.gamma_rule``, EQMOM's secondary rule: Golub-Welsch on the
+generalised Laguerre recurrence), its nodes scaled by theta. For a power-law selection the integrand
 is x^e: every row is the gamma's own closed form (D_(e+a) of the gamma) to round-off, for
 any a >= 0, fractional too, and a constant selection gives exactly (F(e) - 1) F_cell D_e.
 The rows are those of a positive population, so the term keeps D0 D2 >= D1^2 as breakage
@@ -30,8 +29,8 @@ import numpy as np
 
 from ...physics import parameters as P
 from ...physics.breakage import daughter_moment_factor, selection_function
-from ..quadrature.gauss import tridiagonal_eigen
-from .breakage import add_laguerre_breakage
+from ..quadrature.gamma_inversion import gamma_rule
+from .breakage import add_dry_breakage_matrix, add_laguerre_breakage
 from .drying import SINGLE_NODE_VARIANCE, add_laguerre_drying
 from .layout import AUX_FOLLOWING, AUX_ORDER
 
@@ -65,15 +64,11 @@ def dry_gamma_rule(d0, d1, d2, power, nodes, weights):
     shape = k + power
     scale = d0 * theta ** power * math.exp(math.lgamma(shape) - math.lgamma(k))
     n = DRY_BREAKAGE_NODES
-    diagonal, off, first = np.empty(n), np.empty(n), np.empty(n)
-    for i in range(n):
-        diagonal[i] = 2.0 * i + shape
-        off[i] = math.sqrt((i + 1.0) * (i + shape)) if i < n - 1 else 0.0
-    if not tridiagonal_eigen(diagonal, off, first, n):
+    if not gamma_rule(shape, n, nodes, weights, np.empty(2 * n)):
         return 0
     for s in range(n):
-        nodes[s] = theta * diagonal[s]
-        weights[s] = scale * first[s] * first[s]
+        nodes[s] *= theta
+        weights[s] *= scale
     return n
 
 
@@ -122,6 +117,6 @@ def add_linear_terms(state, out, cell, aux, params, config, wpos):
                                        not follows)
         if follows and factor != 0.0:
             if not add_dry_breakage_on_gamma(state, out, factor, params, config):
-                add_laguerre_breakage(state, out, cell, aux, params, config, wpos, True)
+                add_dry_breakage_matrix(state, out, aux, factor)
     if config[P.DRYING] == 1:
         add_laguerre_drying(state, out, cell, aux, params, config)
