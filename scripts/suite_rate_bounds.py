@@ -7,8 +7,8 @@ sectional reference at half and full time (its pivots as a measure; masses in P0
 - breakage with S = s0 (p / P0)^a gives dM_k/dt = (F(k) - 1) s0 M_(k+a) (docs/physics.md 8);
   the constant and sum kernels' aggregation rates of M0 and M2 are closed in M0, M1, M2;
 - the range of M_(k+a), k = 0, 2, over every positive measure with exactly the carried
-  moments (M0..M2: the Laguerre ROM at m = 3; M0..M5: QMOM N = 3): linear programmes (scipy
-  HiGHS) on a log grid of masses from the reference's smallest pivot to a top (its largest
+  moments (M0..M2: the Laguerre ROM at m = 3; M0..M5: QMOM N = 3): the linear programmes of
+  tests/distribution/psd_moment_bounds.py (``linear_extremes``, scipy HiGHS) on a log grid of masses from the reference's smallest pivot to a top (its largest
   pivot, or 10 times the mass that 1e-6 of the mass lies above: the maximum of an order above
   the carried ones is the Stieltjes problem's, unbounded, and grows with the top);
 - the value of a gamma fitted to M0, M1, M2 and of the three-node Gauss rule of M0..M5
@@ -26,41 +26,21 @@ import os
 import sys
 
 import numpy as np
-from scipy.optimize import linprog
 from scipy.special import gammaln
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path[:0] = [os.path.join(HERE, "..", "tests"),
                 os.path.join(HERE, "..", "tests", "methods", "laguerre"),
-                os.path.join(HERE, "..", "tests", "references")]
+                os.path.join(HERE, "..", "tests", "references"),
+                os.path.join(HERE, "..", "tests", "distribution")]
 import laguerre_suite as S  # noqa: E402
 import sectional_kernels as SK  # noqa: E402
-
-#: relative tolerance of the moment constraints of the linear programmes
-EPS = 1e-6
+from psd_moment_bounds import linear_extremes  # noqa: E402
 
 
 def gain(k, daughters):
     """F(k) - 1 of the daughter rule (docs/physics.md 8)."""
     return 2.0 / (k + 1.0) - 1.0 if daughters == "uniform" else 2.0 ** (1.0 - k) - 1.0
-
-
-def lp_bounds(carried, s, grid):
-    """(min, max) of sum w x^s over w >= 0 on ``grid`` with sum w x^k = carried[k] (to EPS);
-    NaN where the programme fails."""
-    A = np.array([grid ** k / carried[k] for k in range(len(carried))])
-    col = A.max(axis=0)
-    A = A / col
-    c = grid ** s / col
-    A_ub = np.vstack([A, -A])
-    b_ub = np.concatenate([np.full(len(carried), 1 + EPS), -np.full(len(carried), 1 - EPS)])
-    out = []
-    for sign in (1.0, -1.0):
-        r = linprog(sign * c / c.max(), A_ub=A_ub, b_ub=b_ub, bounds=(0, None),
-                    method="highs", options={"primal_feasibility_tolerance": 1e-10,
-                                             "dual_feasibility_tolerance": 1e-10})
-        out.append(float((r.x / col) @ grid ** s) if r.status == 0 else np.nan)
-    return out[0], out[1]
 
 
 def gamma_moment(M, s):
@@ -135,8 +115,9 @@ def case_rows(case, points):
                 if s == int(s) and s < n:
                     row[label] = "carried"
                     continue
-                bounds = [lp_bounds(M[:n], s, np.logspace(np.log10(x[0]), np.log10(top),
-                                                          points)) for top in tops]
+                grids = [np.logspace(np.log10(x[0]), np.log10(top), points) for top in tops]
+                bounds = [linear_extremes(M[:n], g, g ** s) or (np.nan, np.nan)
+                          for g in grids]
                 row[label] = "%.3g .. %.3g (top %.3g P0) / %.3g (top %.3g P0)" % (
                     bounds[0][0] / true, bounds[0][1] / true, tops[0], bounds[1][1] / true,
                     tops[1])

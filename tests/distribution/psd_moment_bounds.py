@@ -32,9 +32,10 @@ F = (0.1, 0.5, 0.9)
 AIM = (0.05, 0.03, 0.05)
 
 
-def q3_extremes(moments, xi, grid):
-    """(min, max) of the mass fraction below mass xi [kg] over atoms on ``grid`` [kg] with the
-    number moments ``moments`` [kg^k/m3], k = 0..K; None when the grid cannot match them."""
+def linear_extremes(moments, grid, values):
+    """(min, max) of sum_j w_j values_j over atoms w_j >= 0 at the masses ``grid`` with the
+    number moments sum_j w_j grid_j^k = moments[k], k = 0..K (any consistent units: masses in
+    the grid's, moments in (number) x mass^k); None when the grid cannot match them."""
     moments = np.asarray(moments, float)
     scale = moments[1] / moments[0]                  # mean mass: the unit of the LP
     u = grid / scale
@@ -43,14 +44,22 @@ def q3_extremes(moments, xi, grid):
     b_eq = np.ones(moments.size)
     col = a_eq.max(axis=0)                          # columns scaled to 1 (conditioning)
     a_eq = a_eq / col
-    c = np.where(u <= xi / scale, u, 0.0) / col     # mass below xi, in units of M00 P
+    c = np.asarray(values, float) / col             # per number fraction w_j / M0
+    norm = np.abs(c).max() or 1.0                   # the objective scaled to 1 (conditioning)
     out = []
     for sign in (1.0, -1.0):
-        r = linprog(sign * c, A_eq=a_eq, b_eq=b_eq, bounds=(0, None), method="highs")
+        r = linprog(sign * c / norm, A_eq=a_eq, b_eq=b_eq, bounds=(0, None), method="highs")
         if r.status != 0:
             return None
-        out.append(sign * r.fun / (moments[1] / (moments[0] * scale)))
+        out.append(sign * r.fun * norm * moments[0])
     return tuple(out)
+
+
+def q3_extremes(moments, xi, grid):
+    """(min, max) of the mass fraction below mass xi [kg] over atoms on ``grid`` [kg] with the
+    number moments ``moments`` [kg^k/m3], k = 0..K; None when the grid cannot match them."""
+    found = linear_extremes(moments, grid, np.where(grid <= xi, grid, 0.0))
+    return None if found is None else (found[0] / moments[1], found[1] / moments[1])
 
 
 def percentile_range(moments, q, grid, rho):
